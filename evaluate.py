@@ -1,0 +1,22 @@
+"""Test an experiment: ``python evaluate.py experiment=exp4 [checkpoint=DIR] [overrides]``."""
+import hydra
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig
+
+from neuroimagery.cli import friendly_errors
+from neuroimagery.config import register_configs
+from neuroimagery.run import evaluate
+
+register_configs()
+
+
+@hydra.main(version_base="1.3", config_path="conf", config_name="config")
+@friendly_errors
+def main(cfg: DictConfig) -> None:
+    evaluate(cfg)
+    out = HydraConfig.get().runtime.output_dir
+    print(f"report: {out}/report.md")
+
+
+if __name__ == "__main__":
+    main()

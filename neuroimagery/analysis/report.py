@@ -1,0 +1,72 @@
+"""``report.md``: a run's results beside the thesis's targets, with the figures embedded."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+
+def fmt(v: Any, pct: bool = False) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, (int, float)):
+        return f"{100 * v:.1f} %" if pct else (f"{v:.3g}" if isinstance(v, float) else str(v))
+    return str(v)
+
+
+class Report:
+    """Builds a markdown report section by section; ``write(path)`` saves it."""
+
+    def __init__(self, title: str) -> None:
+        self.lines: list[str] = [f"# {title}", ""]
+
+    def h(self, text: str, level: int = 2) -> "Report":
+        self.lines += ["#" * level + " " + text, ""]
+        return self
+
+    def p(self, text: str) -> "Report":
+        self.lines += [text, ""]
+        return self
+
+    def bullets(self, items) -> "Report":
+        self.lines += [f"- {x}" for x in items] + [""]
+        return self
+
+    def table(self, header: list[str], rows: list[list[Any]]) -> "Report":
+        self.lines.append("| " + " | ".join(header) + " |")
+        self.lines.append("|" + "|".join("---" for _ in header) + "|")
+        for r in rows:
+            self.lines.append("| " + " | ".join(fmt(x) if not isinstance(x, str) else x for x in r) + " |")
+        self.lines.append("")
+        return self
+
+    def targets(self, rows: list[tuple[str, Any, Any, bool]]) -> "Report":
+        """Rows of (measure, this run, thesis, as percentage?) with the difference."""
+        out = []
+        for name, ours, thesis, pct in rows:
+            diff = None
+            if isinstance(ours, (int, float)) and isinstance(thesis, (int, float)):
+                diff = ours - thesis
+            d = "-" if diff is None else (f"{100 * diff:+.1f} pts" if pct else f"{diff:+.3g}")
+            out.append([name, fmt(ours, pct), fmt(thesis, pct), d])
+        return self.table(["measure", "this run", "thesis", "difference"], out)
+
+    def figure(self, path: str | Path, caption: str, root: str | Path | None = None) -> "Report":
+        rel = Path(path).relative_to(root) if root is not None else Path(path)
+        self.lines += [f"![{caption}]({rel.as_posix()})", "", f"*{caption}*", ""]
+        return self
+
+    def text(self) -> str:
+        return "\n".join(self.lines).rstrip() + "\n"
+
+    def write(self, path: str | Path) -> Path:
+        path = Path(path)
+        path.write_text(self.text())
+        return path
+
+
+def reproducibility_note(seed: int) -> str:
+    return (f"Seed {seed}. With the same seed and configuration every file of this run is reproduced "
+            "exactly, except `runtime_s` in summary.json (wall-clock times) and the TensorBoard event "
+            "files (which carry timestamps).")

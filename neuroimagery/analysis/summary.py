@@ -1,0 +1,85 @@
+"""From ``trials.csv`` rows to the figures of ``summary.json`` (Experiments 1-4), and the
+statistics the reports quote."""
+from __future__ import annotations
+
+import math
+from typing import Iterable
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+TRIAL_COLUMNS = [
+    "participant", "test", "condition", "target_object", "target_angle", "target_appearance",
+    "rotated_object", "rotated_angle", "rotated_appearance", "disparity", "same", "answer", "correct",
+    "rotation_steps", "rotated_ok", "rt",
+]
+
+
+def check_trials(df: pd.DataFrame) -> pd.DataFrame:
+    """Raise ValueError naming the missing columns of a trials table; returns it ordered."""
+    missing = [c for c in TRIAL_COLUMNS if c not in df.columns]
+    if missing:
+        raise ValueError(f"trials table lacks columns {missing}")
+    extra = [c for c in df.columns if c not in TRIAL_COLUMNS]
+    return df[TRIAL_COLUMNS + extra]
+
+
+def _r(x: float, nd: int = 4):
+    return None if x is None or (isinstance(x, float) and math.isnan(x)) else round(float(x), nd)
+
+
+def rt_profile(df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """Mean RT per disparity level (sorted)."""
+    g = df.groupby("disparity")["rt"].mean().sort_index()
+    return g.index.to_numpy(dtype=float), g.to_numpy(dtype=float)
+
+
+def summarise_test(df: pd.DataFrame) -> dict:
+    """The per-test figures of summary.json for the trials of one ``<test>/<condition>``."""
+    n = len(df)
+    correct = float(df["correct"].astype(float).mean()) if n else float("nan")
+    x, y = rt_profile(df)
+    if len(x) >= 2 and np.ptp(y) > 0:
+        slope, _, r, _, _ = stats.linregress(x, y)
+    else:
+        slope, r = (0.0 if len(x) >= 2 else float("nan")), float("nan")
+    err = df.groupby("disparity")["correct"].apply(lambda c: 1.0 - c.astype(float).mean()).sort_index()
+    return {
+        "n_trials": int(n),
+        "correct_rate": _r(correct),
+        "error_rate": _r(1.0 - correct),
+        "rotation_success_rate": _r(float(df["rotated_ok"].astype(float).mean()) if n else float("nan")),
+        "rt_mean": _r(float(df["rt"].mean()) if n else float("nan"), 3),
+        "rt_by_disparity": {str(int(round(k))): _r(v, 3) for k, v in zip(x, y)},
+        "error_rate_by_disparity": {str(int(round(k))): _r(v) for k, v in err.items()},
+        "rt_slope_per_deg": _r(slope),
+        "rt_r": _r(r),
+    }
+
+
+def summarise_trials(df: pd.DataFrame) -> dict:
+    """``{"<test>/<condition>": summarise_test(...)}`` over the whole trials table."""
+    out = {}
+    for (test, cond), g in df.groupby(["test", "condition"], sort=False):
+        out[f"{test}/{cond}"] = summarise_test(g)
+    return out
+
+
+def compare_rt(a: Iterable[float], b: Iterable[float]) -> dict:
+    """Welch's t-test of two RT samples: means, difference, t and two-sided p."""
+    a, b = np.asarray(list(a), float), np.asarray(list(b), float)
+    t, p = stats.ttest_ind(a, b, equal_var=False)
+    return {"mean_a": _r(a.mean(), 3), "mean_b": _r(b.mean(), 3), "diff": _r(a.mean() - b.mean(), 3),
+            "t": _r(t), "p": float(p) if np.isfinite(p) else None, "n_a": int(a.size), "n_b": int(b.size)}
+
+
+def compare_rates(a: Iterable[bool], b: Iterable[bool]) -> dict:
+    """Two proportions compared by a chi-square test (Fisher's exact test for small counts)."""
+    a, b = np.asarray(list(a), float), np.asarray(list(b), float)
+    table = np.array([[a.sum(), a.size - a.sum()], [b.sum(), b.size - b.sum()]])
+    if table.min() < 5:
+        _, p = stats.fisher_exact(table)
+    else:
+        _, p, _, _ = stats.chi2_contingency(table)
+    return {"rate_a": _r(a.mean()), "rate_b": _r(b.mean()), "diff": _r(a.mean() - b.mean()), "p": float(p)}

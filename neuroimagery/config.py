@@ -1,0 +1,100 @@
+"""Hydra structured-config schema of the whole project, and its validation.
+
+``conf/config.yaml`` composes ``experiment/``, ``vision/``, ``stimuli/`` and ``logger/`` groups on
+top of :class:`Config`. Every group is typed by a dataclass, so a misspelt key or a wrong type is
+rejected by Hydra while composing; range checks run in each dataclass's ``__post_init__`` when
+:func:`validate` turns the composed config into objects, before any work starts.
+"""
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING, DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from .errors import UserInputError
+from .vision.config import StimuliConfig, VisionConfig
+
+EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "demo")
+
+
+@dataclass
+class LoggerConfig:
+    """TensorBoard output (``logger=tensorboard``) or none (``logger=none``)."""
+
+    kind: str = "tensorboard"
+    map_images: bool = True  # write map activity as images
+    sample_trials: int = 2  # trials per test whose maps are logged step by step
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("tensorboard", "none"):
+            raise ValueError(f"logger.kind must be 'tensorboard' or 'none', got {self.kind!r}")
+        if self.sample_trials < 0:
+            raise ValueError(f"logger.sample_trials must be >= 0, got {self.sample_trials}")
+
+
+@dataclass
+class Config:
+    """Top-level configuration shared by every experiment."""
+
+    experiment: Any = MISSING
+    vision: VisionConfig = field(default_factory=VisionConfig)
+    stimuli: StimuliConfig = field(default_factory=StimuliConfig)
+    logger: LoggerConfig = field(default_factory=LoggerConfig)
+    seed: int = 0  # fixes every random draw
+    participants: int = 10  # simulated participants (independent weights), trained as one batch
+    preset: str = "full"  # full protocol, or 'quick' for a first look (each experiment says what it shrinks)
+    checkpoint: Optional[str] = None  # evaluate.py: a training run's directory; None trains first
+    progress: bool = True  # progress bars on long loops
+    threads: int = 0  # torch intra-op threads (0 = torch's default)
+
+    def __post_init__(self) -> None:
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
+        if self.participants < 1:
+            raise ValueError(f"participants must be >= 1, got {self.participants}")
+        if self.preset not in ("full", "quick"):
+            raise ValueError(f"preset must be 'full' or 'quick', got {self.preset!r}")
+        if self.threads < 0:
+            raise ValueError(f"threads must be >= 0, got {self.threads}")
+
+
+def experiment_module(name: str):
+    """The module implementing experiment ``name`` (``neuroimagery.experiments.<name>``)."""
+    if name not in EXPERIMENTS:
+        raise UserInputError(f"unknown experiment {name!r}; choose one of {', '.join(EXPERIMENTS)}")
+    return importlib.import_module(f"neuroimagery.experiments.{name}")
+
+
+def register_configs() -> None:
+    """Store the schemas in Hydra's ConfigStore (called before composing)."""
+    cs = ConfigStore.instance()
+    cs.store(name="base_config", node=Config)
+    for name in EXPERIMENTS:
+        try:
+            mod = experiment_module(name)
+        except ModuleNotFoundError:
+            continue
+        schema = getattr(mod, "CONFIG", None)
+        if schema is not None:
+            cs.store(group="experiment", name=f"{name}_schema", node=schema)
+
+
+def validate(cfg: DictConfig | Config) -> Config:
+    """Turn a composed config into checked objects; a bad value raises :class:`UserInputError`."""
+    if isinstance(cfg, Config):
+        return cfg
+    try:
+        obj = OmegaConf.to_object(cfg)
+    except (ValueError, OmegaConfBaseException) as e:
+        msg = str(e).split("\n")[0]
+        raise UserInputError(f"invalid configuration: {msg}") from None
+    if not isinstance(obj, Config):
+        raise UserInputError("invalid configuration: the primary config must extend base_config")
+    name = getattr(obj.experiment, "name", None)
+    if name is None:
+        raise UserInputError("invalid configuration: choose an experiment, e.g. experiment=exp4")
+    return obj

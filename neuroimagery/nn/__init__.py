@@ -1,0 +1,17 @@
+"""Building blocks: population-coded maps, connections, local learning rules, SOMs and decision
+dynamics. No block knows which experiment uses it."""
+from .connections import AllToAll, Connection, GainField, HardWired, OneToOne
+from .decision import Decision, DynamicField, LeakyCompetingAccumulator
+from .functional import gain_field, gaussian_bump, softmax_probabilities, softmax_select, transfer
+from .maps import PopulationMap
+from .rules import Delta, Hebbian, Kohonen, QLearning, Rule, SupervisedKohonen
+from .seeding import participant_generators
+from .som import SOM, BidirectionalSOM
+
+__all__ = [
+    "AllToAll", "Connection", "GainField", "HardWired", "OneToOne",
+    "Decision", "DynamicField", "LeakyCompetingAccumulator",
+    "gain_field", "gaussian_bump", "softmax_probabilities", "softmax_select", "transfer",
+    "PopulationMap", "Delta", "Hebbian", "Kohonen", "QLearning", "Rule", "SupervisedKohonen",
+    "participant_generators", "SOM", "BidirectionalSOM",
+]

@@ -1,0 +1,158 @@
+"""Connections between maps (thesis section 4.3, eq. 4.4) with in-place local learning.
+
+Every connection holds its weights as a buffer of shape ``(P, out, in)`` - one weight matrix per
+simulated participant - and computes ``y = F(W x)`` (eq. 4.4) for activity ``x`` of shape
+``(P, B, in)``. A 2-D input ``(B, in)`` is treated as one participant and the output is 2-D
+again, so a connection drops into an ordinary torch model: its forward is differentiable with
+respect to its input, while the weights themselves never require grad.
+
+Learning: ``conn.learn(pre=..., post=..., ...)`` asks each attached rule for a change (computed at
+the same weights) and adds their sum in place under ``torch.no_grad()``; it does nothing while the
+module is in ``eval()`` mode.
+"""
+from __future__ import annotations
+
+from typing import Iterable, Sequence
+
+import torch
+from torch import nn
+
+from . import seeding
+from .functional import as_batched, check_tensor, gain_field, transfer
+from .rules import Rule
+
+
+class Connection(nn.Module):
+    """Base class: a weight buffer ``(P, out, in)``, a transfer function, and learning rules."""
+
+    def __init__(self, n_in: int, n_out: int, weight: torch.Tensor, transfer_fn: str = "identity",
+                 rules: Rule | Iterable[Rule] = (), name: str = "") -> None:
+        super().__init__()
+        if n_in < 1 or n_out < 1:
+            raise ValueError(f"connection {name!r}: n_in and n_out must be >= 1, got {n_in}, {n_out}")
+        self.n_in, self.n_out, self.name = int(n_in), int(n_out), name
+        self.transfer_name = transfer_fn
+        self.F = transfer(transfer_fn)
+        self.register_buffer("weight", weight.detach().clone())
+        self.rules = nn.ModuleList([rules] if isinstance(rules, Rule) else list(rules))
+
+    @property
+    def participants(self) -> int:
+        return self.weight.shape[0]
+
+    def _weight_for(self, x: torch.Tensor) -> torch.Tensor:
+        w = self.weight
+        if w.shape[0] == 1 and x.shape[0] != 1:
+            w = w.expand(x.shape[0], -1, -1)
+        elif w.shape[0] != x.shape[0]:
+            raise ValueError(f"connection {self.name!r}: input has {x.shape[0]} participants, weights have {w.shape[0]}")
+        return w
+
+    def net(self, x: torch.Tensor) -> torch.Tensor:
+        """Weighted sum ``W x`` before the transfer function."""
+        xb, squeeze = as_batched(x, self.n_in, f"input of {self.name or type(self).__name__}")
+        y = torch.bmm(xb, self._weight_for(xb).transpose(1, 2))
+        return y[0] if squeeze and x.dim() == 2 else (y[0, 0] if squeeze else y)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """``F(W x)`` (eq. 4.4)."""
+        return self.F(self.net(x))
+
+    @torch.no_grad()
+    def learn(self, pre: torch.Tensor, post: torch.Tensor | None = None, **kw) -> torch.Tensor | None:
+        """Apply every rule's change in place (only in ``train()`` mode). Returns the total change."""
+        if not self.training or len(self.rules) == 0:
+            return None
+        pre_b, _ = as_batched(pre, self.n_in, "pre")
+        if post is not None:
+            post, _ = as_batched(post, self.n_out, "post")
+        for key in ("target",):
+            if key in kw and kw[key] is not None:
+                kw[key], _ = as_batched(kw[key], self.n_out, key)
+        total = sum(rule.delta(self.weight, pre=pre_b, post=post, **kw) for rule in self.rules)
+        if not torch.isfinite(total).all():
+            raise FloatingPointError(f"connection {self.name!r}: learning produced non-finite weights")
+        self.weight.add_(total)
+        return total
+
+    def reset_state(self) -> None:
+        """Connections hold no activity; present for a uniform interface."""
+
+    def extra_repr(self) -> str:
+        return f"name={self.name!r}, in={self.n_in}, out={self.n_out}, P={self.participants}, F={self.transfer_name}"
+
+
+class AllToAll(Connection):
+    """Every input unit connects to every output unit (Fig. 4.2).
+
+    ``init=(low, high)`` draws initial weights from U[low, high) per participant (thesis: U[0, 0.1]);
+    ``init='zeros'`` starts from zero. ``generators`` (one per participant) or ``participants`` +
+    ``seed`` set the draws.
+    """
+
+    def __init__(self, n_in: int, n_out: int, participants: int = 1, init: str | tuple[float, float] = (0.0, 0.1),
+                 generators: Sequence[torch.Generator] | None = None, seed: int = 0, transfer_fn: str = "identity",
+                 rules: Rule | Iterable[Rule] = (), name: str = "") -> None:
+        if generators is None:
+            generators = seeding.participant_generators(seed, participants)
+        P = len(generators)
+        if init == "zeros":
+            w = torch.zeros(P, n_out, n_in)
+        elif isinstance(init, (tuple, list)) and len(init) == 2:
+            lo, hi = float(init[0]), float(init[1])
+            if hi < lo:
+                raise ValueError(f"init range must have low <= high, got {init}")
+            w = seeding.uniform(generators, (n_out, n_in), lo, hi)
+        else:
+            raise ValueError(f"init must be 'zeros' or (low, high), got {init!r}")
+        super().__init__(n_in, n_out, w, transfer_fn, rules, name)
+
+
+class HardWired(Connection):
+    """A fixed weight pattern shared by all participants (no learning), e.g. a flip or a pooling."""
+
+    def __init__(self, matrix: torch.Tensor, transfer_fn: str = "identity", name: str = "") -> None:
+        check_tensor("matrix", matrix)
+        if matrix.dim() != 2:
+            raise ValueError(f"matrix must be 2-D (out, in), got shape {tuple(matrix.shape)}")
+        super().__init__(matrix.shape[1], matrix.shape[0], matrix.float().unsqueeze(0), transfer_fn, (), name)
+
+    @classmethod
+    def permutation(cls, index: torch.Tensor, name: str = "") -> "HardWired":
+        """Output unit ``j`` copies input unit ``index[j]`` (e.g. a mirror or a flip of a map)."""
+        n = index.numel()
+        m = torch.zeros(n, n)
+        m[torch.arange(n), index.long()] = 1.0
+        return cls(m, name=name)
+
+
+class OneToOne(Connection):
+    """Unit ``i`` of the input drives unit ``i`` of the output with its own weight ``w_i``.
+
+    Weights are stored as ``(P, 1, n)``; ``y = F(w * x)``.
+    """
+
+    def __init__(self, n: int, participants: int = 1, value: float = 1.0, transfer_fn: str = "identity",
+                 rules: Rule | Iterable[Rule] = (), name: str = "") -> None:
+        super().__init__(n, n, torch.full((participants, 1, n), float(value)), transfer_fn, rules, name)
+
+    def net(self, x: torch.Tensor) -> torch.Tensor:
+        xb, squeeze = as_batched(x, self.n_in, f"input of {self.name or 'OneToOne'}")
+        y = xb * self._weight_for(xb)
+        return y[0] if squeeze and x.dim() == 2 else (y[0, 0] if squeeze else y)
+
+
+class GainField(nn.Module):
+    """Gain-field combination of two 1-D codes into a 2-D map (eq. 6.1, 6.9): ``m_ij = a_i b_j``."""
+
+    def __init__(self, n_a: int, n_b: int, name: str = "") -> None:
+        super().__init__()
+        self.n_a, self.n_b, self.name = int(n_a), int(n_b), name
+
+    def forward(self, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+        check_tensor("a", a, (self.n_a,))
+        check_tensor("b", b, (self.n_b,))
+        return gain_field(a, b)
+
+    def reset_state(self) -> None:
+        pass

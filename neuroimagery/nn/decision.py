@@ -1,0 +1,170 @@
+"""Decision dynamics: a dynamic neural field competing to threshold (thesis 5.1-5.2), a leaky
+competing accumulator (eq. 6.12-6.13) and softmax selection (eq. 6.3, 6.11, 7.7).
+
+One cycle of either dynamics is one simulated millisecond of response time (thesis chapter 5).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import torch
+from torch import nn
+
+from .functional import check_rate, check_tensor, softmax_probabilities, softmax_select  # noqa: F401
+from .som import grid_coords
+
+
+@dataclass
+class Decision:
+    """Result of a race to threshold for a batch ``(P, B)``.
+
+    ``winner``: index of the first unit to cross (long; -1 if none did); ``cycles``: cycles until
+    it crossed (``max_cycles`` if none did); ``decided``: whether any unit crossed; ``state``: the
+    final activity.
+    """
+
+    winner: torch.Tensor
+    cycles: torch.Tensor
+    decided: torch.Tensor
+    state: torch.Tensor
+
+
+class DynamicField(nn.Module):
+    """A neural field with all-to-all lateral weights inside one map.
+
+    ``u <- u + (dt / tau) (-u + h + s + W f(u))`` with ``f(u) = clamp(u, 0, 1)`` and a lateral
+    kernel ``W(d) = a_exc exp(-d^2 / (2 sigma_exc^2)) - a_inh`` of the grid distance ``d``:
+    short-range excitation, long-range inhibition (Amari / Erlhagen & Schoener style). The field
+    is iterated until a unit's activity crosses ``threshold``; the number of cycles is the
+    simulated response time.
+
+    Args:
+        shape: map grid ``(n,)`` or ``(rows, cols)``.
+        tau: time constant in cycles; dt is one cycle.
+        h: resting level.
+        a_exc, sigma_exc: amplitude and width (grid units) of the local excitation.
+        a_inh: strength of the global inhibition between every pair of units.
+        threshold: activity a unit must reach to win.
+    """
+
+    def __init__(self, shape: Sequence[int], tau: float = 10.0, h: float = 0.0, a_exc: float = 0.6,
+                 sigma_exc: float = 1.5, a_inh: float = 0.15, threshold: float = 0.9, name: str = "") -> None:
+        super().__init__()
+        self.shape = tuple(int(s) for s in shape)
+        self.tau = check_rate("tau", tau, low=1.0)
+        self.h = float(h)
+        self.a_exc = check_rate("a_exc", a_exc)
+        self.sigma_exc = check_rate("sigma_exc", sigma_exc, open_low=True)
+        self.a_inh = check_rate("a_inh", a_inh)
+        self.threshold = check_rate("threshold", threshold, open_low=True)
+        self.name = name
+        g = grid_coords(self.shape)
+        d2 = ((g.unsqueeze(0) - g.unsqueeze(1)) ** 2).sum(-1)
+        self.register_buffer("kernel", self.a_exc * torch.exp(-d2 / (2 * self.sigma_exc**2)) - self.a_inh)
+        self.n = g.shape[0]
+
+    def step(self, u: torch.Tensor, s: torch.Tensor) -> torch.Tensor:
+        """One Euler cycle for activity ``u`` and input ``s``, both ``(..., n)``."""
+        f = u.clamp(0.0, 1.0)
+        return u + (-u + self.h + s + f @ self.kernel.T) / self.tau
+
+    @torch.no_grad()
+    def forward(self, s: torch.Tensor, max_cycles: int = 1000, u0: torch.Tensor | None = None) -> Decision:
+        """Race to threshold with constant input ``s`` ``(..., *shape)``; returns a :class:`Decision`."""
+        check_tensor("input", s, self.shape)
+        if max_cycles < 1:
+            raise ValueError(f"max_cycles must be >= 1, got {max_cycles}")
+        flat = s.reshape(*s.shape[: s.dim() - len(self.shape)], self.n)
+        u = torch.full_like(flat, self.h) if u0 is None else u0.reshape(flat.shape).clone()
+        batch = flat.shape[:-1]
+        winner = torch.full(batch, -1, dtype=torch.long)
+        cycles = torch.full(batch, max_cycles, dtype=torch.long)
+        done = torch.zeros(batch, dtype=torch.bool)
+        for t in range(1, max_cycles + 1):
+            u = self.step(u, flat)
+            m, idx = u.max(-1)
+            new = (m >= self.threshold) & ~done
+            if new.any():
+                winner = torch.where(new, idx, winner)
+                cycles = torch.where(new, torch.full_like(cycles, t), cycles)
+                done = done | new
+                if bool(done.all()):
+                    break
+        return Decision(winner, cycles, done, u.reshape(s.shape))
+
+    def reset_state(self) -> None:
+        pass
+
+
+class LeakyCompetingAccumulator(nn.Module):
+    """Leaky competing accumulator (Usher & McClelland; eq. 6.12-6.13).
+
+    For two (or more) options: ``dy_i = dt (-k y_i - w sum_{j != i} y_j + I_i)``, activities kept
+    non-negative. The accumulator crossing ``threshold`` first gives the answer. The state can be
+    carried over between calls, so a trial can feed it ``cycles`` cycles per rotation step without
+    resetting (thesis: 10 cycles per step, threshold 1.2, w = 0.5).
+
+    Args:
+        k: leak (not given in the thesis; see docs/choices.md).
+        w: mutual inhibition.
+        threshold: decision threshold.
+        dt: integration step per cycle.
+        noise: standard deviation of Gaussian noise added per cycle (0 = deterministic).
+    """
+
+    def __init__(self, n: int = 2, k: float = 0.2, w: float = 0.5, threshold: float = 1.2, dt: float = 0.1,
+                 noise: float = 0.0, name: str = "") -> None:
+        super().__init__()
+        if n < 2:
+            raise ValueError(f"n must be >= 2 options, got {n}")
+        self.n = int(n)
+        self.k = check_rate("k", k)
+        self.w = check_rate("w", w)
+        self.threshold = check_rate("threshold", threshold, open_low=True)
+        self.dt = check_rate("dt", dt, open_low=True, high=1.0)
+        self.noise = check_rate("noise", noise)
+        self.name = name
+
+    def initial_state(self, batch: Sequence[int]) -> torch.Tensor:
+        return torch.zeros(*batch, self.n)
+
+    @torch.no_grad()
+    def forward(self, inputs: torch.Tensor, cycles: int, state: torch.Tensor | None = None,
+                active: torch.Tensor | None = None, generator: torch.Generator | None = None) -> Decision:
+        """Integrate ``cycles`` cycles of ``inputs`` ``(..., n)``; stop each element at threshold.
+
+        ``active`` (bool ``(...)``) freezes elements that already decided. ``Decision.cycles`` is
+        the number of cycles this call ran for each element until it decided (``cycles`` if not).
+        """
+        check_tensor("inputs", inputs, (self.n,))
+        if cycles < 1:
+            raise ValueError(f"cycles must be >= 1, got {cycles}")
+        y = self.initial_state(inputs.shape[:-1]) if state is None else state.clone()
+        batch = inputs.shape[:-1]
+        live = torch.ones(batch, dtype=torch.bool) if active is None else active.clone()
+        winner = torch.full(batch, -1, dtype=torch.long)
+        used = torch.full(batch, cycles, dtype=torch.long)
+        decided = torch.zeros(batch, dtype=torch.bool)
+        for t in range(1, cycles + 1):
+            total = y.sum(-1, keepdim=True)
+            dy = -self.k * y - self.w * (total - y) + inputs
+            if self.noise > 0:
+                dy = dy + self.noise * torch.randn(y.shape, generator=generator) / self.dt ** 0.5
+            y = torch.where(live.unsqueeze(-1), (y + self.dt * dy).clamp_min(0.0), y)
+            m, idx = y.max(-1)
+            new = live & (m >= self.threshold)
+            if new.any():
+                winner = torch.where(new, idx, winner)
+                used = torch.where(new, torch.full_like(used, t), used)
+                decided |= new
+                live = live & ~new
+                if not bool(live.any()):
+                    break
+        return Decision(winner, used, decided, y)
+
+    def reset_state(self) -> None:
+        pass
+
+
+__all__ = ["Decision", "DynamicField", "LeakyCompetingAccumulator", "softmax_select", "softmax_probabilities"]

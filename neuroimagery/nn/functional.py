@@ -1,0 +1,115 @@
+"""Stateless helpers shared by the blocks: transfer functions, Gaussian bumps, gain fields,
+softmax selection and input checks."""
+from __future__ import annotations
+
+import math
+from typing import Callable, Sequence
+
+import torch
+
+from ..errors import UserInputError
+
+TRANSFER: dict[str, Callable[[torch.Tensor], torch.Tensor]] = {
+    "identity": lambda x: x,
+    "sigmoid": torch.sigmoid,
+    "tanh": torch.tanh,
+    "relu": torch.relu,
+    "threshold": lambda x: (x > 0).to(x.dtype),
+}
+
+
+def transfer(name: str) -> Callable[[torch.Tensor], torch.Tensor]:
+    """The transfer function ``F`` of eq. 4.4 by name (identity, sigmoid, tanh, relu, threshold)."""
+    try:
+        return TRANSFER[name]
+    except KeyError:
+        raise ValueError(f"unknown transfer function {name!r}; choose one of {sorted(TRANSFER)}") from None
+
+
+def check_rate(name: str, value: float, low: float = 0.0, high: float | None = None, open_low: bool = False) -> float:
+    """Raise ValueError naming ``name`` unless ``low <= value (<= high)`` and finite."""
+    v = float(value)
+    if not math.isfinite(v) or v < low or (open_low and v == low) or (high is not None and v > high):
+        rng = f"({low}, {high}]" if open_low else f"[{low}, {'inf' if high is None else high}]"
+        raise ValueError(f"{name} must be in {rng}, got {value!r}")
+    return v
+
+
+def check_tensor(name: str, x: torch.Tensor, last_dims: Sequence[int] | None = None, finite: bool = True) -> torch.Tensor:
+    """Raise ValueError naming ``name`` if ``x`` is not a tensor, has the wrong trailing shape or NaNs."""
+    if not isinstance(x, torch.Tensor):
+        raise ValueError(f"{name} must be a torch.Tensor, got {type(x).__name__}")
+    if last_dims is not None:
+        k = len(last_dims)
+        if x.dim() < k or tuple(x.shape[x.dim() - k:]) != tuple(last_dims):
+            raise ValueError(f"{name} must end in shape {tuple(last_dims)}, got {tuple(x.shape)}")
+    if finite and x.is_floating_point() and not torch.isfinite(x).all():
+        raise ValueError(f"{name} contains NaN or infinite values")
+    return x
+
+
+def as_batched(x: torch.Tensor, n: int, name: str = "input") -> tuple[torch.Tensor, bool]:
+    """View ``x`` as ``(P, B, n)``.
+
+    Accepts ``(n,)`` (one trial, one participant), ``(B, n)`` (P = 1) or ``(P, B, n)``. Returns the
+    view and whether the caller should squeeze the participant axis away again.
+    """
+    check_tensor(name, x, (n,))
+    if x.dim() == 1:
+        return x.reshape(1, 1, n), True
+    if x.dim() == 2:
+        return x.unsqueeze(0), True
+    if x.dim() == 3:
+        return x, False
+    raise ValueError(f"{name} must have shape (n,), (B, n) or (P, B, n) with n={n}, got {tuple(x.shape)}")
+
+
+def gaussian_bump(centres: torch.Tensor, coords: torch.Tensor, sigma: float | torch.Tensor, amplitude: float = 1.0) -> torch.Tensor:
+    """Gaussian tuning curves (eq. 4.1, noise-free mean response).
+
+    ``centres``: ``(..., D)`` values to encode; ``coords``: ``(n, D)`` preferred values of the
+    units. Returns ``(..., n)`` activity ``A exp(-|c - x|^2 / (2 sigma^2))``.
+    """
+    d2 = ((centres.unsqueeze(-2) - coords) ** 2).sum(-1)
+    return amplitude * torch.exp(-d2 / (2.0 * torch.as_tensor(sigma, dtype=d2.dtype) ** 2))
+
+
+def gain_field(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Gain field (eq. 6.1, 6.9): outer product of two 1-D population codes.
+
+    ``a``: ``(..., n)``, ``b``: ``(..., m)`` -> ``(..., n, m)`` with entry ``a_i * b_j``.
+    """
+    return a.unsqueeze(-1) * b.unsqueeze(-2)
+
+
+def softmax_probabilities(x: torch.Tensor, temperature: float) -> torch.Tensor:
+    """Boltzmann probabilities ``exp(x_i / tau) / sum_k exp(x_k / tau)`` (eq. 6.3, 6.11, 7.7)."""
+    check_rate("temperature", temperature, open_low=True)
+    return torch.softmax(x / temperature, dim=-1)
+
+
+def softmax_select(x: torch.Tensor, temperature: float, generators: Sequence[torch.Generator] | None = None,
+                   uniforms: torch.Tensor | None = None) -> torch.Tensor:
+    """Draw one index per row of ``x`` (``(P, B, n)`` or ``(B, n)``) with softmax probabilities.
+
+    Randomness comes either from ``uniforms`` (``x.shape[:-1]`` numbers in [0, 1)) or from one
+    generator per participant (first axis). Returns long indices of shape ``x.shape[:-1]``.
+    """
+    p = softmax_probabilities(x, temperature)
+    if uniforms is None:
+        if generators is None:
+            raise ValueError("softmax_select needs generators or uniforms")
+        if x.dim() == 3:
+            if len(generators) != x.shape[0]:
+                raise ValueError(f"softmax_select: {len(generators)} generators for {x.shape[0]} participants")
+            uniforms = torch.stack([torch.rand(x.shape[1], generator=g) for g in generators])
+        else:
+            uniforms = torch.rand(x.shape[:-1], generator=generators[0])
+    cdf = p.cumsum(-1)
+    idx = (cdf < uniforms.unsqueeze(-1).to(cdf.dtype)).sum(-1)
+    return idx.clamp_max(x.shape[-1] - 1)
+
+
+def user_error(msg: str) -> UserInputError:
+    """Shorthand used by loaders for a user's mistake."""
+    return UserInputError(msg)

@@ -1,0 +1,108 @@
+"""Population-coded neural maps (thesis section 4.2, eq. 4.1).
+
+A map is a named 1-D or 2-D grid of units. Each unit has a preferred value (its coordinate in
+the encoded space); a scalar or 2-D value is represented as a Gaussian bump of activity centred
+on the units that prefer it, and read back by centre of mass (or by the most active unit).
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import torch
+from torch import nn
+
+from .functional import check_rate, check_tensor, gaussian_bump
+
+
+class PopulationMap(nn.Module):
+    """A grid of ``shape`` units whose activity lives in the buffer ``activity`` ``(P, B, *shape)``.
+
+    Args:
+        name: label used in logs and TensorBoard.
+        shape: ``(n,)`` or ``(rows, cols)``.
+        low, high: the encoded range along each grid axis (scalars or one per axis). Unit ``k`` of an
+            axis with ``n`` units prefers ``low + k (high - low) / (n - 1)``.
+        sigma: width of the Gaussian tuning curve in encoded units (eq. 4.1).
+        noise: standard deviation of the additive noise ``n_i`` of eq. 4.1 (0 = noise free).
+    """
+
+    def __init__(self, name: str, shape: Sequence[int], low: float | Sequence[float] = 0.0,
+                 high: float | Sequence[float] = 1.0, sigma: float = 0.1, noise: float = 0.0) -> None:
+        super().__init__()
+        shape = tuple(int(s) for s in shape)
+        if len(shape) not in (1, 2) or min(shape) < 1:
+            raise ValueError(f"map {name!r}: shape must be (n,) or (rows, cols) of positive sizes, got {shape}")
+        self.name = name
+        self.shape = shape
+        self.sigma = check_rate("sigma", sigma, open_low=True)
+        self.noise = check_rate("noise", noise)
+        d = len(shape)
+        lows = [float(low)] * d if not isinstance(low, (list, tuple)) else [float(v) for v in low]
+        highs = [float(high)] * d if not isinstance(high, (list, tuple)) else [float(v) for v in high]
+        if len(lows) != d or len(highs) != d:
+            raise ValueError(f"map {name!r}: low/high need {d} values")
+        axes = [torch.linspace(lo, hi, n) if n > 1 else torch.tensor([lo]) for lo, hi, n in zip(lows, highs, shape)]
+        grid = torch.meshgrid(*axes, indexing="ij")
+        self.register_buffer("coords", torch.stack([g.reshape(-1) for g in grid], dim=-1))  # (n, D)
+        self.register_buffer("activity", torch.zeros(1, 1, *shape))
+
+    @property
+    def n(self) -> int:
+        """Number of units."""
+        return self.coords.shape[0]
+
+    def encode(self, values: torch.Tensor, amplitude: float = 1.0, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Gaussian population code of ``values``.
+
+        ``values``: ``(...)`` for a 1-D map or ``(..., 2)`` for a 2-D map. Returns ``(..., *shape)``.
+        With ``noise > 0`` the noise term of eq. 4.1 is added (drawn from ``generator``).
+        """
+        values = torch.as_tensor(values, dtype=self.coords.dtype)
+        if len(self.shape) == 1:
+            values = values.unsqueeze(-1)
+        else:
+            check_tensor("values", values, (2,))
+        out = gaussian_bump(values, self.coords, self.sigma, amplitude)
+        if self.noise > 0:
+            out = out + self.noise * torch.randn(out.shape, generator=generator, dtype=out.dtype)
+        return out.reshape(*out.shape[:-1], *self.shape)
+
+    def decode(self, activity: torch.Tensor, method: str = "com") -> torch.Tensor:
+        """Read a value back from ``activity`` ``(..., *shape)``.
+
+        ``com``: centre of mass of the (rectified) activity; ``argmax``: preferred value of the most
+        active unit. Returns ``(...)`` for 1-D maps, ``(..., 2)`` for 2-D maps. All-zero activity
+        decodes to NaN under ``com``.
+        """
+        check_tensor("activity", activity, self.shape, finite=False)
+        flat = activity.reshape(*activity.shape[: activity.dim() - len(self.shape)], self.n)
+        if method == "argmax":
+            val = self.coords[flat.argmax(-1)]
+        elif method == "com":
+            w = flat.clamp_min(0)
+            val = (w.unsqueeze(-1) * self.coords).sum(-2) / w.sum(-1, keepdim=True)
+        else:
+            raise ValueError(f"decode method must be 'com' or 'argmax', got {method!r}")
+        return val.squeeze(-1) if len(self.shape) == 1 else val
+
+    def set(self, activity: torch.Tensor) -> torch.Tensor:
+        """Store ``activity`` (``(P, B, *shape)``) as the map's current state and return it."""
+        check_tensor("activity", activity, self.shape)
+        self.activity = activity.detach()
+        return activity
+
+    def flat(self, activity: torch.Tensor | None = None) -> torch.Tensor:
+        """``activity`` (default: the stored one) with the grid axes flattened to ``n``."""
+        a = self.activity if activity is None else activity
+        return a.reshape(*a.shape[: a.dim() - len(self.shape)], self.n)
+
+    def unflat(self, flat: torch.Tensor) -> torch.Tensor:
+        """Inverse of :meth:`flat`."""
+        return flat.reshape(*flat.shape[:-1], *self.shape)
+
+    def reset_state(self) -> None:
+        """Silence the map."""
+        self.activity = torch.zeros(1, 1, *self.shape, dtype=self.coords.dtype)
+
+    def extra_repr(self) -> str:
+        return f"name={self.name!r}, shape={self.shape}, sigma={self.sigma}"

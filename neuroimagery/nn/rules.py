@@ -1,0 +1,200 @@
+"""Local, autograd-free learning rules.
+
+A rule only *computes* a weight change from the activity it is given; the connection that owns
+the weights applies it in place (see :meth:`neuroimagery.nn.connections.Connection.learn`). Several
+rules on one connection therefore do not depend on their order.
+
+Weights have shape ``(P, out, in)`` (participants first); activities ``(P, B, n)``. Changes from
+the ``B`` patterns of a batch are computed at the same weights and added (``reduction='sum'``) or
+averaged (``'mean'``); with ``B = 1`` both equal the online rule of the thesis.
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from .functional import check_rate
+
+
+def _reduce(x: torch.Tensor, reduction: str, batch: int) -> torch.Tensor:
+    return x / batch if reduction == "mean" else x
+
+
+def _check_reduction(reduction: str) -> str:
+    if reduction not in ("sum", "mean"):
+        raise ValueError(f"reduction must be 'sum' or 'mean', got {reduction!r}")
+    return reduction
+
+
+class Rule(nn.Module):
+    """Base class: ``delta(weight, **activity) -> change`` with the weight's shape."""
+
+    def delta(self, weight: torch.Tensor, **kw) -> torch.Tensor:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+class Hebbian(Rule):
+    """Hebbian learning in Oja's bounded form (eq. 4.2-4.3).
+
+    ``dw_ij = eta * a_i * (a_j - w_ij)`` for the synapse from neuron ``i`` to neuron ``j``.
+
+    * ``form='outstar'``: ``i`` is the presynaptic unit. The weights leaving an active input unit
+      move toward the output pattern, so ``W x`` of a learnt input reproduces its associated output.
+      This is how the thesis's associative maps (affordances, forward models) learn.
+    * ``form='instar'``: ``i`` is the postsynaptic unit. The weights entering an active output unit
+      move toward the input pattern (the rule behind competitive / SOM-like learning).
+
+    Weight ``W[p, j, i]`` connects input ``i`` to output ``j``.
+    """
+
+    def __init__(self, eta: float, form: str = "outstar", reduction: str = "sum") -> None:
+        super().__init__()
+        self.eta = check_rate("eta", eta)
+        if form not in ("outstar", "instar"):
+            raise ValueError(f"form must be 'outstar' or 'instar', got {form!r}")
+        self.form = form
+        self.reduction = _check_reduction(reduction)
+
+    def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, **_) -> torch.Tensor:
+        corr = torch.einsum("pbj,pbi->pji", post, pre)  # sum_b y_j x_i
+        if self.form == "outstar":
+            decay = weight * pre.sum(1).unsqueeze(1)  # w_ji * sum_b x_i
+        else:
+            decay = weight * post.sum(1).unsqueeze(2)  # w_ji * sum_b y_j
+        return self.eta * _reduce(corr - decay, self.reduction, pre.shape[1])
+
+    def extra_repr(self) -> str:
+        return f"eta={self.eta}, form={self.form!r}"
+
+
+class Delta(Rule):
+    """Delta (Widrow-Hoff) rule (eq. 6.4): ``dw_ji = eta (y_j - a_j) x_i``.
+
+    ``target`` is the desired output ``y``, ``post`` the actual output ``a``. Thesis: eta = 0.1.
+    """
+
+    def __init__(self, eta: float = 0.1, reduction: str = "sum") -> None:
+        super().__init__()
+        self.eta = check_rate("eta", eta)
+        self.reduction = _check_reduction(reduction)
+
+    def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, target: torch.Tensor, **_) -> torch.Tensor:
+        err = target - post
+        return self.eta * _reduce(torch.einsum("pbj,pbi->pji", err, pre), self.reduction, pre.shape[1])
+
+    def extra_repr(self) -> str:
+        return f"eta={self.eta}"
+
+
+class Kohonen(Rule):
+    """Kohonen self-organising step (eq. 4.5) with decaying rate and radius.
+
+    ``w_k <- w_k + theta_k(t) eta(t) (v - w_k)`` where ``theta_k = exp(-d(k, bmu)^2 / (2 sigma(t)^2))``
+    is a Gaussian of the grid distance to the best-matching unit. ``eta`` and ``sigma`` decay
+    exponentially from their initial to their final values over ``iterations`` steps.
+
+    Weights ``(P, units, in)``: row ``k`` is unit ``k``'s prototype.
+    """
+
+    def __init__(self, eta: float = 0.1, sigma: float = 5.0, iterations: int = 10_000,
+                 eta_final: float = 0.01, sigma_final: float = 0.5, cutoff: float = 1e-6) -> None:
+        super().__init__()
+        self.eta0 = check_rate("eta", eta, open_low=True)
+        self.sigma0 = check_rate("sigma", sigma, open_low=True)
+        self.eta1 = check_rate("eta_final", eta_final, open_low=True)
+        self.sigma1 = check_rate("sigma_final", sigma_final, open_low=True)
+        if int(iterations) < 1:
+            raise ValueError(f"iterations must be >= 1, got {iterations}")
+        self.iterations = int(iterations)
+        self.cutoff = check_rate("cutoff", cutoff)
+
+    def schedule(self, t: int | torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(eta(t), sigma(t))``, exponential interpolation, constant after ``iterations``."""
+        frac = torch.clamp(torch.as_tensor(t, dtype=torch.float32) / max(self.iterations - 1, 1), 0.0, 1.0)
+        eta = self.eta0 * (self.eta1 / self.eta0) ** frac
+        sigma = self.sigma0 * (self.sigma1 / self.sigma0) ** frac
+        return eta, sigma
+
+    def neighbourhood(self, grid: torch.Tensor, bmu: torch.Tensor, sigma: torch.Tensor) -> torch.Tensor:
+        """``theta`` of every unit: ``grid`` ``(units, D)`` coords, ``bmu`` ``(...)`` -> ``(..., units)``."""
+        d2 = ((grid[bmu].unsqueeze(-2) - grid) ** 2).sum(-1)
+        theta = torch.exp(-d2 / (2.0 * sigma**2))
+        return torch.where(theta < self.cutoff, torch.zeros_like(theta), theta)
+
+    def delta(self, weight: torch.Tensor, pre: torch.Tensor, bmu: torch.Tensor, grid: torch.Tensor, t: int = 0, **_) -> torch.Tensor:
+        """``pre`` ``(P, 1, in)`` (one pattern per participant), ``bmu`` ``(P,)``."""
+        eta, sigma = self.schedule(t)
+        h = eta * self.neighbourhood(grid, bmu, sigma)  # (P, units)
+        return h.unsqueeze(-1) * (pre[:, 0].unsqueeze(1) - weight)
+
+    def extra_repr(self) -> str:
+        return f"eta={self.eta0}->{self.eta1}, sigma={self.sigma0}->{self.sigma1}, iterations={self.iterations}"
+
+
+class SupervisedKohonen(Kohonen):
+    """Supervised Kohonen step (eq. 6.7-6.8, 6.14-6.16).
+
+    The winner is not searched for: it is forced to the unit that codes the known label (e.g.
+    the wrist posture the image was seen at). After the Kohonen step each unit's weights are
+    normalised to sum to one. The returned change is ``normalised(w + dw) - w``.
+    """
+
+    def __init__(self, eta: float = 0.1, sigma: float = 1.0, iterations: int = 1000,
+                 eta_final: float | None = None, sigma_final: float | None = None, normalise: bool = True,
+                 cutoff: float = 1e-6) -> None:
+        super().__init__(eta, sigma, iterations, eta if eta_final is None else eta_final,
+                         sigma if sigma_final is None else sigma_final, cutoff)
+        self.normalise = bool(normalise)
+
+    def delta(self, weight: torch.Tensor, pre: torch.Tensor, bmu: torch.Tensor, grid: torch.Tensor, t: int = 0, **_) -> torch.Tensor:
+        new = weight + super().delta(weight, pre, bmu, grid, t)
+        if self.normalise:
+            new = new / new.sum(-1, keepdim=True).clamp_min(1e-12)
+        return new - weight
+
+
+class QLearning(Rule):
+    """Q-learning on a connection from a state map to action units (eq. 7.1).
+
+    The action values are ``q = W x``. After the action ``win`` chosen for input ``x_{t-1}``
+    earns ``reward_t``, only the weights into ``win`` change:
+
+    * ``form='standard'`` (default): ``dw_{win,i} = eta (reward_t + gamma qMax_t - qWin_{t-1}) x_{i,t-1}``,
+      the usual temporal-difference target (no bootstrap term when ``done``).
+    * ``form='printed'``: the sign exactly as printed in eq. 7.1,
+      ``dw_{win,i} = eta ((reward_t - gamma qMax_t) - qWin_{t-1}) x_{i,t-1}``; see docs/choices.md.
+
+    With one-hot inputs this is tabular Q-learning. Thesis values: eta = 0.0001, gamma = 0.8.
+    Weights ``(P, actions, inputs)``; ``pre`` ``(P, B, inputs)`` is ``x_{t-1}``, ``action`` long
+    ``(P, B)``, ``reward`` ``(P, B)``, ``next_pre`` ``(P, B, inputs)`` is ``x_t`` (gives ``qMax_t``),
+    ``done`` bool ``(P, B)``.
+    """
+
+    def __init__(self, eta: float = 1e-4, gamma: float = 0.8, form: str = "standard", reduction: str = "sum") -> None:
+        super().__init__()
+        self.eta = check_rate("eta", eta)
+        self.gamma = check_rate("gamma", gamma, high=1.0)
+        if form not in ("standard", "printed"):
+            raise ValueError(f"form must be 'standard' or 'printed', got {form!r}")
+        self.form = form
+        self.reduction = _check_reduction(reduction)
+
+    def delta(self, weight: torch.Tensor, pre: torch.Tensor, action: torch.Tensor, reward: torch.Tensor,
+              next_pre: torch.Tensor, done: torch.Tensor | None = None, **_) -> torch.Tensor:
+        q_prev = torch.einsum("pai,pbi->pba", weight, pre)
+        q_win = q_prev.gather(-1, action.unsqueeze(-1)).squeeze(-1)  # (P, B)
+        q_max = torch.einsum("pai,pbi->pba", weight, next_pre).max(-1).values
+        if done is not None:
+            q_max = torch.where(done, torch.zeros_like(q_max), q_max)
+        reward = torch.as_tensor(reward, dtype=weight.dtype)
+        sign = 1.0 if self.form == "standard" else -1.0
+        err = reward + sign * self.gamma * q_max - q_win  # (P, B)
+        onehot = torch.nn.functional.one_hot(action, weight.shape[1]).to(weight.dtype)  # (P, B, A)
+        d = torch.einsum("pba,pb,pbi->pai", onehot, err, pre)
+        return self.eta * _reduce(d, self.reduction, pre.shape[1])
+
+    def extra_repr(self) -> str:
+        return f"eta={self.eta}, gamma={self.gamma}, form={self.form!r}"
+
+
+__all__ = ["Rule", "Hebbian", "Delta", "Kohonen", "SupervisedKohonen", "QLearning"]

@@ -1,0 +1,55 @@
+"""Per-participant random number generators.
+
+Every simulated participant owns a :class:`torch.Generator` seeded from ``(seed, participant)``,
+so participant ``p`` of a batched run of ``P`` participants draws exactly the numbers a solo run
+of participant ``p`` draws. Blocks that need randomness take a list of generators (one per
+participant) and stack the per-participant draws.
+"""
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+import torch
+
+_MIX = 0x9E3779B97F4A7C15  # golden-ratio constant, spreads nearby seeds apart
+
+
+def participant_seed(seed: int, participant: int, stream: int = 0) -> int:
+    """Deterministic 63-bit seed of one participant's random stream."""
+    if seed < 0 or participant < 0 or stream < 0:
+        raise ValueError(f"seed, participant and stream must be >= 0, got {seed}, {participant}, {stream}")
+    x = (seed * 1_000_003 + participant * 7919 + stream * 104_729 + 1) * _MIX
+    return x % (2**63 - 1)
+
+
+def participant_generators(seed: int, participants: int | Sequence[int], stream: int = 0) -> list[torch.Generator]:
+    """One generator per participant.
+
+    ``participants`` is a count ``P`` (participants ``0..P-1``) or an explicit list of
+    participant indices (so a solo run of participant 3 is ``participant_generators(seed, [3])``).
+    ``stream`` separates independent uses (initial weights, training order, trial noise ...).
+    """
+    ids = list(range(participants)) if isinstance(participants, int) else list(participants)
+    if not ids:
+        raise ValueError("participants must be >= 1")
+    gens = []
+    for p in ids:
+        g = torch.Generator()
+        g.manual_seed(participant_seed(seed, p, stream))
+        gens.append(g)
+    return gens
+
+
+def stacked(generators: Sequence[torch.Generator], draw: Callable[[torch.Generator], torch.Tensor]) -> torch.Tensor:
+    """Stack ``draw(g)`` over the participants' generators along a new leading axis."""
+    return torch.stack([draw(g) for g in generators])
+
+
+def uniform(generators: Sequence[torch.Generator], shape: Sequence[int], low: float = 0.0, high: float = 1.0) -> torch.Tensor:
+    """U[low, high) of shape ``(P, *shape)``, one participant per generator."""
+    return stacked(generators, lambda g: torch.rand(tuple(shape), generator=g)) * (high - low) + low
+
+
+def randint(generators: Sequence[torch.Generator], high: int, shape: Sequence[int]) -> torch.Tensor:
+    """Integers in ``[0, high)`` of shape ``(P, *shape)``."""
+    return stacked(generators, lambda g: torch.randint(high, tuple(shape), generator=g))

@@ -1,0 +1,317 @@
+"""Kohonen self-organising maps (thesis 4.3.2, eq. 4.5-4.6; supervised form eq. 6.7-6.8,
+6.14-6.16; bidirectional supervised SOM of chapter 7).
+
+Weights ``(P, units, in)``: row ``k`` of participant ``p`` is unit ``k``'s prototype. Training is
+online (one pattern per participant per iteration, as in the thesis's algorithm) and batched over
+participants. Two exact implementations of the same online rule are offered:
+
+* ``method='online'`` updates the weight matrix at every step (cost ``units x in`` per step);
+* ``method='factored'`` never touches the weights while training. Every weight vector stays a
+  combination ``w_k = c_k w0_k + sum_n A_kn x_n`` of its initial value and the ``N`` training
+  patterns, so the step ``w_k <- (1 - a_k) w_k + a_k x_s`` only rescales ``c_k`` and ``A_k`` and
+  adds ``a_k`` to ``A_ks``; distances come from the maintained dot products ``D_kn = w_k . x_n``
+  and norms ``|w_k|^2``. The cost per step is ``units x N``, independent of the input size, and
+  the weights are formed once at the end. Same sequence of winners, same weights up to float
+  rounding (see ``tests/test_som.py``).
+
+``method='auto'`` picks ``factored`` when there are fewer training patterns than inputs.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import torch
+from torch import nn
+
+from . import seeding
+from .functional import as_batched, check_rate, check_tensor
+from .rules import Kohonen, SupervisedKohonen
+
+
+def grid_coords(shape: Sequence[int]) -> torch.Tensor:
+    """Integer grid coordinates ``(units, D)`` of a 1-D or 2-D map."""
+    axes = [torch.arange(int(n), dtype=torch.float32) for n in shape]
+    g = torch.meshgrid(*axes, indexing="ij")
+    return torch.stack([x.reshape(-1) for x in g], dim=-1)
+
+
+class SOM(nn.Module):
+    """A (supervised) Kohonen map with max-normalised read-out.
+
+    Args:
+        shape: grid of the map, ``(n,)`` or ``(rows, cols)``.
+        n_in: input size.
+        participants / generators / seed: independent weights per participant, U[init] at start.
+        eta, sigma, eta_final, sigma_final, iterations: decay schedule of eq. 4.5 (``sigma`` in grid
+            units; default: half the larger side).
+        supervised: forced winners and unit-sum normalisation (eq. 6.7-6.8) instead of BMU search.
+        readout: ``'dot'`` (``y = W x``, eq. 4.4) or ``'distance'`` (``y = -|x - w|``, shifted to be
+            positive), both normalised by their maximum (eq. 4.6).
+    """
+
+    def __init__(self, shape: Sequence[int], n_in: int, participants: int = 1,
+                 generators: Sequence[torch.Generator] | None = None, seed: int = 0,
+                 init: tuple[float, float] = (0.0, 0.1), eta: float = 0.1, sigma: float | None = None,
+                 eta_final: float = 0.01, sigma_final: float = 0.5, iterations: int = 10_000,
+                 supervised: bool = False, readout: str = "dot", name: str = "") -> None:
+        super().__init__()
+        self.shape = tuple(int(s) for s in shape)
+        if len(self.shape) not in (1, 2) or min(self.shape) < 1:
+            raise ValueError(f"SOM {name!r}: shape must be (n,) or (rows, cols), got {shape}")
+        if n_in < 1:
+            raise ValueError(f"SOM {name!r}: n_in must be >= 1, got {n_in}")
+        if readout not in ("dot", "distance"):
+            raise ValueError(f"readout must be 'dot' or 'distance', got {readout!r}")
+        self.n_in, self.name, self.readout, self.supervised = int(n_in), name, readout, bool(supervised)
+        if generators is None:
+            generators = seeding.participant_generators(seed, participants)
+        units = 1
+        for s in self.shape:
+            units *= s
+        self.units = units
+        sigma = max(self.shape) / 2.0 if sigma is None else sigma
+        rule_cls = SupervisedKohonen if supervised else Kohonen
+        if supervised:
+            self.rule = SupervisedKohonen(eta, sigma, iterations, eta_final, sigma_final)
+        else:
+            self.rule = rule_cls(eta, sigma, iterations, eta_final, sigma_final)
+        self.register_buffer("grid", grid_coords(self.shape))
+        self.register_buffer("weight", seeding.uniform(generators, (units, self.n_in), float(init[0]), float(init[1])))
+        self.register_buffer("steps", torch.zeros((), dtype=torch.long))
+
+    @property
+    def participants(self) -> int:
+        return self.weight.shape[0]
+
+    # ------------------------------------------------------------------ read-out
+    def distances(self, x: torch.Tensor) -> torch.Tensor:
+        """Squared Euclidean distance of every input ``(P, B, in)`` to every unit -> ``(P, B, units)``."""
+        xb, _ = as_batched(x, self.n_in, f"input of SOM {self.name!r}")
+        w = self.weight
+        d = (w * w).sum(-1).unsqueeze(1) - 2 * torch.bmm(xb, w.transpose(1, 2)) + (xb * xb).sum(-1, keepdim=True)
+        return d.clamp_min(0)
+
+    def bmu(self, x: torch.Tensor) -> torch.Tensor:
+        """Best-matching unit (Euclidean) of each input -> long ``(P, B)``."""
+        return self.distances(x).argmin(-1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Max-normalised read-out (eq. 4.4 + 4.6), shape ``(P, B, *shape)`` (or without P for 2-D input)."""
+        xb, squeeze = as_batched(x, self.n_in, f"input of SOM {self.name!r}")
+        if self.readout == "dot":
+            y = torch.bmm(xb, self.weight.transpose(1, 2))
+        else:
+            d = self.distances(xb).sqrt()
+            y = d.max(-1, keepdim=True).values - d
+        y = y / y.max(-1, keepdim=True).values.clamp_min(1e-12)
+        y = y.reshape(*y.shape[:-1], *self.shape)
+        if squeeze:
+            return y[0] if x.dim() == 2 else y[0, 0]
+        return y
+
+    # ------------------------------------------------------------------ learning
+    @torch.no_grad()
+    def step(self, x: torch.Tensor, winner: torch.Tensor | None = None) -> torch.Tensor:
+        """One online step (eq. 4.5) with one pattern per participant ``x`` ``(P, in)``.
+
+        ``winner`` ``(P,)`` forces the winning unit (supervised, eq. 6.7); otherwise the BMU is
+        used. Returns the winners. Does nothing but return the BMU in ``eval()`` mode.
+        """
+        check_tensor("x", x, (self.n_in,))
+        xb = x.reshape(self.participants, 1, self.n_in)
+        if winner is None:
+            if self.supervised:
+                raise ValueError(f"SOM {self.name!r} is supervised: step() needs the winner")
+            winner = self.bmu(xb)[:, 0]
+        if self.training:
+            d = self.rule.delta(self.weight, pre=xb, bmu=winner, grid=self.grid, t=int(self.steps))
+            self.weight.add_(d)
+            self.steps += 1
+        return winner
+
+    @torch.no_grad()
+    def fit(self, patterns: torch.Tensor, iterations: int | None = None, labels: torch.Tensor | None = None,
+            generators: Sequence[torch.Generator] | None = None, order: torch.Tensor | None = None,
+            method: str = "auto", progress: bool = False) -> torch.Tensor:
+        """Train on ``patterns`` (``(N, in)`` shared, or ``(P, N, in)`` per participant).
+
+        Each iteration every participant draws one pattern at random (its own generator, or the
+        given ``order`` ``(P, iterations)`` of indices). ``labels`` ``(N,)`` or ``(P, N)`` are the
+        forced winners of a supervised map. Returns the winners ``(P, iterations)``.
+        """
+        if method not in ("auto", "online", "factored"):
+            raise ValueError(f"method must be 'auto', 'online' or 'factored', got {method!r}")
+        check_tensor("patterns", patterns, (self.n_in,))
+        P = self.participants
+        X = patterns.to(self.weight.dtype)
+        X = X.unsqueeze(0).expand(P, -1, -1) if X.dim() == 2 else X
+        if X.dim() != 3 or X.shape[0] != P:
+            raise ValueError(f"patterns must be (N, {self.n_in}) or ({P}, N, {self.n_in}), got {tuple(patterns.shape)}")
+        N = X.shape[1]
+        if self.supervised and labels is None:
+            raise ValueError(f"SOM {self.name!r} is supervised: fit() needs labels")
+        if labels is not None:
+            labels = torch.as_tensor(labels, dtype=torch.long)
+            labels = labels.unsqueeze(0).expand(P, -1) if labels.dim() == 1 else labels
+            if labels.shape != (P, N):
+                raise ValueError(f"labels must be (N,) or (P, N) with N={N}, got {tuple(labels.shape)}")
+            if labels.min() < 0 or labels.max() >= self.units:
+                raise ValueError(f"labels must index units 0..{self.units - 1}")
+        T = self.rule.iterations if iterations is None else int(iterations)
+        if T < 1:
+            raise ValueError(f"iterations must be >= 1, got {iterations}")
+        if order is None:
+            if generators is None:
+                raise ValueError("fit() needs generators (one per participant) or an explicit order")
+            if len(generators) != P:
+                raise ValueError(f"fit(): {len(generators)} generators for {P} participants")
+            order = seeding.randint(generators, N, (T,))
+        order = torch.as_tensor(order, dtype=torch.long)
+        if order.shape != (P, T):
+            raise ValueError(f"order must have shape ({P}, {T}), got {tuple(order.shape)}")
+        if not self.training:
+            return order
+        if method == "auto":
+            method = "factored" if N < self.n_in else "online"
+        it = range(T)
+        if progress:
+            from tqdm.auto import tqdm
+
+            it = tqdm(it, desc=f"SOM {self.name}", leave=False)
+        fn = self._fit_factored if method == "factored" else self._fit_online
+        return fn(X, order, labels, it)
+
+    def _fit_online(self, X, order, labels, it) -> torch.Tensor:
+        P = self.participants
+        p = torch.arange(P)
+        winners = torch.empty_like(order)
+        for t in it:
+            s = order[:, t]
+            x = X[p, s]
+            w = None if labels is None else labels[p, s]
+            winners[:, t] = self.step(x, w)
+        return winners
+
+    def _fit_factored(self, X, order, labels, it) -> torch.Tensor:
+        P, N, _ = X.shape
+        p = torch.arange(P)
+        dt = torch.float64  # the recurrences are exact in real arithmetic; float64 keeps them so
+        W0 = self.weight.to(dt)
+        Xd = X.to(dt)
+        G = torch.bmm(Xd, Xd.transpose(1, 2))  # (P, N, N)
+        D = torch.bmm(W0, Xd.transpose(1, 2))  # (P, U, N)  w_k . x_n
+        nrm = (W0 * W0).sum(-1)  # (P, U)
+        c = torch.ones(P, self.units, dtype=dt)
+        A = torch.zeros(P, self.units, N, dtype=dt)
+        rowsum = W0.sum(-1)
+        xsum = Xd.sum(-1)  # (P, N)
+        normalise = isinstance(self.rule, SupervisedKohonen) and self.rule.normalise
+        winners = torch.empty_like(order)
+        t0 = int(self.steps)
+        for t in it:
+            s = order[:, t]
+            Gs = G[p, s]  # (P, N)
+            Ds = D[p, :, s]  # (P, U)
+            if labels is None:
+                win = (nrm - 2 * Ds).argmin(-1)
+            else:
+                win = labels[p, s]
+            winners[:, t] = win
+            eta, sigma = self.rule.schedule(t0 + t)
+            a = (eta * self.rule.neighbourhood(self.grid, win, sigma)).to(dt)  # (P, U)
+            b = 1 - a
+            gss = Gs[p, s].unsqueeze(-1)  # (P, 1)
+            nrm = b * b * nrm + 2 * a * b * Ds + a * a * gss
+            D = b.unsqueeze(-1) * D + a.unsqueeze(-1) * Gs.unsqueeze(1)
+            c = b * c
+            A = b.unsqueeze(-1) * A
+            A[p, :, s] += a
+            if normalise:
+                rowsum = b * rowsum + a * xsum[p, s].unsqueeze(-1)
+                k = 1.0 / rowsum.clamp_min(1e-12)
+                nrm = nrm * k * k
+                D = D * k.unsqueeze(-1)
+                c = c * k
+                A = A * k.unsqueeze(-1)
+                rowsum = torch.ones_like(rowsum)
+        self.weight.copy_((c.unsqueeze(-1) * W0 + torch.bmm(A, Xd)).to(self.weight.dtype))
+        self.steps += order.shape[1]
+        return winners
+
+    def quantization_error(self, patterns: torch.Tensor) -> torch.Tensor:
+        """Mean distance of each participant's patterns to their BMU prototype -> ``(P,)``."""
+        X = patterns.unsqueeze(0).expand(self.participants, -1, -1) if patterns.dim() == 2 else patterns
+        return self.distances(X).min(-1).values.sqrt().mean(-1)
+
+    def topographic_error(self, patterns: torch.Tensor) -> torch.Tensor:
+        """Share of patterns whose two best units are not grid neighbours -> ``(P,)``."""
+        X = patterns.unsqueeze(0).expand(self.participants, -1, -1) if patterns.dim() == 2 else patterns
+        two = self.distances(X).topk(2, dim=-1, largest=False).indices  # (P, N, 2)
+        d = (self.grid[two[..., 0]] - self.grid[two[..., 1]]).abs().max(-1).values
+        return (d > 1).float().mean(-1)
+
+    def reset_state(self) -> None:
+        """SOMs keep no activity between calls."""
+
+    def extra_repr(self) -> str:
+        return f"name={self.name!r}, shape={self.shape}, in={self.n_in}, P={self.participants}, supervised={self.supervised}"
+
+
+class BidirectionalSOM(nn.Module):
+    """Supervised SOM over paired patterns that runs both ways (chapter 7, connection C3).
+
+    Each unit keeps a prototype of an *input* pattern ``a`` (size ``n_a``) and of an *output*
+    pattern ``b`` (size ``n_b``). Training presents the concatenation ``[a, b]``; the winner is
+    forced to the pair's label if one is given, otherwise it is the best match. Afterwards
+    ``forward(a)`` finds the unit whose ``a``-prototype matches best and returns its
+    ``b``-prototype; ``backward(b)`` does the reverse, which is how an action (``b``) is turned
+    into the image of its outcome (``a``).
+    """
+
+    def __init__(self, units: int, n_a: int, n_b: int, participants: int = 1,
+                 generators: Sequence[torch.Generator] | None = None, seed: int = 0, eta: float = 0.1,
+                 sigma: float = 0.5, iterations: int = 1000, eta_final: float | None = None,
+                 sigma_final: float | None = None, name: str = "") -> None:
+        super().__init__()
+        self.n_a, self.n_b, self.name = int(n_a), int(n_b), name
+        check_rate("eta", eta, open_low=True)
+        self.som = SOM((units,), self.n_a + self.n_b, participants, generators, seed, (0.0, 0.1), eta, sigma,
+                       eta if eta_final is None else eta_final, sigma if sigma_final is None else sigma_final,
+                       iterations, supervised=False, name=name)
+
+    @property
+    def weight(self) -> torch.Tensor:
+        return self.som.weight
+
+    def fit(self, a: torch.Tensor, b: torch.Tensor, labels: torch.Tensor | None = None, **kw) -> torch.Tensor:
+        """Train on paired patterns ``a`` ``(.., N, n_a)`` and ``b`` ``(.., N, n_b)``."""
+        check_tensor("a", a, (self.n_a,))
+        check_tensor("b", b, (self.n_b,))
+        if a.shape[:-1] != b.shape[:-1]:
+            raise ValueError(f"a and b must pair up: {tuple(a.shape)} vs {tuple(b.shape)}")
+        X = torch.cat([a, b], dim=-1)
+        if labels is not None:
+            self.som.supervised = True
+            self.som.rule.normalise = False  # prototypes are images, not weight distributions
+        return self.som.fit(X, labels=labels, **kw)
+
+    def _match(self, x: torch.Tensor, lo: int, hi: int) -> torch.Tensor:
+        xb, _ = as_batched(x, hi - lo, "pattern")
+        w = self.som.weight[..., lo:hi]
+        d = (w * w).sum(-1).unsqueeze(1) - 2 * torch.bmm(xb, w.transpose(1, 2))
+        return d.argmin(-1)  # (P, B)
+
+    def _prototypes(self, units: torch.Tensor, lo: int, hi: int) -> torch.Tensor:
+        w = self.som.weight[..., lo:hi]
+        return torch.stack([w[p, units[p]] for p in range(w.shape[0])])
+
+    def forward(self, a: torch.Tensor) -> torch.Tensor:
+        """``a -> b``: output prototype of the unit that best matches ``a`` ``(P, B, n_a)``."""
+        return self._prototypes(self._match(a, 0, self.n_a), self.n_a, self.n_a + self.n_b)
+
+    def backward(self, b: torch.Tensor) -> torch.Tensor:
+        """``b -> a``: the input pattern (mental image) associated with ``b`` ``(P, B, n_b)``."""
+        return self._prototypes(self._match(b, self.n_a, self.n_a + self.n_b), 0, self.n_a)
+
+    def reset_state(self) -> None:
+        pass

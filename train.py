@@ -1,0 +1,21 @@
+"""Train an experiment: ``python train.py experiment=exp4 [overrides]``."""
+import hydra
+from omegaconf import DictConfig
+
+from neuroimagery.cli import friendly_errors
+from neuroimagery.config import register_configs
+from neuroimagery.run import train
+
+register_configs()
+
+
+@hydra.main(version_base="1.3", config_path="conf", config_name="config")
+@friendly_errors
+def main(cfg: DictConfig) -> None:
+    info = train(cfg)
+    print(f"trained {info['experiment']} ({info['participants']} participants) in {info['runtime_s']['train']:.1f} s; "
+          f"checkpoints in {info['checkpoints']}")
+
+
+if __name__ == "__main__":
+    main()
