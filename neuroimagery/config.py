@@ -7,6 +7,7 @@ rejected by Hydra while composing; range checks run in each dataclass's ``__post
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from dataclasses import dataclass, field
 from typing import Any, Optional
@@ -83,10 +84,30 @@ def register_configs() -> None:
             cs.store(group="experiment", name=f"{name}_schema", node=schema)
 
 
+def _unknown_keys(node: DictConfig, path: str = "") -> list[str]:
+    """Keys present in ``node`` but not declared by its dataclass schema (e.g. added with ``+key=``)."""
+    out = []
+    typ = OmegaConf.get_type(node)
+    declared = {f.name for f in dataclasses.fields(typ)} if dataclasses.is_dataclass(typ) else None
+    for key in node.keys():
+        full = f"{path}{key}"
+        if declared is not None and key not in declared:
+            out.append(full)
+        child = node._get_node(key)
+        if isinstance(child, DictConfig) and not child._is_missing() and not child._is_none():
+            out += _unknown_keys(child, full + ".")
+    return out
+
+
 def validate(cfg: DictConfig | Config) -> Config:
     """Turn a composed config into checked objects; a bad value raises :class:`UserInputError`."""
     if isinstance(cfg, Config):
         return cfg
+    if not isinstance(cfg.get("experiment"), DictConfig):
+        raise UserInputError("invalid configuration: choose an experiment, e.g. experiment=exp4")
+    unknown = [k for k in _unknown_keys(cfg) if not k.startswith("hydra")]
+    if unknown:
+        raise UserInputError(f"invalid configuration: unknown key(s) {', '.join(unknown)}")
     try:
         obj = OmegaConf.to_object(cfg)
     except (ValueError, OmegaConfBaseException) as e:

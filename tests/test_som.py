@@ -1,0 +1,74 @@
+"""SOMs: topology on 1-D input, exactness of the factored fit, supervised fitting, bidirectional SOM."""
+import pytest
+import torch
+
+from neuroimagery.nn import SOM, BidirectionalSOM, participant_generators
+from neuroimagery.nn import seeding
+
+
+def test_som_on_1d_input_keeps_topology():
+    # inputs on a line: after training, prototypes along the 1-D map are monotonic
+    X = torch.linspace(0, 1, 50).unsqueeze(1)
+    som = SOM((10,), 1, participants=3, seed=2, eta=0.5, sigma=3.0, eta_final=0.01, sigma_final=0.5, iterations=2000)
+    som.fit(X, generators=participant_generators(2, 3), method="online")
+    for p in range(3):
+        w = som.weight[p, :, 0]
+        diffs = w[1:] - w[:-1]
+        assert bool((diffs > 0).all()) or bool((diffs < 0).all()), w
+    assert float(som.topographic_error(X).max()) == 0.0
+
+
+@pytest.mark.parametrize("supervised", [False, True])
+def test_factored_fit_equals_online_rule(supervised):
+    X = (torch.rand(30, 400, generator=torch.Generator().manual_seed(0)) > 0.7).float()
+    labels = torch.arange(30) % 6 if supervised else None
+    shape = (6,) if supervised else (8, 8)
+    kw = dict(participants=2, seed=4, eta=0.3, sigma=2.0, eta_final=0.02, sigma_final=0.5, iterations=800, supervised=supervised)
+    a, b = SOM(shape, 400, **kw), SOM(shape, 400, **kw)
+    order = seeding.randint(participant_generators(9, 2), 30, (800,))
+    wa = a.fit(X, labels=labels, order=order, method="online")
+    wb = b.fit(X, labels=labels, order=order, method="factored")
+    assert torch.equal(wa, wb)  # same winners at every step
+    assert torch.allclose(a.weight, b.weight, atol=1e-5)
+    assert torch.allclose(a.quantization_error(X), b.quantization_error(X), atol=1e-5)
+
+
+def test_supervised_readout_picks_labelled_unit():
+    X = torch.eye(4).repeat_interleave(1, 0) * 1.0
+    som = SOM((4,), 4, participants=1, supervised=True, eta=0.5, sigma=0.3, iterations=200)
+    som.fit(X, labels=torch.tensor([2, 0, 3, 1]), generators=participant_generators(0, 1))
+    y = som(X)  # (4, 4) max-normalised
+    assert y.argmax(-1).tolist() == [2, 0, 3, 1]
+    assert torch.allclose(y.max(-1).values, torch.ones(4))
+    assert torch.allclose(som.weight.sum(-1), torch.ones(1, 4), atol=1e-5)
+
+
+def test_batched_participants_equal_solo_runs():
+    X = torch.rand(20, 16, generator=torch.Generator().manual_seed(1))
+    batch = SOM((5, 5), 16, generators=participant_generators(3, 3), iterations=300)
+    batch.fit(X, generators=participant_generators(3, 3, stream=1))
+    for p in range(3):
+        solo = SOM((5, 5), 16, generators=participant_generators(3, [p]), iterations=300)
+        solo.fit(X, generators=participant_generators(3, [p], stream=1))
+        assert torch.allclose(solo.weight[0], batch.weight[p], atol=1e-6)
+
+
+def test_bidirectional_som_runs_both_ways():
+    a = torch.eye(5)  # five "images"
+    b = torch.eye(5).flip(0)  # paired "actions"
+    bs = BidirectionalSOM(5, 5, 5, eta=0.5, sigma=0.3, iterations=300)
+    bs.fit(a, b, labels=torch.arange(5), generators=participant_generators(0, 1))
+    assert bs(a.unsqueeze(0))[0].argmax(-1).tolist() == [4, 3, 2, 1, 0]
+    assert bs.backward(b.unsqueeze(0))[0].argmax(-1).tolist() == [0, 1, 2, 3, 4]
+
+
+def test_som_bad_inputs():
+    som = SOM((3, 3), 4)
+    with pytest.raises(ValueError, match="patterns"):
+        som.fit(torch.rand(5, 3), generators=participant_generators(0, 1))
+    with pytest.raises(ValueError, match="NaN"):
+        som(torch.full((2, 4), float("nan")))
+    with pytest.raises(ValueError, match="method"):
+        som.fit(torch.rand(5, 4), generators=participant_generators(0, 1), method="magic")
+    with pytest.raises(ValueError, match="supervised"):
+        SOM((3,), 4, supervised=True).fit(torch.rand(5, 4), generators=participant_generators(0, 1))
