@@ -35,8 +35,8 @@ class VisionConfig:
     eye: str = "left"  # which eye's camera sees the screen: left | right
     image_width: int = 640  # camera image width in pixels (the iCub's cameras: 640x480), [64, 2048]
     image_height: int = 480  # camera image height in pixels, [48, 2048]
-    fov_deg: float = 45.0  # vertical field of view of the eye camera in degrees, [10, 120]
-    screen_distance: float = 0.5  # metres from the eyes to the screen, [0.2, 3]
+    fov_deg: float = 30.0  # vertical field of view of the eye camera in degrees, [10, 120]
+    screen_distance: float = 0.8  # metres from the eyes to the screen, [0.2, 3]
     object_width: float = 0.12  # metres of screen per object cell (one object's square), [0.02, 1]
     gaze_jitter_deg: float = 0.0  # sd of the eye pan/tilt error in degrees (motor accuracy), [0, 5]
 

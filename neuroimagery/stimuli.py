@@ -1,0 +1,102 @@
+"""Contact sheets of stimulus sets: ``python -m neuroimagery.stimuli SET --out DIR``.
+
+Each row is one object in one appearance, each column one protocol angle; every cell shows the
+drawn stimulus beside its 32x32 edge map (direct path).  ``--list`` prints the builtin set names;
+a folder path in place of SET makes a set from the folder's images.  Errors in the user's input
+print one line on stderr and exit with status 2.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+from typing import Optional, Sequence
+
+import cv2
+import numpy as np
+
+from neuroimagery.errors import UserInputError
+
+__all__ = ["contact_sheet", "main"]
+
+_CELL = 96  # pixels per stimulus thumbnail and per edge-map thumbnail
+_LABEL_W = 150
+_HEAD_H = 28
+
+
+def contact_sheet(stimulus_set, size: int = 32) -> np.ndarray:
+    """BGR image: every object x appearance (rows) x angle (columns), stimulus beside edge map."""
+    from neuroimagery.vision import VisionConfig, make_eye
+
+    eye = make_eye(VisionConfig(size=size))
+    rows = [(o, ap) for o in stimulus_set.objects for ap in stimulus_set.appearances]
+    items = [(o, a, ap) for o, ap in rows for a in stimulus_set.angles]
+    maps = eye.edge_maps(stimulus_set, items, size).numpy()
+    n_cols = len(stimulus_set.angles)
+    col_w = 2 * _CELL + 8
+    sheet = np.full((_HEAD_H + len(rows) * (_CELL + 8), _LABEL_W + n_cols * col_w, 3), 255, np.uint8)
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    for j, a in enumerate(stimulus_set.angles):
+        cv2.putText(sheet, f"{a:g} deg", (_LABEL_W + j * col_w + 60, 20), font, 0.5, (0, 0, 0), 1,
+                    cv2.LINE_AA)
+    k = 0
+    for i, (o, ap) in enumerate(rows):
+        y = _HEAD_H + i * (_CELL + 8)
+        cv2.putText(sheet, f"{o} {ap}", (6, y + _CELL // 2), font, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+        for j, a in enumerate(stimulus_set.angles):
+            x = _LABEL_W + j * col_w
+            img = cv2.resize(stimulus_set.image(o, a, ap), (_CELL, _CELL), interpolation=cv2.INTER_AREA)
+            edge = cv2.resize((maps[k] * 255).astype(np.uint8), (_CELL, _CELL),
+                              interpolation=cv2.INTER_NEAREST)
+            sheet[y:y + _CELL, x:x + _CELL] = img
+            sheet[y:y + _CELL, x + _CELL + 2:x + 2 * _CELL + 2] = edge[..., None]
+            k += 1
+    return sheet
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="python -m neuroimagery.stimuli",
+        description="Write a contact sheet (PNG) of a stimulus set: every object, angle and "
+                    "appearance beside its edge map.")
+    ap.add_argument("set", nargs="?", help="a builtin set name (see --list) or a folder of images")
+    ap.add_argument("--out", default=".", help="folder for <set>.png (default: current folder)")
+    ap.add_argument("--list", action="store_true", help="print the builtin set names and exit")
+    ap.add_argument("--size", type=int, default=32, help="side of the edge map (default 32)")
+    return ap
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    args = _parser().parse_args(argv)
+    from neuroimagery.vision import get_stimulus_set, list_stimulus_sets
+
+    if args.list:
+        print("\n".join(list_stimulus_sets()))
+        return 0
+    if not args.set:
+        print("error: name a stimulus set or a folder (see --list)", file=sys.stderr)
+        return 2
+    try:
+        if args.size < 8:
+            raise UserInputError(f"--size must be >= 8, got {args.size}")
+        stim = get_stimulus_set(args.set)
+        sheet = contact_sheet(stim, args.size)
+        out = Path(args.out)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UserInputError(f"cannot create output folder {out}: {exc.strerror}") from None
+        name = stim.name if not os.path.isdir(args.set) else Path(args.set).resolve().name
+        path = out / f"{name}.png"
+        if not cv2.imwrite(str(path), sheet):
+            raise UserInputError(f"cannot write {path}")
+    except UserInputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,192 @@
+"""The model's eye: stimulus images -> binary edge maps, by the direct or the camera path.
+
+Both paths show the stimulus as it would appear on the screen (a single object in the target's
+place, or the whole pair), apply the photometric model of a real camera, and run
+:func:`~neuroimagery.vision.edges.edge_pipeline` on a view centred on the object looked at:
+
+* direct: the drawn pair image itself; looking at an object = taking the image region around
+  its place on the screen;
+* camera: the image of the iCub's eye camera in pybullet, gazing at the object
+  (see :mod:`neuroimagery.vision.camera`).
+
+Photometric model (per image, thesis sec. 6 intro: light and camera response vary):
+``I' = clip(255 * (g * I / 255) ** gamma + n)``, ``g = luminance * exp(luminance_jitter * z)``,
+``z ~ N(0, 1)`` per image, ``n ~ N(0, noise_std^2)`` per pixel and channel.
+"""
+from __future__ import annotations
+
+from typing import Optional, Sequence
+
+import numpy as np
+import torch
+
+from neuroimagery.vision.config import VisionConfig
+from neuroimagery.vision.edges import edge_pipeline
+from neuroimagery.vision.shapes import BACKGROUND_BGR, CANVAS
+from neuroimagery.vision.stimulus_sets import StimulusSet
+
+__all__ = ["Eye", "DirectEye", "CameraEye", "make_eye"]
+
+Item = tuple[str, float, str]
+
+
+class Eye:
+    """Base class: photometric model and the shared edge pipeline; subclasses give the views."""
+
+    def __init__(self, cfg: VisionConfig):
+        self.cfg = cfg
+        self.rng = np.random.default_rng(cfg.seed)
+
+    # --------------------------------------------------------------- photometry
+    def photometric(self, images: np.ndarray) -> np.ndarray:
+        """Apply luminance gain, camera response and sensor noise to BGR images (N, H, W, 3)."""
+        cfg = self.cfg
+        if (cfg.luminance == 1.0 and cfg.luminance_jitter == 0.0 and cfg.gamma == 1.0
+                and cfg.noise_std == 0.0):
+            return images
+        x = images.astype(np.float32) / 255.0
+        gain = cfg.luminance * np.exp(cfg.luminance_jitter * self.rng.standard_normal(len(x)))
+        x = np.clip(x * gain[:, None, None, None].astype(np.float32), 0.0, 1.0) ** cfg.gamma
+        x = 255.0 * x
+        if cfg.noise_std > 0:
+            x = x + cfg.noise_std * self.rng.standard_normal(x.shape, dtype=np.float32)
+        return np.clip(np.round(x), 0, 255).astype(np.uint8)
+
+    def reset_state(self, seed: Optional[int] = None) -> None:
+        """Restart the noise generator (from ``seed`` or the config's)."""
+        self.rng = np.random.default_rng(self.cfg.seed if seed is None else seed)
+
+    # --------------------------------------------------------------- views
+    def _views(self, stimulus_set: StimulusSet, screens: list[np.ndarray],
+               gazes: list[float]) -> tuple[list[np.ndarray], float]:
+        """Images seen when looking at column ``gazes[i]`` of ``screens[i]``, and the window."""
+        raise NotImplementedError
+
+    def _screens(self, stimulus_set: StimulusSet, pairs: Sequence[dict]) -> list[np.ndarray]:
+        return [stimulus_set.pair_image(pr) for pr in pairs]
+
+    def edge_maps(self, stimulus_set: StimulusSet, items: Sequence[Item],
+                  size: Optional[int] = None) -> torch.Tensor:
+        """Edge maps ``(N, size, size)`` of single objects, each shown in the target's place."""
+        size = self.cfg.size if size is None else size
+        (h, w), xt, _ = stimulus_set.pair_layout()
+        screens = []
+        for obj, angle, app in items:
+            screen = np.empty((h, w, 3), np.uint8)
+            screen[:] = BACKGROUND_BGR
+            x0 = int(round(xt + 0.5 - CANVAS / 2.0))
+            screen[:, x0:x0 + CANVAS] = stimulus_set.image(obj, angle, app)
+            screens.append(screen)
+        views, window = self._views(stimulus_set, screens, [xt] * len(screens))
+        return edge_pipeline(views, size, window, self.cfg.red_threshold)
+
+    def pair_edge_maps(self, stimulus_set: StimulusSet, pairs: Sequence[dict],
+                       size: Optional[int] = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """(target maps, rotated maps), each ``(N, size, size)``, seeing each pair on one screen.
+
+        The gaze goes to the target object, then to the rotated object (hard-wired order).
+        """
+        size = self.cfg.size if size is None else size
+        _, xt, xr = stimulus_set.pair_layout()
+        screens = self._screens(stimulus_set, pairs)
+        tv, window = self._views(stimulus_set, screens, [xt] * len(screens))
+        rv, window_r = self._views(stimulus_set, screens, [xr] * len(screens))
+        target = edge_pipeline(tv, size, window, self.cfg.red_threshold)
+        rotated = edge_pipeline(rv, size, window_r, self.cfg.red_threshold)
+        return target, rotated
+
+    def close(self) -> None:
+        """Release resources (the pybullet client of the camera path)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class DirectEye(Eye):
+    """The drawn image itself: looking at an object = the canvas-sized region around it."""
+
+    def _views(self, stimulus_set, screens, gazes):
+        views = []
+        for screen, x in zip(screens, gazes):
+            h = screen.shape[0]
+            x0 = int(round(x + 0.5 - h / 2.0))
+            views.append(screen[:, x0:x0 + h])
+        return list(self.photometric(np.stack(views))), float(CANVAS)
+
+
+class CameraEye(Eye):
+    """The iCub's eye camera in pybullet (DIRECT, TinyRenderer) looking at the screen."""
+
+    def __init__(self, cfg: VisionConfig):
+        super().__init__(cfg)
+        self._scene = None
+        self._layout = None
+
+    def scene(self, stimulus_set: StimulusSet):
+        """The pybullet scene for this set's pair layout (built once, rebuilt if it changes)."""
+        from neuroimagery.vision.camera import CameraScene
+
+        (hw, xt, xr) = layout = stimulus_set.pair_layout()
+        if self._scene is None or self._layout != layout:
+            self.close()
+            self._scene = CameraScene(self.cfg, hw, (xt, xr), CANVAS)
+            self._layout = layout
+        return self._scene
+
+    def _look(self, scene, x: float, gaze: dict) -> np.ndarray:
+        """Render the eye's image when gazing at slot ``x`` (hard-wired posture + motor error)."""
+        if x not in gaze:
+            gaze[x] = scene.gaze_angles(scene.screen_point(x))
+        tilt, pan = gaze[x]
+        jitter = np.radians(self.cfg.gaze_jitter_deg)
+        if jitter > 0:
+            tilt += jitter * self.rng.standard_normal()
+            pan += jitter * self.rng.standard_normal()
+        return scene.render(tilt, pan)
+
+    def edge_maps(self, stimulus_set, items, size=None):
+        size = self.cfg.size if size is None else size
+        scene = self.scene(stimulus_set)
+        _, xt, _ = stimulus_set.pair_layout()
+        gaze: dict = {}
+        views = []
+        for item in items:
+            scene.show(stimulus_set, {xt: tuple(item)})
+            views.append(self._look(scene, xt, gaze))
+        window = scene.window_px(scene.screen_point(xt))
+        return edge_pipeline(self.photometric(np.stack(views)), size, window, self.cfg.red_threshold)
+
+    def pair_edge_maps(self, stimulus_set, pairs, size=None):
+        size = self.cfg.size if size is None else size
+        scene = self.scene(stimulus_set)
+        _, xt, xr = stimulus_set.pair_layout()
+        gaze: dict = {}
+        tv, rv = [], []
+        for pr in pairs:
+            scene.show(stimulus_set, {
+                xt: (pr["target_object"], pr["target_angle"], pr["target_appearance"]),
+                xr: (pr["rotated_object"], pr["rotated_angle"], pr["rotated_appearance"])})
+            tv.append(self._look(scene, xt, gaze))  # first the target ...
+            rv.append(self._look(scene, xr, gaze))  # ... then the rotated object
+        wt = scene.window_px(scene.screen_point(xt))
+        wr = scene.window_px(scene.screen_point(xr))
+        target = edge_pipeline(self.photometric(np.stack(tv)), size, wt, self.cfg.red_threshold)
+        rotated = edge_pipeline(self.photometric(np.stack(rv)), size, wr, self.cfg.red_threshold)
+        return target, rotated
+
+    def close(self) -> None:
+        if self._scene is not None:
+            self._scene.close()
+            self._scene = None
+
+
+def make_eye(vision_cfg: VisionConfig) -> Eye:
+    """The eye selected by ``vision_cfg.kind`` ("direct" or "camera")."""
+    if vision_cfg.kind == "direct":
+        return DirectEye(vision_cfg)
+    if vision_cfg.kind == "camera":
+        return CameraEye(vision_cfg)
+    raise ValueError(f"vision.kind must be 'direct' or 'camera', got {vision_cfg.kind!r}")
