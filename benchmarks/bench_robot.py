@@ -1,0 +1,137 @@
+"""Speed of the tool-use world and motor primitives, and the PI^BB learning curve (not a test).
+
+    python benchmarks/bench_robot.py [--skip-pibb] [--event south]
+
+Prints: FK error against pybullet; rollouts/s for K = 10 babbling samples from each posture with and
+without the FK filter, and the share of time in physics, rendering and tensors; batched DMP rollouts/s
+against pydmps one rollout at a time (pydmps is imported lazily; `pip install pydmps`); then learns one
+skill with PI^BB and draws docs/figures/robot/pibb_curve.png.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+
+def bench_world(reps: int = 3) -> dict:
+    from neuroimagery.motor.dmp import DMP
+    from neuroimagery.robot.babble import BabbleConfig, random_thetas, trajectories
+    from neuroimagery.robot.world import ToolWorld
+
+    out = {}
+    cfg, dmp = BabbleConfig(), DMP()
+    with ToolWorld() as w:
+        for use_filter in (False, True):
+            g = torch.Generator().manual_seed(0)
+            w.timing.update(physics_s=0.0, tensor_s=0.0, render_s=0.0)
+            n, t0 = 0, time.perf_counter()
+            for _ in range(reps):
+                for k in range(1, 5):
+                    t1 = time.perf_counter()
+                    traj = trajectories(w, dmp, random_thetas(w, dmp, k, 10, cfg, g), k, cfg)
+                    w.timing["tensor_s"] += time.perf_counter() - t1
+                    w.rollout(traj, k, None, use_filter=use_filter)
+                    w.observe()  # one camera image per batch, as a learner would look
+                    n += 10
+            total = time.perf_counter() - t0
+            key = "with_filter" if use_filter else "without_filter"
+            out[key] = {
+                "rollouts_per_s": n / total,
+                "share_physics": w.timing["physics_s"] / total,
+                "share_render": w.timing["render_s"] / total,
+                "share_tensors": w.timing["tensor_s"] / total,
+            }
+        # raw physics stepping of the rake/toy/table scene
+        w.reset(1)
+        t0 = time.perf_counter()
+        for _ in range(5000):
+            w.client.stepSimulation()
+        out["physics_steps_per_s"] = 5000 / (time.perf_counter() - t0)
+    return out
+
+
+def bench_dmp(n: int = 2000, n_pydmps: int = 100) -> dict:
+    from neuroimagery.motor.dmp import DMP
+
+    dmp = DMP()
+    theta = torch.cat([torch.randn(n, 7), 100 * torch.randn(n, 28)], 1)
+    y0 = torch.zeros(n, 7)
+    dmp.rollout(theta[:10], y0[:10])
+    t0 = time.perf_counter()
+    dmp.rollout(theta, y0, 2.0, 0.01)
+    ours = n / (time.perf_counter() - t0)
+    res = {"torch_batched_rollouts_per_s": ours}
+    try:
+        import pydmps  # lazily: benchmark-only dependency
+    except ImportError:
+        res["pydmps"] = "not installed"
+        return res
+    t0 = time.perf_counter()
+    for i in range(n_pydmps):
+        d = pydmps.DMPs_discrete(n_dmps=7, n_bfs=4, dt=0.005, y0=np.zeros(7), goal=theta[i, :7].numpy(),
+                                 w=theta[i, 7:].reshape(7, 4).numpy())
+        d.rollout()
+    theirs = n_pydmps / (time.perf_counter() - t0)
+    res.update(pydmps_rollouts_per_s=theirs, speedup=ours / theirs)
+    return res
+
+
+def bench_fk() -> dict:
+    from neuroimagery.robot.kinematics import ArmKinematics
+
+    kin = ArmKinematics()
+    lo, hi = kin.joint_limits[:, 0], kin.joint_limits[:, 1]
+    q = lo + (hi - lo) * torch.rand(100_000, 7)
+    kin(q[:10])
+    t0 = time.perf_counter()
+    with torch.no_grad():
+        kin(q)
+    return {"fk_configs_per_s": len(q) / (time.perf_counter() - t0)}
+
+
+def pibb_curve(event: str, seed: int, out_png: Path) -> dict:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from neuroimagery.robot.skill import discover, learn
+    from neuroimagery.robot.world import ToolWorld
+
+    g = torch.Generator().manual_seed(seed)
+    with ToolWorld() as w:
+        theta0 = discover(w, event, 1, g)
+        curve = learn(w, theta0, event, n_updates=10, generator=g)
+    fig, ax = plt.subplots(figsize=(5, 3.2))
+    ax.plot(range(1, 11), curve.sample_success, "o-", label="exploration samples (40 per update)")
+    ax.plot(range(0, 11), curve.mean_success, "s--", label="mean DMP, 4 postures")
+    ax.set_xlabel("PI$^{BB}$ update")
+    ax.set_ylabel(f"success rate ({event})")
+    ax.set_ylim(-0.02, 1.02)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    out_png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_png, dpi=120)
+    return {"event": event, "sample_success": curve.sample_success, "mean_success": curve.mean_success}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--skip-pibb", action="store_true")
+    ap.add_argument("--event", default="south")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    res = {"fk": bench_fk(), "dmp": bench_dmp(), "world": bench_world()}
+    print(json.dumps(res, indent=2), flush=True)
+    if not args.skip_pibb:
+        png = Path(__file__).resolve().parents[1] / "docs" / "figures" / "robot" / "pibb_curve.png"
+        print(json.dumps(pibb_curve(args.event, args.seed, png), indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,122 @@
+"""Physical constants of the tool-use world (thesis ch. 7), each named, commented and range-checked.
+
+Units: metres, seconds, kilograms, radians.  Frames: the world frame of
+:mod:`neuroimagery.robot.kinematics` (x forward = north, y to the robot's left = west, z up).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+URDF_DIR = Path(__file__).resolve().parents[2] / "urdf"
+
+# Four initial arm postures (rad, joint order of kinematics.ARM_JOINTS).  Found once by a small
+# inverse-kinematics fit of the rake head's centre to a point on the table (see docs/robot.md):
+#   1 head behind the toy (north of it)        -> pulling south brings it in
+#   2 head beside the toy, on its right (east)
+#   3 head in front of the toy and to its right
+#   4 head far from the toy, near the robot and to the right
+DEFAULT_POSTURES: tuple[tuple[float, ...], ...] = (
+    (-0.620, 0.390, 0.065, 1.066, -0.215, 0.031, -0.197),
+    (-0.538, 0.602, -0.116, 1.331, -0.332, -0.025, 0.242),
+    (-0.005, 0.121, 0.685, 1.556, 0.366, -1.277, -0.200),
+    (0.040, 0.116, 0.298, 1.721, 0.417, -1.157, -0.037),
+)
+
+# Hand (r_hand) -> rake transform of the fixed grasp: at the reference posture
+# (-0.9, 0.35, 0, 0.9, 0, 0, 0) the handle points straight ahead and 25 degrees down.
+DEFAULT_GRASP: tuple[tuple[float, ...], ...] = (
+    (-0.8867, 0.1711, -0.4296, 0.0),
+    (-0.1565, -0.9852, -0.0695, 0.0),
+    (-0.4352, 0.0056, 0.9003, 0.0),
+    (0.0, 0.0, 0.0, 1.0),
+)
+
+
+@dataclass
+class WorldConfig:
+    """Everything physical about the rake / toy / table scene.
+
+    Every field is checked in ``__post_init__``; a bad value raises ``ValueError`` naming the key.
+    """
+
+    # --- body ---------------------------------------------------------------------------------
+    root_height: float = 0.80  # height of the iCub's waist (root_link) above the floor
+    postures: tuple[tuple[float, ...], ...] = DEFAULT_POSTURES  # the four initial arm postures
+    grasp: tuple[tuple[float, ...], ...] = DEFAULT_GRASP  # fixed hand -> rake transform (4x4)
+    rake_length: float = 0.40  # grip -> end of the handle, where the head is fixed (urdf/rake.urdf)
+    # centre of the rake head's plate in the rake (grip) frame: the handle meets the plate 2 cm
+    # above its centre, so the handle clears a toy the head is placed behind (urdf/rake.urdf)
+    rake_head_offset: tuple[float, float, float] = (0.4085, 0.0, -0.0181)
+    # --- scene --------------------------------------------------------------------------------
+    table_top: float = 0.696  # height of the table's top surface (rake head rests 8 mm above)
+    toy_xy: tuple[float, float] = (0.56, -0.10)  # initial toy centre on the table
+    toy_size: float = 0.05  # side of the red toy cube (urdf/toy.urdf)
+    toy_mass: float = 0.05  # kg
+    rake_mass: float = 0.2  # kg; the rake is driven by a constraint, its mass only sets inertia
+    rake_max_force: float = 200.0  # N, strength of the constraint that makes the rake follow the hand
+    friction: float = 0.5  # lateral friction of toy, rake and table
+    # --- simulation ---------------------------------------------------------------------------
+    physics_dt: float = 0.005  # pybullet time step (200 Hz; two steps per control step)
+    control_dt: float = 0.01  # time between trajectory points (DMP integration step)
+    settle_steps: int = 10  # physics steps after placing the scene, before a rollout
+    # --- events -------------------------------------------------------------------------------
+    move_threshold: float = 0.02  # toy displacement (m) that counts as a south/north/west/east move
+    retrieve_x: float = 0.48  # reachable area: toy centre closer than this to the robot (x < ...)
+    touch_tolerance: float = 0.006  # a rake-toy contact this close to the toy's top counts as touch
+    touch_normal_z: float = 0.7  # and its normal must be this vertical (|n_z|)
+    # --- FK filter ----------------------------------------------------------------------------
+    filter_margin: float = 0.05  # rake farther than this from the toy's box for the whole rollout:
+    #                              the toy cannot have moved, skip the physics
+    # --- blow-up detection --------------------------------------------------------------------
+    max_toy_speed: float = 5.0  # m/s; faster than this is a physics blow-up, not an event
+    max_toy_height: float = 0.30  # m above the table top; higher is a blow-up
+    # --- camera -------------------------------------------------------------------------------
+    image_width: int = 320
+    image_height: int = 240
+    camera_fov: float = 60.0  # vertical field of view, degrees
+    eye_tilt: float = 0.75  # rad the eyes look down below the horizon
+    eye_pan: float = -0.12  # rad the eyes look to the robot's right (negative = right)
+    urdf_dir: str = field(default_factory=lambda: str(URDF_DIR))
+
+    def __post_init__(self) -> None:
+        positive = (
+            "root_height", "rake_length", "table_top", "toy_size", "toy_mass", "rake_mass",
+            "rake_max_force", "physics_dt", "control_dt", "move_threshold", "touch_tolerance",
+            "filter_margin", "max_toy_speed", "max_toy_height", "camera_fov",
+        )
+        for key in positive:
+            if not float(getattr(self, key)) > 0:
+                raise ValueError(f"WorldConfig.{key} must be > 0, got {getattr(self, key)!r}")
+        if not 0 <= self.friction <= 5:
+            raise ValueError(f"WorldConfig.friction must be in [0, 5], got {self.friction}")
+        if not 0 < self.touch_normal_z <= 1:
+            raise ValueError(f"WorldConfig.touch_normal_z must be in (0, 1], got {self.touch_normal_z}")
+        if self.control_dt < self.physics_dt:
+            raise ValueError(
+                f"WorldConfig.control_dt ({self.control_dt}) must be >= physics_dt ({self.physics_dt})"
+            )
+        if self.settle_steps < 0:
+            raise ValueError(f"WorldConfig.settle_steps must be >= 0, got {self.settle_steps}")
+        if len(self.postures) != 4 or any(len(p) != 7 for p in self.postures):
+            raise ValueError("WorldConfig.postures must be 4 joint vectors of 7 angles")
+        if len(self.grasp) != 4 or any(len(r) != 4 for r in self.grasp):
+            raise ValueError("WorldConfig.grasp must be a 4x4 matrix")
+        if len(self.rake_head_offset) != 3:
+            raise ValueError("WorldConfig.rake_head_offset must be (x, y, z)")
+        if len(self.toy_xy) != 2:
+            raise ValueError("WorldConfig.toy_xy must be (x, y)")
+        if not self.retrieve_x < self.toy_xy[0]:
+            raise ValueError(
+                f"WorldConfig.retrieve_x ({self.retrieve_x}) must be nearer than the toy's start "
+                f"x ({self.toy_xy[0]}): the toy starts out of reach"
+            )
+        for key in ("image_width", "image_height"):
+            if not 16 <= getattr(self, key) <= 4096:
+                raise ValueError(f"WorldConfig.{key} must be in [16, 4096], got {getattr(self, key)}")
+        if not Path(self.urdf_dir).is_dir():
+            raise ValueError(f"WorldConfig.urdf_dir {self.urdf_dir!r} is not a folder")
+
+    @classmethod
+    def keys(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))

@@ -1,0 +1,185 @@
+"""Forward kinematics of the iCub's right arm, head and the rake it holds.
+
+The body comes from the real iCub URDF shipped by the ``icub-models`` package
+(``iCubGazeboV2_5``).  A pytorch-kinematics serial chain ``chest -> r_hand`` gives the pose of the
+hand for whole batches of joint vectors; the torso is held at zero, so the constant transform
+``root_link -> chest`` is computed once.
+
+Frames
+------
+*URDF root frame* (``root_link``, the waist): x points backward, y to the robot's right, z up.
+*World frame* (used by the pybullet scene and everything in :mod:`neuroimagery.robot.world`):
+x points forward (away from the robot, "north"), y to the robot's left ("west"), z up; its origin
+is below the waist, on the floor.  ``world_T_root`` is a half turn about z plus a lift of
+``root_height``.
+
+The rake is rigidly attached to the hand (a fixed grasp); its head centre sits at a fixed offset in
+the hand frame, so ``rake_head_position(q)`` is one matrix product after FK.
+"""
+from __future__ import annotations
+
+import functools
+import re
+from pathlib import Path
+
+import torch
+
+ARM_JOINTS = (
+    "r_shoulder_pitch",
+    "r_shoulder_roll",
+    "r_shoulder_yaw",
+    "r_elbow",
+    "r_wrist_prosup",
+    "r_wrist_pitch",
+    "r_wrist_yaw",
+)
+HEAD_JOINTS = ("neck_pitch", "neck_roll", "neck_yaw")
+ICUB_MODEL = "iCubGazeboV2_5"
+
+
+@functools.lru_cache(maxsize=4)
+def icub_urdf_path(model: str = ICUB_MODEL) -> Path:
+    """Path of the icub-models URDF file of ``model``."""
+    import icub_models
+
+    return Path(icub_models.get_model_file(model))
+
+
+@functools.lru_cache(maxsize=4)
+def icub_urdf_text(model: str = ICUB_MODEL, keep_geometry: bool = True) -> str:
+    """URDF text with the Gazebo-only ``<sensor>``/``<gazebo>`` blocks removed.
+
+    Those blocks are ignored by both pytorch-kinematics and pybullet but make the former print
+    one warning per tag.  With ``keep_geometry=False`` the visual and collision elements are
+    dropped too (enough for kinematics, and loads in pybullet without meshes).
+    """
+    text = icub_urdf_path(model).read_text()
+    text = re.sub(r"<sensor\b.*?</sensor>", "", text, flags=re.S)
+    text = re.sub(r"<gazebo\b.*?</gazebo>", "", text, flags=re.S)
+    if not keep_geometry:
+        text = re.sub(r"<visual\b.*?</visual>", "", text, flags=re.S)
+        text = re.sub(r"<collision\b.*?</collision>", "", text, flags=re.S)
+    else:
+        import icub_models
+
+        share = Path(icub_models.get_models_path()).parent  # .../share/iCub
+        text = text.replace("package://iCub/", f"{share}/")
+    return text
+
+
+def _world_T_root(root_height: float) -> torch.Tensor:
+    T = torch.eye(4)
+    T[0, 0] = -1.0
+    T[1, 1] = -1.0
+    T[2, 3] = root_height
+    return T
+
+
+class ArmKinematics(torch.nn.Module):
+    """Batched FK of the right arm (7 joints) and of the head (3 neck joints).
+
+    Parameters
+    ----------
+    root_height: height of the iCub's waist (``root_link``) above the floor, metres.
+    grasp: 4x4 transform from the hand frame (``r_hand``) to the rake frame (the rake's handle
+        end in the palm; the rake's +x runs along the handle).
+    rake_head_offset: position of the rake head's centre in the rake frame, metres.
+    eye_offset: position of the right eye in the ``head`` link frame, metres (the icub-models
+        URDF has no eye joints; the eyes are held still at this point).
+
+    Buffers ``joint_limits`` (7, 2) hold the URDF's lower/upper limits in radians.
+    """
+
+    def __init__(
+        self,
+        root_height: float = 0.80,
+        grasp: torch.Tensor | None = None,
+        rake_head_offset: tuple[float, float, float] = (0.30, 0.0, 0.0),
+        eye_offset: tuple[float, float, float] = (0.034, 0.11, 0.06),
+        dtype: torch.dtype = torch.float32,
+    ) -> None:
+        super().__init__()
+        import pytorch_kinematics as pk
+
+        text = icub_urdf_text(ICUB_MODEL, keep_geometry=False)
+        self.arm = pk.build_serial_chain_from_urdf(text, end_link_name="r_hand", root_link_name="chest").to(
+            dtype=dtype
+        )
+        if tuple(self.arm.get_joint_parameter_names()) != ARM_JOINTS:
+            raise RuntimeError(f"unexpected arm joints {self.arm.get_joint_parameter_names()}")
+        self.head = pk.build_serial_chain_from_urdf(text, end_link_name="head", root_link_name="chest").to(dtype=dtype)
+        torso = pk.build_serial_chain_from_urdf(text, end_link_name="chest", root_link_name="root_link").to(dtype=dtype)
+        root_T_chest = torso.forward_kinematics(torch.zeros(1, 3, dtype=dtype)).get_matrix()[0]
+        lo, hi = self.arm.get_joint_limits()
+        self.register_buffer("joint_limits", torch.tensor([lo, hi], dtype=dtype).T.contiguous())
+        self.register_buffer("world_T_chest", _world_T_root(root_height).to(dtype) @ root_T_chest)
+        if grasp is None:
+            grasp = default_grasp()
+        self.register_buffer("grasp", grasp.to(dtype))
+        self.register_buffer("rake_head_offset", torch.tensor([*rake_head_offset, 1.0], dtype=dtype))
+        self.register_buffer("eye_offset", torch.tensor([*eye_offset, 1.0], dtype=dtype))
+        self.root_height = root_height
+
+    # ------------------------------------------------------------------ arm
+    def check_limits(self, q: torch.Tensor, tol: float = 1e-6) -> None:
+        """Raise ``ValueError`` if any joint value in ``q`` (..., 7) is outside the URDF limits or NaN."""
+        if q.shape[-1] != 7:
+            raise ValueError(f"joint vectors must have 7 entries (right arm), got shape {tuple(q.shape)}")
+        if not torch.isfinite(q).all():
+            raise ValueError("joint trajectory contains NaN or inf")
+        lo, hi = self.joint_limits[:, 0], self.joint_limits[:, 1]
+        below = q < lo - tol
+        above = q > hi + tol
+        if below.any() or above.any():
+            bad = (below | above).reshape(-1, 7).any(0).nonzero().flatten().tolist()
+            names = ", ".join(
+                f"{ARM_JOINTS[j]} in [{lo[j]:.3f}, {hi[j]:.3f}] rad (got {q[..., j].min():.3f}..{q[..., j].max():.3f})"
+                for j in bad
+            )
+            raise ValueError(f"joint target outside the URDF limits: {names}")
+
+    def clamp(self, q: torch.Tensor) -> torch.Tensor:
+        """Clip joint values to the URDF limits."""
+        return torch.maximum(torch.minimum(q, self.joint_limits[:, 1]), self.joint_limits[:, 0])
+
+    def forward(self, q: torch.Tensor) -> torch.Tensor:
+        """World pose (..., 4, 4) of the hand frame ``r_hand`` for joint vectors ``q`` (..., 7)."""
+        shape = q.shape[:-1]
+        flat = q.reshape(-1, 7).to(self.joint_limits.dtype)
+        chest_T_hand = self.arm.forward_kinematics(flat).get_matrix()
+        return (self.world_T_chest @ chest_T_hand).reshape(*shape, 4, 4)
+
+    def rake_pose(self, q: torch.Tensor) -> torch.Tensor:
+        """World pose (..., 4, 4) of the rake frame (hand pose times the fixed grasp)."""
+        return self.forward(q) @ self.grasp
+
+    def rake_head_position(self, q: torch.Tensor) -> torch.Tensor:
+        """World position (..., 3) of the rake head's centre."""
+        return (self.rake_pose(q) @ self.rake_head_offset)[..., :3]
+
+    # ----------------------------------------------------------------- head
+    def eye_pose(self, neck: torch.Tensor | None = None) -> torch.Tensor:
+        """World pose (4, 4) of the right eye: FK of the neck chain plus the fixed eye offset.
+
+        The camera looks along the head frame's +z axis... of the world: see :meth:`eye_look`.
+        """
+        if neck is None:
+            neck = torch.zeros(3, dtype=self.joint_limits.dtype)
+        T = self.world_T_chest @ self.head.forward_kinematics(neck.reshape(1, 3)).get_matrix()[0]
+        T = T.clone()
+        T[:, 3] = T @ self.eye_offset
+        return T
+
+
+def default_grasp() -> torch.Tensor:
+    """Fixed hand->rake transform: the handle leaves the palm along the hand frame's -y axis.
+
+    Chosen by looking at the hand frame of ``r_hand`` in the URDF: with the arm stretched
+    forward its -y axis points away from the palm, down through the fingers' side.
+    """
+    T = torch.eye(4)
+    # rake +x (along the handle) = hand -y ; rake +z = hand +x ; rake +y = rake z cross rake x
+    T[:3, 0] = torch.tensor([0.0, -1.0, 0.0])
+    T[:3, 2] = torch.tensor([1.0, 0.0, 0.0])
+    T[:3, 1] = torch.linalg.cross(T[:3, 2], T[:3, 0])
+    return T

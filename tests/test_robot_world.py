@@ -1,0 +1,123 @@
+"""The rake/toy/table world: events from physics, FK filter, errors, camera."""
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from neuroimagery.errors import UserInputError
+from neuroimagery.motor.dmp import DMP
+from neuroimagery.robot.babble import BabbleConfig, random_thetas, trajectories
+from neuroimagery.robot.config import WorldConfig
+from neuroimagery.robot.world import EVENTS, ToolWorld
+
+
+@pytest.fixture(scope="module")
+def world():
+    with ToolWorld() as w:
+        yield w
+
+
+def _line(world, posture, head_target_delta, T=150):
+    """Joint trajectory from the posture whose rake head moves by ``head_target_delta`` (small IK)."""
+    q0 = world.initial_posture(posture)
+    start = world.kin.rake_head_position(q0)
+    target = start + torch.tensor(head_target_delta)
+    q = q0.clone().requires_grad_(True)
+    opt = torch.optim.Adam([q], lr=0.01)
+    for _ in range(300):
+        opt.zero_grad()
+        loss = ((world.kin.rake_head_position(world.kin.clamp(q)) - target) ** 2).sum()
+        loss.backward()
+        opt.step()
+    q1 = world.kin.clamp(q.detach())
+    s = torch.linspace(0, 1, T).unsqueeze(1)
+    s = 3 * s**2 - 2 * s**3
+    return (q0 + s * (q1 - q0)).unsqueeze(0)
+
+
+def test_config_errors_name_the_key():
+    with pytest.raises(ValueError, match="toy_mass"):
+        WorldConfig(toy_mass=-1.0)
+    with pytest.raises(ValueError, match="retrieve_x"):
+        WorldConfig(retrieve_x=0.9)
+
+
+def test_scene_is_at_rest(world):
+    for k in range(1, 5):
+        out = world.rollout(world.initial_posture(k).repeat(1, 50, 1), k, None, use_filter=False)[0]
+        assert not any(out.events), (k, out)
+        assert np.hypot(*out.toy_displacement) < 0.005
+
+
+def test_pulling_from_posture_1_moves_toy_south_and_stops_on_watched(world):
+    traj = _line(world, 1, (-0.16, 0.0, 0.0))
+    full = world.rollout(traj, 1, None)[0]
+    assert full.fired("south") and full.fired("retrieve") and not full.blew_up
+    assert full.toy_displacement[0] < -0.08
+    assert not full.fired("north")
+    stopped = world.rollout(traj, 1, "south")[0]
+    assert stopped.fired("south") and stopped.fired_first in EVENTS
+    assert stopped.stop_step < full.stop_step
+    assert stopped.events[EVENTS.index("retrieve")] is False  # stopped before the toy got in reach
+
+
+def test_direction_events_agree_with_displacement(world):
+    thr = world.cfg.move_threshold
+    for k, delta in ((2, (-0.03, 0.16, 0.0)), (1, (-0.12, 0.05, 0.0))):
+        out = world.rollout(_line(world, k, delta), k, None)[0]
+        dx, dy = out.toy_displacement
+        assert np.hypot(dx, dy) > thr  # the sweep did push the toy
+        # a direction once passed stays fired, so the final displacement implies the event
+        assert (not dx < -thr) or out.fired("south")
+        assert (not dx > thr) or out.fired("north")
+        assert (not dy > thr) or out.fired("west")
+        assert (not dy < -thr) or out.fired("east")
+
+
+def test_fk_filter_never_changes_an_outcome(world):
+    dmp = DMP()
+    gen = torch.Generator().manual_seed(5)
+    cfg = BabbleConfig()
+    for k in (1, 4):
+        traj = trajectories(world, dmp, random_thetas(world, dmp, k, 12, cfg, gen), k, cfg)
+        fast = world.rollout(traj, k, None, use_filter=True)
+        slow = world.rollout(traj, k, None, use_filter=False)
+        for a, b in zip(fast, slow):
+            assert a.events == b.events
+            if not a.simulated:
+                assert np.hypot(*b.toy_displacement) < 1e-3
+
+
+def test_errors(world):
+    q = world.initial_posture(1).repeat(1, 10, 1)
+    with pytest.raises(UserInputError, match="unknown event"):
+        world.rollout(q, 1, "sideways")
+    with pytest.raises(UserInputError, match="posture"):
+        world.rollout(q, 5, None)
+    bad = q.clone()
+    bad[0, 5, 3] = 2.5
+    with pytest.raises(ValueError, match="outside the URDF limits.*r_elbow"):
+        world.rollout(bad, 1, None)
+    bad[0, 5, 3] = float("nan")
+    with pytest.raises(ValueError, match="NaN"):
+        world.rollout(bad, 1, None)
+
+
+def test_blow_up_is_reported_not_counted():
+    cfg = WorldConfig(max_toy_speed=1e-3)  # any push now counts as an absurd speed
+    with ToolWorld(cfg) as w:
+        out = w.rollout(_line(w, 1, (-0.16, 0.0, 0.0)), 1, None)[0]
+    assert out.blew_up and not any(out.events) and out.fired_first is None
+
+
+def test_observe_masks(world):
+    obs = world.observe(posture=1)
+    assert obs["image"].shape == (240, 320, 3) and obs["image"].dtype == np.uint8
+    assert obs["toy"].shape == (240, 320) and obs["rake"].shape == (240, 320)
+    assert obs["toy"].sum() > 50 and obs["rake"].sum() > 50
+    assert (obs["toy"] * obs["rake"]).sum() == 0
+    # the toy's blob moves in the image when the toy moves
+    moved = world.observe(posture=1, toy_xy=(0.50, -0.10))
+    cy = lambda m: (m.sum(1) * torch.arange(240)).sum() / m.sum()
+    assert cy(moved["toy"]) > cy(obs["toy"]) + 3  # nearer the robot = lower in the image
