@@ -1,0 +1,187 @@
+"""Experiment 3 (thesis section 6.1): mental rotation with generalising forward models.
+Model: :class:`neuroimagery.models.rotation_generalising.RotationGeneralising`.
+
+Protocol: the forward model C6 learns from three-dot images rotated by -45 / 0 / +45 deg (delta
+rule); C2 and C3 learn the wrist posture of every set-a image (supervised Kohonen). Tests Recog
+(set a), Gen-I (set b, keyed ``gen1``) and Gen-II (set c, keyed ``gen2``), 192 pairs each. RT is
+the number of rotation steps; an answer is NO when the uncovered part of the target (PMC_2)
+exceeds 5 % of its active units, or after 15 rotations.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import List
+
+import pandas as pd
+import torch
+
+from ..analysis import figures
+from ..analysis.report import Report, reproducibility_note
+from ..analysis.summary import summarise_trials
+from ..nn import seeding
+from ..run import load_checkpoint
+from . import protocol_ch6 as pc
+from .exp4 import _bar
+
+TESTS = ("recog", "gen1", "gen2")
+THESIS = {"recog/none": 0.187, "gen1/none": 0.247, "gen2/none": 0.543}  # error rates, Fig. 6.5b
+
+
+@dataclass
+class Exp3Config:
+    name: str = "exp3"
+    map_size: int = 32  # side of V1, PP_1 (x3), PP_2, PFC_1, PFC_2 (thesis 32x32)
+    step_deg: float = 45.0  # rotation of one forward-model step (n1 -45, n3 +45)
+    posture_angles: List[float] = field(default_factory=lambda: [45.0, 0.0, -45.0, -90.0])  # SS / PMC_1 units, decreasing
+    train_set: str = "exp3-a"  # set whose images train C2/C3 (thesis: set a)
+    recog_set: str = "exp3-a"  # Recog
+    gen1_set: str = "exp3-b"  # Gen-I
+    gen2_set: str = "exp3-c"  # Gen-II
+    init_high: float = 0.01  # initial weights U[0, init_high] (small random; not given)
+    eta_fm: float = 0.1  # delta-rule rate of C6 (thesis 0.1)
+    fm_images: int = 4000  # three-dot training images per participant (not given)
+    fm_batch: int = 8  # images per delta-rule update (changes summed at the same weights)
+    fm_threshold: float = 0.5  # a PP_2 unit is on when its C6 input exceeds this (not given)
+    dot_inner: int = 23  # dots lie in the central inner x inner square (thesis 23)
+    eta_posture: float = 0.1  # Kohonen rate of C2/C3 (thesis 0.1)
+    eta_posture_final: float = 0.002  # decays to this so each prototype ends as an average (not given)
+    posture_sigma: float = 0.3  # neighbourhood radius of the forced winner, units (not given)
+    posture_iterations: int = 960  # supervised Kohonen steps (40 passes over 24 set-a images; not given)
+    posture_code_sigma: float = 0.15  # width of the Gaussian of eq. 6.5-6.6 on squared-distance differences (not given)
+    m1_sigma: float = 1.0  # width of the Gaussian of eq. 6.2 (not given)
+    softmax_tau: float = 0.3  # M1_2 softmax temperature (thesis 0.3)
+    match_threshold: float = 0.05  # NO when PMC_2 > this fraction of PFC_1's active units (thesis 5 %)
+    max_steps: int = 15  # rotation steps before answering NO (thesis 15)
+    quick_objects: int = 1  # preset=quick: objects per test set
+    quick_fm_images: int = 3000  # preset=quick: three-dot training images
+
+    def __post_init__(self) -> None:
+        for k in ("step_deg", "init_high", "eta_fm", "fm_threshold", "eta_posture", "eta_posture_final",
+                  "posture_sigma", "posture_code_sigma", "m1_sigma", "softmax_tau"):
+            if not getattr(self, k) > 0:
+                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
+        for k in ("map_size", "fm_images", "fm_batch", "posture_iterations", "max_steps", "quick_objects",
+                  "quick_fm_images"):
+            if int(getattr(self, k)) < 1:
+                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
+        if not (0.0 <= self.match_threshold <= 1.0):
+            raise ValueError(f"experiment.match_threshold must lie in [0, 1], got {self.match_threshold!r}")
+        if not (1 <= self.dot_inner <= self.map_size - 2):
+            raise ValueError(f"experiment.dot_inner must lie in [1, map_size - 2], got {self.dot_inner}")
+        if len(self.posture_angles) < 2 or list(self.posture_angles) != sorted(self.posture_angles, reverse=True):
+            raise ValueError(f"experiment.posture_angles must be >= 2 decreasing angles, got {list(self.posture_angles)}")
+
+
+CONFIG = Exp3Config
+
+
+def _model(cfg, ids):
+    from ..models.rotation_generalising import RotationGeneralising
+
+    return RotationGeneralising(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0))
+
+
+def train_model(cfg, ids, eye=None):
+    e = cfg.experiment
+    eye = pc.make_eye(cfg) if eye is None else eye
+    model = _model(cfg, ids)
+    gens = seeding.participant_generators(cfg.seed, ids, stream=1)
+    n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
+    X, Y, _ = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner, offsets=(0, 1, 2))
+    pc.train_delta_binary(model.c6, X, Y, e.eta_fm, e.fm_batch)
+    bank = pc.StimulusBank.build(eye, pc.stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
+    labels = bank.angle_labels(e.posture_angles)
+    for som in (model.c2, model.c3):
+        som.fit(bank.maps, labels=labels, generators=gens, method="factored")
+    model.eval()
+    model.freeze()
+    model.participant_ids = list(ids)
+    return model
+
+
+def train(cfg, run):
+    ids = list(range(cfg.participants))
+    model = train_model(cfg, ids)
+    run.save_checkpoint("exp3", {"state_dict": model.state_dict(), "participants": ids})
+    return model
+
+
+def load(cfg, checkpoint_dir):
+    ck = load_checkpoint(checkpoint_dir, "exp3")
+    model = _model(cfg, ck["participants"])
+    model.load_state_dict(ck["state_dict"])
+    model.eval()
+    model.freeze()
+    model.participant_ids = list(ck["participants"])
+    return model
+
+
+def run_tests(cfg, model, eye=None, record: int = 0):
+    e = cfg.experiment
+    eye = pc.make_eye(cfg) if eye is None else eye
+    P = model.c2.weight.shape[0]
+    ids = getattr(model, "participant_ids", list(range(cfg.participants)))[:P]
+    if cfg.stimuli.kind == "folder":
+        sets = {"custom": pc.stimulus_set(cfg, e.recog_set)}
+    else:
+        sets = {t: pc.stimulus_set(cfg, getattr(e, f"{t}_set"), use_user_folder=False) for t in TESTS}
+    frames, histories, banks = [], {}, {}
+    for k, (test, sset) in enumerate(sets.items()):
+        bank = pc.StimulusBank.build(eye, sset, e.map_size)
+        banks[test] = bank
+        table = pc.trial_table(bank, test, "none")
+        if cfg.preset == "quick":
+            table = table[table["target_object"].isin(bank.set.objects[: e.quick_objects])].reset_index(drop=True)
+        tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+        rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+        gens = seeding.participant_generators(cfg.seed, ids, stream=100 + k)
+        out = model.run(tgt, rot, gens, record=record)
+        histories[f"{test}/none"] = out.pop("history")
+        frames.append(pc.trial_rows(table, out, ids))
+    return pd.concat(frames, ignore_index=True), histories, banks
+
+
+def evaluate(cfg, run, trained) -> dict:
+    e = cfg.experiment
+    df, histories, banks = run_tests(cfg, trained, record=cfg.logger.sample_trials)
+    run.write_csv("trials.csv", df)
+    tests = summarise_trials(df)
+    P = trained.c2.weight.shape[0]
+    iou = {t: pc.generalisation_iou(lambda x: trained.forward_step(x.expand(P, -1, -1) if x.shape[0] == 1 else x,
+                                                                   torch.full((P, x.shape[1]), 2, dtype=torch.long)),
+                                    b, e.step_deg, 3, e.map_size) for t, b in banks.items()}
+    summary = {"experiment": "exp3", "participants": int(cfg.participants), "tests": tests,
+               "targets": {k: {"error_rate": v} for k, v in THESIS.items()}, "forward_model_iou": iou}
+    for key, hist in histories.items():
+        pc.log_history(run.logger, hist, key)
+    f = run.figures
+    figures.rt_by_disparity(df, f / "fig6_5a_rt.png", groups=("test",), title="Fig. 6.5a RT (rotation steps)")
+    _bar(df.assign(correct=~df["correct"].astype(bool)), f / "fig6_5b_error.png", "Fig. 6.5b error rates")
+    figures.rate_by_disparity(df, f / "fig6_5c_error.png", groups=("test",), title="Fig. 6.5c error rate by disparity")
+    for key, hist in histories.items():
+        if hist and hist[0]:
+            steps = [{k: v.numpy() for k, v in st.items()} for st in hist[0]]
+            figures.map_panels(steps, f / f"maps_{key.replace('/', '_')}.png", title=f"{key}: sample trial",
+                               row_labels=[f"step {i}" for i in range(len(steps))])
+    return summary
+
+
+def report(cfg, run, summary) -> None:
+    t = summary["tests"]
+    r = Report("Experiment 3: mental rotation and generalisation")
+    r.p(f"{summary['participants']} simulated participants; preset `{cfg.preset}`; vision `{cfg.vision.kind}`. "
+        "RT in rotation steps. Gen-I and Gen-II are keyed `gen1` and `gen2`. " + reproducibility_note(cfg.seed))
+    r.h("Headline figures")
+    rows = [(f"{k} error rate", t[k]["error_rate"], v, True) for k, v in THESIS.items() if k in t]
+    rows += [(f"{k} RT-disparity r", v["rt_r"], None, False) for k, v in t.items()]
+    r.targets(rows)
+    r.h("All tests")
+    r.table(["test", "trials", "error", "rotated ok", "RT mean", "RT by disparity"],
+            [[k, v["n_trials"], f"{100 * v['error_rate']:.1f} %", f"{100 * v['rotation_success_rate']:.1f} %", v["rt_mean"],
+              ", ".join(f"{a}: {b}" for a, b in v["rt_by_disparity"].items())] for k, v in t.items()])
+    r.h("Forward model trained on three dots, applied to the test shapes (IoU with the true rotation)")
+    r.table(["set", "1 step", "2 steps", "3 steps"], [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
+    r.h("Figures")
+    for p in sorted(run.figures.glob("*.png")):
+        r.figure(p, p.stem.replace("_", " "), root=run.root)
+    r.write(run.report_path)

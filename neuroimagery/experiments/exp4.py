@@ -1,0 +1,302 @@
+"""Experiment 4 (thesis section 6.2): generalisation, decision making and embodiment in mental
+rotation. Model: :class:`neuroimagery.models.rotation_embodied.RotationEmbodied`.
+
+Protocol: forward models C1-C3 learn from three-dot images rotated by +step / 0 / -step; the
+posture maps C16 and C17 learn the wrist posture of every set-A image (supervised Kohonen). Tests
+Recog (set A), Gen1 (set B) and Gen2 (set C), 432 pairs each, with proprioception none, match
+(congruent) and mismatch (incongruent); the noise variant (U[-0.5, 0.5] on PPCp each step) is run
+in each condition on the tests listed in ``noise_tests``. RT = accumulator cycles (10 per step).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import List
+
+import numpy as np
+import pandas as pd
+import torch
+
+from ..analysis import figures
+from ..analysis.report import Report, reproducibility_note
+from ..analysis.summary import compare_rates, compare_rt, summarise_trials
+from ..nn import seeding
+from ..run import load_checkpoint
+from . import protocol_ch6 as pc
+
+TESTS = ("recog", "gen1", "gen2")
+CONDITIONS = ("none", "match", "mismatch")
+THESIS = {"recog/none": 0.79, "gen1/none": 0.86, "gen2/none": 0.59}  # correct rates, Fig. 6.9c
+
+
+@dataclass
+class Exp4Config:
+    name: str = "exp4"
+    # --- maps and stimuli -------------------------------------------------------------
+    map_size: int = 32  # side of every image map (Table 6.1: 32x32)
+    step_deg: float = 30.0  # rotation of one forward-model step (POCl +30, POCr -30)
+    ppc_angles: List[float] = field(default_factory=lambda: [-60.0, -30.0, 0.0, 30.0, 60.0, 90.0])  # wrist posture of each PPCp/PPCt unit, increasing
+    train_set: str = "exp4-A"  # set whose images train C16/C17 (thesis: set A)
+    recog_set: str = "exp4-A"  # Recog test set
+    gen1_set: str = "exp4-B"  # Gen1 test set
+    gen2_set: str = "exp4-C"  # Gen2 test set
+    # --- forward models C1-C3 (delta rule, eq. 6.4) -------------------------------------
+    init_high: float = 0.01  # initial weights U[0, init_high] of every trained connection ("small random"; not given)
+    eta_fm: float = 0.1  # delta-rule learning rate (thesis 0.1)
+    fm_images: int = 4000  # three-dot training images per participant, shared out at random among C1-C3 (not given)
+    fm_batch: int = 8  # images per delta-rule update (changes summed at the same weights); 1 = purely online
+    dot_inner: int = 23  # dots lie in the central inner x inner square (thesis 23)
+    # --- posture maps C16/C17 (supervised Kohonen, eq. 6.14-6.16) ---------------------------
+    eta_posture: float = 0.1  # Kohonen learning rate (thesis 0.1)
+    eta_posture_final: float = 0.002  # the rate decays exponentially to this, so each prototype ends as an average of its images (not given)
+    posture_sigma: float = 0.3  # neighbourhood radius of the forced winner, in units (not given)
+    posture_iterations: int = 1440  # supervised Kohonen steps (40 passes over the 36 set-A images; not given)
+    ppc_sigma: float = 0.5  # width (units) of the Gaussian bump PPCp/PPCt put around the winner (eq. 6.14; not given)
+    # --- action selection (eq. 6.10-6.11) ---------------------------------------------------
+    softmax_tau: float = 0.1  # PMCm softmax temperature (thesis 0.1)
+    # --- decision (PMCd, eq. 6.12-6.13) ----------------------------------------------------
+    lca_k: float = 0.5  # leak k (not given in the thesis)
+    lca_w: float = 0.5  # mutual inhibition w (C15, thesis 0.5)
+    lca_threshold: float = 1.2  # decision threshold (thesis 1.2)
+    lca_dt: float = 0.1  # Euler step per cycle (not given)
+    lca_cycles: int = 10  # accumulator cycles per rotation step (thesis 10)
+    lca_input_gain: float = 4.0  # input scale: evidence = gain * |PFCxm| / |PFCt| (not given)
+    max_steps: int = 20  # rotation steps before a random answer (thesis 20)
+    # --- embodiment -----------------------------------------------------------------------
+    proprio_gain: float = 1.0  # strength of the wrist signal added to PPCp (scaled encoder signal; not given)
+    noise_amplitude: float = 0.5  # noise variant: U[-a, a] added to each PPCp unit per step (thesis 0.5)
+    noise_tests: List[str] = field(default_factory=lambda: ["recog", "gen1"])  # tests repeated with noise
+    # --- protocol size ----------------------------------------------------------------------
+    quick_objects: int = 1  # preset=quick: objects per test set (full: all 3)
+    quick_fm_images: int = 3000  # preset=quick: three-dot training images
+
+    def __post_init__(self) -> None:
+        def pos(k, strict=True):
+            v = getattr(self, k)
+            if not (v > 0 if strict else v >= 0):
+                raise ValueError(f"experiment.{k} must be {'>' if strict else '>='} 0, got {v!r}")
+        for k in ("step_deg", "init_high", "eta_fm", "eta_posture", "eta_posture_final", "posture_sigma", "ppc_sigma", "softmax_tau",
+                  "lca_threshold", "lca_dt", "lca_input_gain"):
+            pos(k)
+        for k in ("lca_k", "lca_w", "proprio_gain", "noise_amplitude"):
+            pos(k, strict=False)
+        for k in ("map_size", "fm_images", "fm_batch", "posture_iterations", "lca_cycles", "max_steps",
+                  "quick_objects", "quick_fm_images"):
+            if int(getattr(self, k)) < 1:
+                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
+        if self.map_size < 8:
+            raise ValueError(f"experiment.map_size must be >= 8, got {self.map_size}")
+        if not (1 <= self.dot_inner <= self.map_size - 2):
+            raise ValueError(f"experiment.dot_inner must lie in [1, map_size - 2], got {self.dot_inner}")
+        if self.lca_dt > 1.0:
+            raise ValueError(f"experiment.lca_dt must be <= 1, got {self.lca_dt}")
+        if len(self.ppc_angles) < 2 or list(self.ppc_angles) != sorted(self.ppc_angles):
+            raise ValueError(f"experiment.ppc_angles must be >= 2 increasing angles, got {list(self.ppc_angles)}")
+        bad = [t for t in self.noise_tests if t not in TESTS]
+        if bad:
+            raise ValueError(f"experiment.noise_tests: unknown tests {bad}; choose from {list(TESTS)}")
+
+
+CONFIG = Exp4Config
+
+
+def _ids(cfg) -> list[int]:
+    return list(range(cfg.participants))
+
+
+def _model(cfg, ids):
+    from ..models.rotation_embodied import RotationEmbodied
+
+    return RotationEmbodied(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0))
+
+
+def train_model(cfg, ids, eye=None):
+    """Train the participants ``ids`` (a batched run of them equals their solo runs)."""
+    e = cfg.experiment
+    eye = pc.make_eye(cfg) if eye is None else eye
+    model = _model(cfg, ids)
+    gens = seeding.participant_generators(cfg.seed, ids, stream=1)
+    n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
+    X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner)
+    for m, conn in enumerate(model.fm):
+        pc.train_delta_binary(conn, X * (moves == m).unsqueeze(-1), Y, e.eta_fm, e.fm_batch)
+    bank = pc.StimulusBank.build(eye, pc.stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
+    labels = bank.angle_labels(e.ppc_angles)
+    for som in (model.c16, model.c17):
+        som.fit(bank.maps, labels=labels, generators=gens, method="factored")
+    model.eval()
+    model.freeze()
+    model.participant_ids = list(ids)
+    return model
+
+
+def train(cfg, run):
+    ids = _ids(cfg)
+    model = train_model(cfg, ids)
+    run.save_checkpoint("exp4", {"state_dict": model.state_dict(), "participants": ids})
+    return model
+
+
+def load(cfg, checkpoint_dir):
+    ck = load_checkpoint(checkpoint_dir, "exp4")
+    model = _model(cfg, ck["participants"])
+    model.load_state_dict(ck["state_dict"])
+    model.eval()
+    model.freeze()
+    model.participant_ids = list(ck["participants"])
+    return model
+
+
+def _test_sets(cfg):
+    e = cfg.experiment
+    if cfg.stimuli.kind == "folder":
+        return {"custom": pc.stimulus_set(cfg, e.recog_set)}
+    return {t: pc.stimulus_set(cfg, getattr(e, f"{t}_set"), use_user_folder=False) for t in TESTS}
+
+
+def _subset(bank, table, cfg):
+    if cfg.preset != "quick":
+        return table
+    keep = bank.set.objects[: cfg.experiment.quick_objects]
+    return table[table["target_object"].isin(keep)].reset_index(drop=True)
+
+
+def run_tests(cfg, model, eye=None, record: int = 0):
+    """All tests and conditions -> (trials DataFrame, sample histories, banks)."""
+    e = cfg.experiment
+    eye = pc.make_eye(cfg) if eye is None else eye
+    P = model.c16.weight.shape[0]
+    ids = getattr(model, "participant_ids", _ids(cfg))[:P]
+    frames, histories, banks = [], {}, {}
+    k = 0
+    for test, sset in _test_sets(cfg).items():
+        bank = pc.StimulusBank.build(eye, sset, e.map_size)
+        banks[test] = bank
+        noisy = [False] + ([True] if (test in e.noise_tests or test == "custom") else [])
+        for noise in noisy:
+            for cond in CONDITIONS:
+                name = f"noise-{cond}" if noise else cond
+                table = _subset(bank, pc.trial_table(bank, test, name), cfg)
+                tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+                rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+                gens = seeding.participant_generators(cfg.seed, ids, stream=100 + k)
+                k += 1
+                out = model.run(tgt, rot, gens, proprioception=cond, noise=noise, record=record)
+                histories[f"{test}/{name}"] = out.pop("history")
+                frames.append(pc.trial_rows(table, out, ids))
+    return pd.concat(frames, ignore_index=True), histories, banks
+
+
+def _stats(df: pd.DataFrame) -> dict:
+    """Embodiment comparisons (Welch t on RT, chi-square on correct answers)."""
+    out = {}
+    for test in df["test"].unique():
+        d = df[df["test"] == test]
+        g = {c: d[d["condition"] == c] for c in d["condition"].unique()}
+        for a, b in (("mismatch", "none"), ("match", "none"), ("noise-match", "noise-none"),
+                     ("noise-mismatch", "noise-none"), ("noise-none", "none")):
+            if a in g and b in g:
+                out[f"{test}:{a}-vs-{b}"] = {"rt": compare_rt(g[a]["rt"], g[b]["rt"]),
+                                             "correct": compare_rates(g[a]["correct"], g[b]["correct"])}
+                big = d["disparity"].max() / 2
+                ga, gb = g[a][g[a]["disparity"] >= big], g[b][g[b]["disparity"] >= big]
+                out[f"{test}:{a}-vs-{b}:disparity>={int(big)}"] = {"rt": compare_rt(ga["rt"], gb["rt"]),
+                                                                    "correct": compare_rates(ga["correct"], gb["correct"])}
+    return out
+
+
+def _rt_vs_steps(df: pd.DataFrame) -> dict:
+    d = df[(df["condition"] == "none") & df["decided"]]
+    g = d.groupby("rotation_steps")["rt"].mean()
+    return {str(int(n)): round(float(v), 2) for n, v in g.items()}
+
+
+def evaluate(cfg, run, trained) -> dict:
+    e = cfg.experiment
+    eye = pc.make_eye(cfg)
+    df, histories, banks = run_tests(cfg, trained, eye, record=cfg.logger.sample_trials)
+    run.write_csv("trials.csv", df)
+    tests = summarise_trials(df)
+    summary = {"experiment": "exp4", "participants": int(cfg.participants), "tests": tests,
+               "targets": {k: {"correct_rate": v} for k, v in THESIS.items()},
+               "statistics": _stats(df), "rt_by_rotation_steps": _rt_vs_steps(df)}
+    # generalisation of the three-dot forward models to the test shapes
+    iou = {}
+    for test, bank in banks.items():
+        iou[test] = pc.generalisation_iou(lambda x: trained.forward_step(
+            x.expand(trained.c16.weight.shape[0], -1, -1) if x.shape[0] == 1 else x,
+            torch.zeros(trained.c16.weight.shape[0], x.shape[1], dtype=torch.long)), bank, e.step_deg, 3, e.map_size)
+    summary["forward_model_iou"] = iou
+    for key, hist in histories.items():
+        pc.log_history(run.logger, hist, key)
+    for key, v in tests.items():
+        run.logger.scalars({"correct_rate": v["correct_rate"], "rt_mean": v["rt_mean"]}, prefix=f"{key}/")
+    _figures(run, df, histories)
+    return summary
+
+
+def _figures(run, df, histories) -> None:
+    f = run.figures
+    base = df[df["condition"] == "none"]
+    figures.rt_by_disparity(base, f / "fig6_9a_rt.png", groups=("test",), title="Fig. 6.9a RT (cycles)")
+    figures.rate_by_disparity(base, f / "fig6_9b_error.png", groups=("test",), title="Fig. 6.9b error rate")
+    _bar(base, f / "fig6_9c_correct.png", "Fig. 6.9c correct responses")
+    for test, fig in (("recog", "fig6_10"), ("gen1", "fig6_11"), ("custom", "fig6_10_custom")):
+        d = df[df["test"] == test]
+        if d.empty:
+            continue
+        figures.rt_by_disparity(d, f / f"{fig}a_rt.png", groups=("condition",), title=f"{test}: RT by proprioception")
+        figures.rate_by_disparity(d, f / f"{fig}b_error.png", groups=("condition",), title=f"{test}: error rate")
+        _bar(d, f / f"{fig}c_correct.png", f"{test}: correct responses", by="condition")
+    panels = [("recog/none", "fig6_12a_recog"), ("gen1/none", "fig6_12b_gen1"), ("gen2/none", "fig6_12c_gen2"),
+              ("recog/match", "fig6_13a_match"), ("recog/mismatch", "fig6_13b_mismatch"),
+              ("custom/none", "fig6_12_custom")]
+    for key, name in panels:
+        hist = histories.get(key) or []
+        if hist and hist[0]:
+            steps = [{k: v.numpy() for k, v in st.items()} for st in hist[0]]
+            figures.map_panels(steps, f / f"{name}.png", title=f"{key}: sample trial, one row per step",
+                               row_labels=[f"step {i + 1}" for i in range(len(steps))])
+
+
+def _bar(df, path, title, by="test"):
+    import matplotlib.pyplot as plt
+
+    per = df.groupby([by, "participant"])["correct"].mean().unstack()
+    order = [k for k in per.index]
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    m, s = 100 * per.mean(axis=1), 100 * per.std(axis=1, ddof=1).fillna(0)
+    ax.bar(range(len(order)), m.values, yerr=s.values, capsize=4)
+    ax.set_xticks(range(len(order)), order)
+    ax.set_ylabel("correct responses (%)")
+    ax.set_ylim(0, 100)
+    ax.set_title(title)
+    figures.save(fig, path)
+
+
+def report(cfg, run, summary) -> None:
+    t = summary["tests"]
+    r = Report("Experiment 4: generalisation, decision making and embodiment")
+    r.p(f"{summary['participants']} simulated participants; preset `{cfg.preset}`; vision `{cfg.vision.kind}`. "
+        "RT in accumulator cycles (10 per rotation step). " + reproducibility_note(cfg.seed))
+    rows = [(f"{k} correct rate", t.get(k, {}).get("correct_rate"), v, True) for k, v in THESIS.items() if k in t]
+    rows += [(f"{k} RT-disparity r", t[k]["rt_r"], None, False) for k in ("recog/none", "gen1/none", "gen2/none", "custom/none") if k in t]
+    r.h("Headline figures")
+    r.targets(rows)
+    r.h("All tests")
+    r.table(["test", "trials", "correct", "rotated ok", "RT mean", "RT slope/deg", "rt_r"],
+            [[k, v["n_trials"], f"{100 * v['correct_rate']:.1f} %", f"{100 * v['rotation_success_rate']:.1f} %",
+              v["rt_mean"], v["rt_slope_per_deg"], v["rt_r"]] for k, v in t.items()])
+    r.h("RT against the number of rotation steps (thesis: slightly above 10 n)")
+    r.table(["rotation steps n", "mean RT", "10 n"], [[n, v, 10 * int(n)] for n, v in summary["rt_by_rotation_steps"].items()])
+    r.h("Embodiment statistics")
+    r.table(["comparison", "RT a", "RT b", "RT p (Welch)", "correct a", "correct b", "correct p"],
+            [[k, v["rt"]["mean_a"], v["rt"]["mean_b"], f"{v['rt']['p']:.3g}" if v["rt"]["p"] is not None else "-",
+              v["correct"]["rate_a"], v["correct"]["rate_b"], f"{v['correct']['p']:.3g}"]
+             for k, v in summary["statistics"].items()])
+    r.h("Forward models trained on three dots, applied to the test shapes")
+    r.table(["set", "IoU after 1 step", "2 steps", "3 steps"],
+            [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
+    r.h("Figures")
+    for p in sorted(run.figures.glob("*.png")):
+        r.figure(p, p.stem.replace("_", " "), root=run.root)
+    r.write(run.report_path)

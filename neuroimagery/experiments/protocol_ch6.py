@@ -1,0 +1,233 @@
+"""Trial-loop pieces shared by Experiments 3 and 4 (thesis chapter 6).
+
+* the stimulus bank: edge maps of every item of a set, computed once per run and shared by all
+  participants (they see the same screen);
+* the trial table of a test (every pair of every object) and its ``trials.csv`` rows;
+* fast exact reformulations for binary input maps: ``binary_matmul`` (``W x`` for a 0/1 ``x``
+  as a sum of the weight columns of the active units) and ``train_delta_binary`` (the delta rule
+  of eq. 6.4 on a mini-batch, touching only the columns of the active inputs);
+* the three-dot training set of the forward models (thesis Fig. 6.3, 6.8);
+* the generalisation check of the forward models (IoU of imagined vs. true rotated edge maps);
+* sample-trial logging and the step-by-step map panels (Fig. 6.12-6.13).
+
+Nothing here knows a model's internals: models return tensors, this module turns them into rows.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+import pandas as pd
+import torch
+
+from ..errors import UserInputError
+from ..nn import seeding
+from ..analysis.summary import TRIAL_COLUMNS
+
+
+# ---------------------------------------------------------------------------------- vision
+def _vision():
+    import neuroimagery.vision as v
+
+    return v
+
+
+def _vfun(name: str):
+    """A function of the vision package (top level if exported, else its ``edges`` module)."""
+    v = _vision()
+    if hasattr(v, name):
+        return getattr(v, name)
+    from ..vision import edges
+
+    return getattr(edges, name)
+
+
+def stimulus_set(cfg, builtin: str, use_user_folder: bool = True):
+    """The builtin set ``builtin``, or the user's folder (with the builtin set's protocol)."""
+    from ..vision.stimulus_sets import get_stimulus_set, resolve_stimulus_set
+
+    if use_user_folder:
+        return resolve_stimulus_set(cfg.stimuli, builtin)
+    return get_stimulus_set(builtin)
+
+
+def make_eye(cfg):
+    v = _vision()
+    if hasattr(v, "make_eye"):
+        return v.make_eye(cfg.vision)
+    from ..vision.eye import make_eye as mk
+
+    return mk(cfg.vision)
+
+
+@dataclass
+class StimulusBank:
+    """Edge maps ``(N, size*size)`` of every item of a set, with an item -> row index."""
+
+    set: object
+    items: list
+    maps: torch.Tensor
+    index: dict
+
+    @classmethod
+    def build(cls, eye, sset, size: int) -> "StimulusBank":
+        items = [tuple(it) for it in sset.items()]
+        maps = eye.edge_maps(sset, items=items, size=size)
+        if maps.shape[0] != len(items):
+            raise UserInputError(f"stimulus set {sset.name!r}: the eye returned {maps.shape[0]} maps for {len(items)} items")
+        if float(maps.sum()) == 0:
+            raise UserInputError(f"stimulus set {sset.name!r}: no edges found in any image (are the shapes red or dark?)")
+        return cls(sset, items, maps.reshape(len(items), -1).float(), {it: i for i, it in enumerate(items)})
+
+    def angle_labels(self, unit_angles: Sequence[float]) -> torch.Tensor:
+        """Unit index of each item's angle in ``unit_angles`` (the posture a wrist would hold)."""
+        lut = {float(a): k for k, a in enumerate(unit_angles)}
+        return torch.tensor([lut[float(it[1])] for it in self.items], dtype=torch.long)
+
+
+def trial_table(bank: StimulusBank, test: str, condition: str) -> pd.DataFrame:
+    """One row per pair of the set (every object), with the bank rows of its two maps."""
+    rows = []
+    for obj in bank.set.objects:
+        for pr in bank.set.pairs(obj):
+            r = dict(pr)
+            r["test"], r["condition"] = test, condition
+            r["target_row"] = bank.index[(pr["target_object"], float(pr["target_angle"]), pr["target_appearance"])]
+            r["rotated_row"] = bank.index[(pr["rotated_object"], float(pr["rotated_angle"]), pr["rotated_appearance"])]
+            rows.append(r)
+    df = pd.DataFrame(rows)
+    df["disparity"] = (df["rotated_angle"] - df["target_angle"]).abs().round().astype(int)
+    return df
+
+
+def trial_rows(table: pd.DataFrame, out: dict, participants: Sequence[int]) -> pd.DataFrame:
+    """``trials.csv`` rows of a batched run: ``out`` holds ``(P, B)`` tensors from a model."""
+    frames = []
+    for k, p in enumerate(participants):
+        df = table.drop(columns=["target_row", "rotated_row"]).copy()
+        df.insert(0, "participant", int(p))
+        final = df["rotated_angle"].to_numpy() + out["rotation_deg"][k].numpy()
+        df["answer"] = np.where(out["answer"][k].numpy() == 0, "yes", "no")
+        df["correct"] = (df["answer"] == "yes") == df["same"].astype(bool)
+        df["rotation_steps"] = out["rotation_steps"][k].numpy().astype(int)
+        df["rotated_ok"] = np.isclose(final, df["target_angle"].to_numpy())
+        df["rt"] = out["rt"][k].numpy()
+        for extra in ("decided", "rotations"):
+            if extra in out:
+                df[extra] = out[extra][k].numpy()
+        frames.append(df)
+    return pd.concat(frames, ignore_index=True)[TRIAL_COLUMNS + [c for c in ("decided", "rotations") if c in out]]
+
+
+# ---------------------------------------------------------------------- binary fast paths
+def binary_matmul(weight_t: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """``W x`` for binary ``x`` ``(P, B, in)``, given ``weight_t = W.transpose(1, 2)`` ``(P, in, out)``.
+
+    Exactly ``torch.bmm(x, W^T)`` for 0/1 inputs, computed as the sum of the weight rows of the
+    active input units (``embedding_bag``), so the cost grows with the number of edge pixels
+    instead of the map size.
+    """
+    P, I, O = weight_t.shape
+    Pb, B, Ix = x.shape
+    if Ix != I or Pb != P:
+        raise ValueError(f"binary_matmul: x {tuple(x.shape)} does not fit weights {tuple(weight_t.shape)}")
+    nz = (x > 0.5).nonzero(as_tuple=False)  # sorted by (p, b, i)
+    counts = torch.bincount(nz[:, 0] * B + nz[:, 1], minlength=P * B)
+    offsets = torch.zeros(P * B, dtype=torch.long)
+    offsets[1:] = counts.cumsum(0)[:-1]
+    flat_idx = nz[:, 0] * I + nz[:, 2]
+    out = torch.nn.functional.embedding_bag(flat_idx, weight_t.reshape(P * I, O), offsets, mode="sum")
+    return out.reshape(P, B, O)
+
+
+@torch.no_grad()
+def train_delta_binary(conn, X: torch.Tensor, Y: torch.Tensor, eta: float, batch: int) -> None:
+    """Delta rule (eq. 6.4, ``Delta(eta, reduction='sum')``) on binary inputs, in mini-batches.
+
+    ``X`` ``(P, N, in)`` 0/1, ``Y`` ``(P, N, out)`` targets. Each mini-batch of ``batch`` patterns
+    is evaluated at the same weights and the summed change is applied, exactly as
+    ``conn.learn(pre=x, post=conn(x), target=y)`` with a ``Delta`` rule would do, but only the
+    weight columns of active inputs are read and written.
+    """
+    W = conn.weight  # (P, out, in)
+    P, O, I = W.shape
+    Wt = torch.cat([W.transpose(1, 2), torch.zeros(P, 1, O)], dim=1).contiguous()  # row I = padding
+    N = X.shape[1]
+    pidx = torch.arange(P)
+    for s in range(0, N, batch):
+        x, y = X[:, s:s + batch], Y[:, s:s + batch]
+        b = x.shape[1]
+        on = x > 0.5
+        K = int(on.sum(-1).max())
+        if K == 0:
+            continue
+        # active indices padded with the dummy row I
+        order = torch.argsort((~on).to(torch.int8), dim=-1, stable=True)[..., :K]
+        valid = torch.gather(on, -1, order)
+        idx = torch.where(valid, order, torch.full_like(order, I))  # (P, b, K)
+        pp = pidx.view(P, 1, 1).expand_as(idx)
+        out = Wt[pp, idx].sum(2)  # (P, b, O)
+        err = eta * (y - out)
+        Wt.index_put_((pp.reshape(-1), idx.reshape(-1)), err.unsqueeze(2).expand(-1, -1, K, -1).reshape(-1, O),
+                      accumulate=True)
+        Wt[:, I] = 0
+    conn.weight.copy_(Wt[:, :I].transpose(1, 2))
+
+
+def three_dot_training_set(generators, n: int, angles: Sequence[float], size: int, inner: int,
+                           offsets: Sequence[int] | None = None):
+    """Forward-model training pairs for each participant (Fig. 6.3, 6.8).
+
+    Per image a rotation is drawn at random (the randomly selected movement of the thesis); the
+    input is the three-dot image (placed in input block ``offsets[m]`` if given) and the target
+    the same image rotated by ``angles[m]``. Returns ``X (P, n, in)``, ``Y (P, n, size*size)``,
+    ``moves (P, n)``.
+    """
+    three_dot_images, rotate = _vfun("three_dot_images"), _vfun("rotate")
+    Xs, Ys, Ms = [], [], []
+    ang = torch.tensor([float(a) for a in angles])
+    for g in generators:
+        x = three_dot_images(n, g, size=size, inner=inner)
+        m = torch.randint(len(angles), (n,), generator=g)
+        y = rotate(x, ang[m])
+        x = x.reshape(n, -1)
+        if offsets is not None:
+            full = torch.zeros(n, len(angles) * size * size)
+            for k in range(len(angles)):
+                sel = m == k
+                full[sel, k * size * size:(k + 1) * size * size] = x[sel]
+            x = full
+        Xs.append(x)
+        Ys.append(y.reshape(n, -1))
+        Ms.append(m)
+    return torch.stack(Xs), torch.stack(Ys), torch.stack(Ms)
+
+
+def generalisation_iou(step_fn, bank: StimulusBank, angle: float, steps: int = 3, size: int = 32) -> dict:
+    """Mean IoU between the imagined map after ``k`` steps of ``step_fn`` and the truly rotated
+    edge map (``vision.rotate`` of the seen map by ``k * angle``), per participant and overall.
+
+    ``step_fn(maps (P, B, n)) -> (P, B, n)`` is one forward-model step of a trained model.
+    """
+    rotate, iou = _vfun("rotate"), _vfun("iou")
+    x = bank.maps
+    cur = x.unsqueeze(0)
+    res = {}
+    for k in range(1, steps + 1):
+        cur = step_fn(cur if cur.shape[0] > 1 else cur)
+        truth = rotate(x.reshape(-1, size, size), k * angle)
+        v = iou(cur.reshape(cur.shape[0], -1, size, size), truth.unsqueeze(0))  # (P, B)
+        res[str(k)] = round(float(v.mean()), 4)
+    return res
+
+
+def sample_generators(seed: int, participants: Sequence[int], stream: int):
+    return seeding.participant_generators(seed, list(participants), stream=stream)
+
+
+def log_history(logger, history: list, prefix: str) -> None:
+    """Every map of every step of recorded sample trials to TensorBoard."""
+    for trial_k, steps in enumerate(history):
+        for s, maps in enumerate(steps):
+            logger.maps({k: torch.as_tensor(v) for k, v in maps.items()}, step=s + 1, prefix=f"{prefix}/trial{trial_k}/")

@@ -1,0 +1,114 @@
+"""Experiment 3 model: mental rotation with a generalising forward model (thesis section 6.1,
+Fig. 6.2).
+
+Maps, batched ``(P, B, n)``: V1 (32x32 edge map); PP_1 (three 32x32 maps: clockwise, none,
+counter-clockwise; only the one chosen by M1_2 is active); PP_2 (32x32, predicted image); SS and
+PMC_1 (4 units each, wrist postures of the current and of the target image, eq. 6.5-6.6); M1_1
+(4x4 gain field, eq. 6.1); M1_2 (3 units n1/n2/n3, eq. 6.2, softmax eq. 6.3); PFC_1 (target),
+PFC_2 (PFC_1 - PP_2, one-to-one +1 / -1) and PMC_2 (their rectified sum).
+
+Connections: C6 (PP_1 -> PP_2, all-to-all, delta rule eq. 6.4) is the forward model; C2
+(PP_2 -> SS) and C3 (PFC_1 -> PMC_1) are supervised Kohonen maps (eq. 6.7-6.8); the rest are
+hard-wired.
+
+Conventions: SS / PMC_1 units are ordered by decreasing angle, so that with M1_1 rows = PMC_1 and
+columns = SS the six units above the diagonal (current angle below the target) drive n3, a
+counter-clockwise (+45 deg) turn, and the six below drive n1, a clockwise (-45 deg) turn.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import torch
+from torch import nn
+
+from ..nn import AllToAll, Delta, SOM
+from ..nn.functional import gain_field, softmax_select
+from ..experiments.protocol_ch6 import binary_matmul
+from .rotation_embodied import triangle_weights
+
+MOVES = ("n1", "n2", "n3")
+
+
+class RotationGeneralising(nn.Module):
+    """The Experiment 3 network for ``P`` participants (``generators``: one per participant)."""
+
+    def __init__(self, p, generators: Sequence[torch.Generator]) -> None:
+        super().__init__()
+        self.p = p
+        n = p.map_size * p.map_size
+        self.n, self.size = n, p.map_size
+        self.step_angles = (-float(p.step_deg), 0.0, float(p.step_deg))  # n1 cw, n2 none, n3 ccw
+        self.c6 = AllToAll(3 * n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.eta_fm), name="C6")
+        nu = len(p.posture_angles)
+        kw = dict(shape=(nu,), n_in=n, generators=generators, init=(0.0, p.init_high), eta=p.eta_posture,
+                  sigma=p.posture_sigma, eta_final=p.eta_posture_final, sigma_final=p.posture_sigma,
+                  iterations=p.posture_iterations, supervised=True, readout="dot")
+        self.c2 = SOM(name="C2", **kw)
+        self.c3 = SOM(name="C3", **kw)
+        # M1_1 -> M1_2 hard-wired masks: lower-left -> n1, diagonal -> n2, upper-right -> n3
+        self.register_buffer("m1_masks", triangle_weights(nu))
+        self._table: torch.Tensor | None = None
+
+    def freeze(self) -> None:
+        self._table = self.c6.weight.transpose(1, 2).contiguous()
+
+    def posture(self, som: SOM, x: torch.Tensor) -> torch.Tensor:
+        """Graded posture code (eq. 6.5-6.6): a Gaussian of each unit's distance to the image,
+        measured from the best unit's distance, ``exp(-(d_i^2 - d_min^2) / (2 sigma^2))``."""
+        d = som.distances(x)
+        return torch.exp(-(d - d.min(-1, keepdim=True).values) / (2 * self.p.posture_code_sigma ** 2))
+
+    def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
+        """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; output > threshold."""
+        if self._table is None:
+            self.freeze()
+        P, B, n = x.shape
+        sel = torch.ones(P, B, dtype=torch.bool) if active is None else active
+        full = torch.zeros(P, B, 3 * n)
+        for m in range(3):
+            s = ((move == m) & sel).unsqueeze(-1)
+            full[..., m * n:(m + 1) * n] = x * s
+        pred = binary_matmul(self._table, full)
+        return torch.where(sel.unsqueeze(-1), (pred > self.p.fm_threshold).float(), x)
+
+    @torch.no_grad()
+    def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record: int = 0, **_) -> dict:
+        """Run a batch of trials (binary edge maps ``(P, B, n)``); see the module docstring."""
+        p = self.p
+        P, B, _ = target.shape
+        nu = len(p.posture_angles)
+        pfc1 = target
+        pmc1 = self.posture(self.c3, pfc1)
+        pp2 = rotated  # at the start PP_2 holds the seen image
+        done = torch.zeros(P, B, dtype=torch.bool)
+        rotations = torch.zeros(P, B, dtype=torch.long)
+        angle = torch.zeros(P, B)
+        step_deg = torch.tensor(self.step_angles)
+        history: list[list[dict]] = [[] for _ in range(min(record, B))]
+        for s in range(p.max_steps + 1):
+            act = ~done
+            if not bool(act.any()):
+                break
+            ss = self.posture(self.c2, pp2)
+            m11 = gain_field(pmc1, ss).reshape(P, B, nu * nu)  # eq. 6.1
+            d2 = ((m11.unsqueeze(-2) - self.m1_masks) ** 2).sum(-1)  # (P, B, 3)
+            m12 = torch.exp(-d2 / (2 * p.m1_sigma ** 2))  # eq. 6.2
+            move = softmax_select(m12, p.softmax_tau, generators)  # eq. 6.3
+            stop = act & ((move == 1) | (rotations >= p.max_steps))
+            go = act & ~stop
+            new = self.forward_step(pp2, move, go)
+            for k in range(len(history)):
+                if bool(act[0, k]):
+                    history[k].append({"PFC_1": pfc1[0, k].view(self.size, self.size), "PP_2": pp2[0, k].view(self.size, self.size),
+                                       "SS": ss[0, k], "PMC_1": pmc1[0, k], "M1_1": m11[0, k].view(nu, nu), "M1_2": m12[0, k],
+                                       "PFC_2": (pfc1[0, k] - pp2[0, k]).clamp_min(0).view(self.size, self.size)})
+            angle = angle + torch.where(go, step_deg[move], torch.zeros(()))
+            rotations = rotations + go.long()
+            pp2 = new
+            done = done | stop
+        pfc2 = (pfc1 - pp2).clamp_min(0.0)  # C7 (+1), C8 (-1), rectified
+        pmc2 = pfc2.sum(-1)  # C9
+        no = (pmc2 > p.match_threshold * pfc1.sum(-1)) | (rotations >= p.max_steps)
+        return {"answer": no.long(), "rt": rotations.float(), "rotation_steps": rotations, "rotations": rotations,
+                "rotation_deg": angle, "decided": rotations < p.max_steps, "history": history}

@@ -1,0 +1,108 @@
+"""Experiment 4: config checks, exact fast paths, batched == solo, an end-to-end quick run."""
+import json
+
+import pandas as pd
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+
+from neuroimagery.config import register_configs, validate
+from neuroimagery.experiments import exp4, protocol_ch6 as pc
+from neuroimagery.nn import AllToAll, Delta
+from neuroimagery.run import evaluate
+
+CONF = "/work/main/conf"
+
+
+def _cfg(*overrides, quick=True):
+    register_configs()
+    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
+        cfg = validate(compose("config", overrides=["experiment=exp4", *overrides]))
+    cfg.preset = "quick" if quick else "full"
+    return cfg
+
+
+def test_config_rejects_bad_values():
+    with pytest.raises(ValueError, match="lca_k"):
+        exp4.Exp4Config(lca_k=-0.1)
+    with pytest.raises(ValueError, match="noise_tests"):
+        exp4.Exp4Config(noise_tests=["nope"])
+    with pytest.raises(ValueError, match="ppc_angles"):
+        exp4.Exp4Config(ppc_angles=[30.0, 0.0])
+
+
+def test_binary_matmul_equals_bmm():
+    g = torch.Generator().manual_seed(0)
+    W = torch.rand(3, 7, 11, generator=g)
+    x = (torch.rand(3, 5, 11, generator=g) > 0.6).float()
+    x[1, 2] = 0  # an empty input
+    ref = torch.bmm(x, W.transpose(1, 2))
+    assert torch.allclose(pc.binary_matmul(W.transpose(1, 2).contiguous(), x), ref, atol=1e-6)
+
+
+def test_sparse_delta_equals_connection_learn():
+    g = torch.Generator().manual_seed(1)
+    X = (torch.rand(2, 12, 9, generator=g) > 0.7).float()
+    Y = torch.rand(2, 12, 6, generator=g)
+    a = AllToAll(9, 6, participants=2, seed=3, rules=Delta(0.1))
+    b = AllToAll(9, 6, participants=2, seed=3, rules=Delta(0.1))
+    pc.train_delta_binary(a, X, Y, 0.1, batch=4)
+    for s in range(0, 12, 4):
+        x = X[:, s:s + 4]
+        b.learn(pre=x, post=b(x), target=Y[:, s:s + 4])
+    assert not torch.equal(a.weight, AllToAll(9, 6, participants=2, seed=3).weight)  # learning changed it
+    assert torch.allclose(a.weight, b.weight, atol=1e-5)
+
+
+def test_batched_participants_equal_solo_runs():
+    cfg = _cfg("participants=2", "logger=none", "experiment.quick_fm_images=300", "experiment.posture_iterations=100")
+    both = exp4.train_model(cfg, [0, 1])
+    solo = exp4.train_model(cfg, [1])
+    assert torch.allclose(both.fm[0].weight[1], solo.fm[0].weight[0], atol=1e-5)
+    assert torch.allclose(both.c16.weight[1], solo.c16.weight[0], atol=1e-5)
+    eye = pc.make_eye(cfg)
+    bank = pc.StimulusBank.build(eye, pc.stimulus_set(cfg, "exp4-A", False), 32)
+    table = pc.trial_table(bank, "recog", "noise-mismatch").iloc[:40]
+    tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())]
+    rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())]
+    from neuroimagery.nn import seeding
+    ob = both.run(tgt.expand(2, -1, -1), rot.expand(2, -1, -1), seeding.participant_generators(0, [0, 1], 100),
+                  proprioception="mismatch", noise=True)
+    os_ = solo.run(tgt.unsqueeze(0), rot.unsqueeze(0), seeding.participant_generators(0, [1], 100),
+                   proprioception="mismatch", noise=True)
+    for k in ("answer", "rt", "rotation_steps"):
+        assert torch.equal(ob[k][1], os_[k][0]), k
+
+
+def test_end_to_end_quick_run_writes_results(tmp_path):
+    cfg = _cfg("participants=1", "logger.sample_trials=1", "experiment.quick_fm_images=2000")
+    summary = evaluate(cfg, out_dir=tmp_path)
+    for f in ("trials.csv", "summary.json", "report.md", "checkpoints/exp4.pt", "figures/fig6_9a_rt.png",
+              "figures/fig6_12a_recog.png", "figures/fig6_10a_rt.png", "figures/fig6_11a_rt.png"):
+        assert (tmp_path / f).exists(), f
+    assert any((tmp_path / "tb").iterdir())
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["experiment"] == "exp4" and s["participants"] == 1
+    keys = {f"{t}/{c}" for t in ("recog", "gen1", "gen2") for c in ("none", "match", "mismatch")}
+    keys |= {f"{t}/noise-{c}" for t in ("recog", "gen1") for c in ("none", "match", "mismatch")}
+    assert set(s["tests"]) == keys
+    df = pd.read_csv(tmp_path / "trials.csv")
+    assert len(df) == 144 * len(keys)
+    # modelling claims on this reduced (1 participant, 1 object per set) run
+    t = s["tests"]
+    assert t["recog/none"]["rt_r"] >= 0.9
+    assert t["recog/none"]["correct_rate"] > t["gen2/none"]["correct_rate"]
+    assert t["recog/mismatch"]["rt_mean"] > t["recog/none"]["rt_mean"]
+    rt_n = s["rt_by_rotation_steps"]
+    assert all(10 * int(n) <= v <= 10 * int(n) + 10 for n, v in rt_n.items() if int(n) <= 3)
+    assert summary["forward_model_iou"]["gen1"]["1"] > 0.5
+
+
+@pytest.mark.slow
+def test_full_protocol(tmp_path):
+    cfg = _cfg("logger=none", quick=False)
+    s = evaluate(cfg, out_dir=tmp_path)
+    t = s["tests"]
+    assert t["recog/none"]["rt_r"] >= 0.9 and t["gen1/none"]["rt_r"] >= 0.9
+    assert t["recog/none"]["correct_rate"] > t["gen2/none"]["correct_rate"]
+    assert t["gen1/none"]["correct_rate"] > t["gen2/none"]["correct_rate"]
