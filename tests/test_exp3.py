@@ -26,6 +26,31 @@ def test_config_rejects_bad_values():
         exp3.Exp3Config(match_threshold=2.0)
 
 
+def test_m1_2_prefers_the_triangle_holding_the_activity():
+    cfg = _cfg("participants=1", "logger=none")
+    model = exp3._model(cfg, [0])
+    m = torch.zeros(1, 3, 4, 4)
+    m[0, 0, 1, 1] = 1.0  # current == desired posture: diagonal -> n2
+    m[0, 1, 0, 2] = 1.0  # upper-right -> n3
+    m[0, 2, 3, 0] = 1.0  # lower-left -> n1
+    n = model.m1_2(m.reshape(1, 3, 16))
+    assert n.argmax(-1).tolist() == [[1, 2, 0]]
+    assert (n.sort(-1).values[..., 1] < 0.2).all()  # the other units fall well below the winner
+
+
+def test_match_tolerance_covers_a_one_unit_shift_only():
+    cfg = _cfg("participants=1", "logger=none")
+    model = exp3._model(cfg, [0])
+    img = torch.zeros(32, 32)
+    img[10, 5:25] = 1.0
+    shifted, far = torch.roll(img, 1, 0), torch.roll(img, 3, 0)
+    t = img.reshape(1, 1, -1)
+    assert model.uncovered(t, shifted.reshape(1, 1, -1)).sum() == 0
+    assert model.uncovered(t, far.reshape(1, 1, -1)).sum() == img.sum()
+    model.p.match_tolerance = 0  # the literal one-to-one C8
+    assert model.uncovered(t, shifted.reshape(1, 1, -1)).sum() == img.sum()
+
+
 def test_batched_participants_equal_solo_runs():
     cfg = _cfg("participants=2", "logger=none", "experiment.quick_fm_images=300", "experiment.posture_iterations=100")
     both, solo = exp3.train_model(cfg, [0, 1]), exp3.train_model(cfg, [1])
@@ -53,4 +78,13 @@ def test_end_to_end_quick_run_writes_results(tmp_path):
 @pytest.mark.slow
 def test_full_protocol(tmp_path):
     s = evaluate(_cfg("logger=none", quick=False), out_dir=tmp_path)
-    assert s["tests"]["recog/none"]["n_trials"] == 1920
+    t = s["tests"]
+    assert t["recog/none"]["n_trials"] == 1920
+    # RT (rotation steps) grows linearly with disparity for the trained and the Gen-I shapes
+    assert t["recog/none"]["rt_r"] >= 0.9 and t["gen1/none"]["rt_r"] >= 0.9
+    # at 0 deg Recog and Gen-I hardly rotate
+    assert t["recog/none"]["rt_by_disparity"]["0"] < 0.6 and t["gen1/none"]["rt_by_disparity"]["0"] < 0.6
+    # Gen-II (no clear orientation) has the highest error rate
+    assert t["gen2/none"]["error_rate"] > max(t["recog/none"]["error_rate"], t["gen1/none"]["error_rate"])
+    # no set is answered at chance
+    assert max(t["recog/none"]["error_rate"], t["gen1/none"]["error_rate"]) < 0.35

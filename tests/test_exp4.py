@@ -106,3 +106,9 @@ def test_full_protocol(tmp_path):
     assert t["recog/none"]["rt_r"] >= 0.9 and t["gen1/none"]["rt_r"] >= 0.9
     assert t["recog/none"]["correct_rate"] > t["gen2/none"]["correct_rate"]
     assert t["gen1/none"]["correct_rate"] > t["gen2/none"]["correct_rate"]
+    # incongruent proprioception slows the rotation down and costs accuracy on the trained shapes
+    st = s["statistics"]["recog:mismatch-vs-none"]
+    assert st["rt"]["mean_a"] > st["rt"]["mean_b"] and st["rt"]["p"] < 0.01
+    assert st["correct"]["rate_a"] < st["correct"]["rate_b"]
+    # RT is about 10 accumulator cycles per rotation step
+    assert all(10 * int(n) <= v <= 10 * int(n) + 10 for n, v in s["rt_by_rotation_steps"].items() if int(n) <= 3)

@@ -4,8 +4,9 @@ Model: :class:`neuroimagery.models.rotation_generalising.RotationGeneralising`.
 Protocol: the forward model C6 learns from three-dot images rotated by -45 / 0 / +45 deg (delta
 rule); C2 and C3 learn the wrist posture of every set-a image (supervised Kohonen). Tests Recog
 (set a), Gen-I (set b, keyed ``gen1``) and Gen-II (set c, keyed ``gen2``), 192 pairs each. RT is
-the number of rotation steps; an answer is NO when the uncovered part of the target (PMC_2)
-exceeds 5 % of its active units, or after 15 rotations.
+the number of rotation steps; an answer is NO when the part of the target left uncovered by the
+imagined image (PMC_2; a target unit counts as covered by an image unit within
+``match_tolerance``) exceeds 5 % of its active units, or after 15 rotations.
 """
 from __future__ import annotations
 
@@ -48,7 +49,15 @@ class Exp3Config:
     posture_sigma: float = 0.3  # neighbourhood radius of the forced winner, units (not given)
     posture_iterations: int = 960  # supervised Kohonen steps (40 passes over 24 set-a images; not given)
     posture_code_sigma: float = 0.15  # width of the Gaussian of eq. 6.5-6.6 on squared-distance differences (not given)
-    m1_sigma: float = 1.0  # width of the Gaussian of eq. 6.2 (not given)
+    # width of the Gaussian of eq. 6.2 (not given). M1_1 and the weights are unit length, so distances lie in
+    # [0, 2]; activity wholly in one M1_1 cell sits at least 0.82 (squared) nearer its own triangle's weights
+    # than the others'. sigma^2 = 0.82 / 4 puts the other units two "standard" widths down (exp(-2) ~ 0.13),
+    # i.e. a clear posture difference gives a clear move and the softmax (tau 0.3) picks it ~90 % of the time.
+    m1_sigma: float = 0.45
+    # C8 tolerance (not given): a PP_2 unit covers the target units within this many map units (Chebyshev),
+    # since edge maps are 1-2 units thick and one 45-deg step shifts resampled edges by up to one unit;
+    # 0 = the literal one-to-one subtraction.
+    match_tolerance: int = 1
     softmax_tau: float = 0.3  # M1_2 softmax temperature (thesis 0.3)
     match_threshold: float = 0.05  # NO when PMC_2 > this fraction of PFC_1's active units (thesis 5 %)
     max_steps: int = 15  # rotation steps before answering NO (thesis 15)
@@ -64,6 +73,8 @@ class Exp3Config:
                   "quick_fm_images"):
             if int(getattr(self, k)) < 1:
                 raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
+        if int(self.match_tolerance) < 0:
+            raise ValueError(f"experiment.match_tolerance must be >= 0, got {self.match_tolerance!r}")
         if not (0.0 <= self.match_threshold <= 1.0):
             raise ValueError(f"experiment.match_threshold must lie in [0, 1], got {self.match_threshold!r}")
         if not (1 <= self.dot_inner <= self.map_size - 2):

@@ -118,7 +118,8 @@ def train_model(cfg, ids, eye=None):
     n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
     X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner)
     for m, conn in enumerate(model.fm):
-        pc.train_delta_binary(conn, X * (moves == m).unsqueeze(-1), Y, e.eta_fm, e.fm_batch)
+        Xm, Ym = _images_of_move(X, Y, moves, m)
+        pc.train_delta_binary(conn, Xm, Ym, e.eta_fm, e.fm_batch)
     bank = pc.StimulusBank.build(eye, pc.stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
     labels = bank.angle_labels(e.ppc_angles)
     for som in (model.c16, model.c17):
@@ -127,6 +128,19 @@ def train_model(cfg, ids, eye=None):
     model.freeze()
     model.participant_ids = list(ids)
     return model
+
+
+def _images_of_move(X, Y, moves, m):
+    """The training pairs whose randomly drawn movement is ``m``, in their order, per participant
+    (padded at the end with empty images, which the delta rule leaves without effect), so each
+    forward model sees mini-batches of ``fm_batch`` of its own images."""
+    P = X.shape[0]
+    rows = [(moves[k] == m).nonzero().squeeze(-1) for k in range(P)]
+    L = max(int(r.numel()) for r in rows)
+    Xm, Ym = torch.zeros(P, L, X.shape[-1]), torch.zeros(P, L, Y.shape[-1])
+    for k, r in enumerate(rows):
+        Xm[k, :r.numel()], Ym[k, :r.numel()] = X[k, r], Y[k, r]
+    return Xm, Ym
 
 
 def train(cfg, run):
@@ -172,17 +186,19 @@ def run_tests(cfg, model, eye=None, record: int = 0):
         bank = pc.StimulusBank.build(eye, sset, e.map_size)
         banks[test] = bank
         noisy = [False] + ([True] if (test in e.noise_tests or test == "custom") else [])
+        table = _subset(bank, pc.trial_table(bank, test, "none"), cfg)
+        tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+        rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+        names, conds = [], []
         for noise in noisy:
             for cond in CONDITIONS:
-                name = f"noise-{cond}" if noise else cond
-                table = _subset(bank, pc.trial_table(bank, test, name), cfg)
-                tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
-                rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
-                gens = seeding.participant_generators(cfg.seed, ids, stream=100 + k)
+                names.append(f"noise-{cond}" if noise else cond)
+                conds.append((cond, noise, seeding.participant_generators(cfg.seed, ids, stream=100 + k)))
                 k += 1
-                out = model.run(tgt, rot, gens, proprioception=cond, noise=noise, record=record)
-                histories[f"{test}/{name}"] = out.pop("history")
-                frames.append(pc.trial_rows(table, out, ids))
+        # all conditions of a test in one batch: they share the targets and the first step
+        for name, out in zip(names, model.run_conditions(tgt, rot, conds, record=record)):
+            histories[f"{test}/{name}"] = out.pop("history")
+            frames.append(pc.trial_rows(table.assign(condition=name), out, ids))
     return pd.concat(frames, ignore_index=True), histories, banks
 
 

@@ -231,3 +231,20 @@ def log_history(logger, history: list, prefix: str) -> None:
     for trial_k, steps in enumerate(history):
         for s, maps in enumerate(steps):
             logger.maps({k: torch.as_tensor(v) for k, v in maps.items()}, step=s + 1, prefix=f"{prefix}/trial{trial_k}/")
+
+
+def binary_matmul_rows(table: torch.Tensor, group: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """``W_g x`` for a flat batch of binary rows ``x`` ``(N, in)``, each with its own weight matrix.
+
+    ``table`` ``(G, in, out)`` holds the transposed weights of ``G`` matrices (for instance one per
+    participant and forward model) and ``group`` ``(N,)`` says which one each row uses. Like
+    :func:`binary_matmul`, the cost grows with the number of active input units.
+    """
+    G, I, O = table.shape
+    N = x.shape[0]
+    nz = (x > 0.5).nonzero(as_tuple=False)  # sorted by row
+    counts = torch.bincount(nz[:, 0], minlength=N)
+    offsets = torch.zeros(N, dtype=torch.long)
+    offsets[1:] = counts.cumsum(0)[:-1]
+    flat_idx = group[nz[:, 0]] * I + nz[:, 1]
+    return torch.nn.functional.embedding_bag(flat_idx, table.reshape(G * I, O), offsets, mode="sum")

@@ -30,7 +30,7 @@ from torch import nn
 
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM
 from ..nn.functional import gain_field, softmax_select
-from ..experiments.protocol_ch6 import binary_matmul
+from ..experiments.protocol_ch6 import binary_matmul, binary_matmul_rows
 
 MOVES = ("Ml", "Ms", "Mr")
 
@@ -127,72 +127,142 @@ class RotationEmbodied(nn.Module):
         time-out answers) comes from ``generators``, one per participant, drawn in a fixed order.
         ``record``: number of leading trials of participant 0 whose maps are returned per step.
         """
+        return self.run_conditions(target, rotated, [(proprioception, noise, generators)], record, flipped)[0]
+
+    @torch.no_grad()
+    def run_conditions(self, target: torch.Tensor, rotated: torch.Tensor, conditions, record: int = 0,
+                       flipped: torch.Tensor | None = None) -> list[dict]:
+        """Run the same trials ``(P, B, n)`` under several conditions ``[(proprioception, noise,
+        generators), ...]``; returns one result dict per condition (see :meth:`run`).
+
+        The first step (always "still") and everything about the target do not depend on the
+        condition, so they are computed once. After that the trials are kept as a flat list of
+        (condition, participant, trial) rows and only undecided rows are carried to the next step.
+        Each condition draws its random numbers from its own generators, one ``(B,)`` draw per
+        participant and step, so a result does not depend on what else is in the batch.
+        """
         p = self.p
-        if proprioception not in ("none", "match", "mismatch"):
-            raise ValueError(f"proprioception must be none, match or mismatch, got {proprioception!r}")
-        P, B, _ = target.shape
-        nu = len(p.ppc_angles)
-        pfct = target
-        ppct_unit = self.posture(self.c17, pfct)
-        ppct = self.ppc.encode(ppct_unit.float())  # (P, B, nu)
-        pfcft = self.flipped(pfct, ppct_unit) if flipped is None else flipped
+        for prop, _, gens in conditions:
+            if prop not in ("none", "match", "mismatch"):
+                raise ValueError(f"proprioception must be none, match or mismatch, got {prop!r}")
+            if len(gens) != target.shape[0]:
+                raise ValueError(f"{len(gens)} generators for {target.shape[0]} participants")
+        if self._tables is None:
+            self.freeze()
+        P, B, n = target.shape
+        C, nu, Q = len(conditions), len(p.ppc_angles), P * B
+        fm_table = torch.stack(self._tables, 1).reshape(P * 3, n, n)  # group = participant * 3 + move
+        c16_table = self.c16.weight.transpose(1, 2).contiguous()  # (P, n, units)
+        part = torch.arange(P).repeat_interleave(B)  # participant of each base row
+        # ---- target side (PFCt, PPCt, PFCft): shared by every condition
+        pfct = target.reshape(Q, n)
+        ppct_unit = self.posture(self.c17, target)
+        ppct = self.ppc.encode(ppct_unit.float()).reshape(Q, nu)
+        pfcft = (self.flipped(target, ppct_unit) if flipped is None else flipped).reshape(Q, n)
         t_count = pfct.sum(-1).clamp_min(1.0)
-        poci = rotated
-        move = torch.ones(P, B, dtype=torch.long)  # the first step is always "still"
-        y = self.pmcd.initial_state((P, B))
-        done = torch.zeros(P, B, dtype=torch.bool)
-        winner = torch.full((P, B), -1, dtype=torch.long)
-        rt = torch.zeros(P, B, dtype=torch.long)
-        steps = torch.zeros(P, B, dtype=torch.long)
-        rotations = torch.zeros(P, B, dtype=torch.long)
-        angle = torch.zeros(P, B)
         step_deg = torch.tensor(self.step_angles)
-        history: list[list[dict]] = [[] for _ in range(min(record, B))]
-        for s in range(p.max_steps):
-            act = ~done
-            if not bool(act.any()):
+        # ---- results, (C, Q)
+        winner = torch.full((C, Q), -1, dtype=torch.long)
+        rt = torch.zeros(C, Q, dtype=torch.long)
+        steps = torch.zeros(C, Q, dtype=torch.long)
+        rotations = torch.zeros(C, Q, dtype=torch.long)
+        angle = torch.zeros(C, Q)
+        histories: list[list[list[dict]]] = [[[] for _ in range(min(record, B))] for _ in range(C)]
+        rec = [(q, k) for k in range(min(record, B)) for q in [k]]  # participant 0, trials 0..record-1
+
+        def evidence(rows_q, pocp):
+            tm = (pfct[rows_q] + pocp > 1.5).float()
+            fm = (pfcft[rows_q] + pocp > 1.5).float()
+            ev = p.lca_input_gain * torch.stack([tm.sum(-1), fm.sum(-1)], -1) / t_count[rows_q].unsqueeze(-1)
+            return ev, tm, fm
+
+        # ---- step 1: the "still" forward model on every trial, identical in every condition
+        still = torch.ones(Q, dtype=torch.long)
+        pocp0 = (binary_matmul_rows(fm_table, part * 3 + 1, rotated.reshape(Q, n)) + 1.0 > 1.5).float()
+        ev0, tm0, fm0 = evidence(torch.arange(Q), pocp0)
+        dec = self.pmcd(ev0, p.lca_cycles, state=self.pmcd.initial_state((Q,)))
+        j0 = binary_matmul_rows(c16_table, part, pocp0).argmax(-1)
+        steps += 1
+        rt += dec.cycles
+        winner[:] = torch.where(dec.decided, dec.winner, winner[0])
+        if rec:
+            for c in range(C):
+                for q, k in rec:
+                    histories[c][k].append(self._snapshot(pfct[q], pfcft[q], rotated.reshape(Q, n)[q], pocp0[q], ppct[q], None,
+                                                          still[q], tm0[q], fm0[q], dec.state[q]))
+        # ---- condition rows of the undecided trials
+        live_q = (~dec.decided).nonzero().squeeze(-1)
+        cond = torch.arange(C).repeat_interleave(live_q.numel())
+        q = live_q.repeat(C)
+        poci, j, y = pocp0[q], j0[q], dec.state[q]
+        for s in range(p.max_steps - 1):
+            if q.numel() == 0:
                 break
-            pocp = self.forward_step(poci, move, act)
-            pocp = torch.where(act.unsqueeze(-1), pocp, poci)
-            angle = angle + torch.where(act, step_deg[move], torch.zeros(()))
-            rotations = rotations + (act & (move != 1)).long()
-            steps = steps + act.long()
-            tm = (pfct + pocp > 1.5).float()
-            fm = (pfcft + pocp > 1.5).float()
-            evidence = p.lca_input_gain * torch.stack([tm.sum(-1), fm.sum(-1)], -1) / t_count.unsqueeze(-1)
-            dec = self.pmcd(evidence, p.lca_cycles, state=y, active=act)
-            y = dec.state
-            new = dec.decided & act
-            rt = rt + torch.where(act, dec.cycles, torch.zeros_like(dec.cycles))
-            winner = torch.where(new, dec.winner, winner)
-            # next movement from the wrist postures (eq. 6.9-6.11)
-            j = self.posture(self.c16, pocp)
-            ppcp = self.ppc.encode(j.float())
-            if proprioception != "none":
-                wrist = j if proprioception == "match" else (nu - 1 - j)
-                ppcp = ppcp + p.proprio_gain * self.ppc.encode(wrist.float())
-            if noise:
-                u = torch.stack([torch.rand(B, nu, generator=g) for g in generators])
-                ppcp = ppcp + (2 * u - 1) * p.noise_amplitude
-            ppcp = ppcp.clamp(0.0, 1.0)
-            ppcc = gain_field(ppct, ppcp)  # (P, B, nu, nu): rows PPCt, columns PPCp
-            am = self.c20(ppcc.reshape(P, B, nu * nu))
-            nxt = softmax_select(am, p.softmax_tau, generators)
-            for k in range(len(history)):
-                if bool(act[0, k]):
-                    history[k].append({
-                        "PFCt": pfct[0, k].view(self.size, self.size), "PFCft": pfcft[0, k].view(self.size, self.size),
-                        "POCi": poci[0, k].view(self.size, self.size), "POCp": pocp[0, k].view(self.size, self.size),
-                        "PPCt": ppct[0, k], "PPCp": ppcp[0, k], "PPCc": ppcc[0, k],
-                        "PMCm": torch.nn.functional.one_hot(move[0, k], 3).float(),
-                        "PFCtm": tm[0, k].view(self.size, self.size), "PFCfm": fm[0, k].view(self.size, self.size),
-                        "PMCd": y[0, k].clone()})
-            done = done | new
-            move = torch.where(done, move, nxt)
-            poci = pocp
-        # time-out: a random answer
-        coin = torch.stack([torch.rand(B, generator=g) for g in generators])
-        timeout = winner < 0
-        answer = torch.where(timeout, (coin < 0.5).long(), winner)
-        return {"answer": answer, "rt": rt, "rotation_steps": steps - 1, "rotations": rotations,
-                "rotation_deg": angle, "decided": ~timeout, "history": history}
+            # next movement from the wrist postures (eq. 6.9-6.11), per condition
+            move = torch.empty_like(q)
+            ppcp_all = self.ppc.encode(j.float())
+            for c, (prop, noisy, gens) in enumerate(conditions):
+                sel = cond == c
+                draws_noise = [torch.rand(B, nu, generator=g) for g in gens] if noisy else None
+                draws_sel = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q)
+                if not bool(sel.any()):
+                    continue
+                qc, jc = q[sel], j[sel]
+                ppcp = ppcp_all[sel]
+                if prop != "none":
+                    wrist = jc if prop == "match" else (nu - 1 - jc)
+                    ppcp = ppcp + p.proprio_gain * self.ppc.encode(wrist.float())
+                if noisy:
+                    ppcp = ppcp + (2 * torch.stack(draws_noise).reshape(Q, nu)[qc] - 1) * p.noise_amplitude
+                ppcp = ppcp.clamp(0.0, 1.0)
+                ppcc = gain_field(ppct[qc], ppcp)  # rows PPCt, columns PPCp
+                am = self.c20(ppcc.reshape(-1, nu * nu))
+                move[sel] = softmax_select(am, p.softmax_tau, uniforms=draws_sel[qc])
+                if rec:
+                    self._note_ppc(histories[c], rec, qc, ppcp, ppcc)
+            # forward model, overlap, accumulator on the live rows
+            pocp = (binary_matmul_rows(fm_table, part[q] * 3 + move, poci) + 1.0 > 1.5).float()
+            ev, tm, fm = evidence(q, pocp)
+            dec = self.pmcd(ev, p.lca_cycles, state=y)
+            angle[cond, q] += step_deg[move]
+            rotations[cond, q] += (move != 1).long()
+            steps[cond, q] += 1
+            rt[cond, q] += dec.cycles
+            winner[cond, q] = torch.where(dec.decided, dec.winner, winner[cond, q])
+            if rec:
+                for c in range(C):
+                    for qq, k in rec:
+                        hit = ((cond == c) & (q == qq)).nonzero()
+                        if hit.numel():
+                            i = int(hit[0])
+                            histories[c][k].append(self._snapshot(pfct[qq], pfcft[qq], poci[i], pocp[i], ppct[qq], None,
+                                                                  move[i], tm[i], fm[i], dec.state[i]))
+            keep = ~dec.decided
+            j = binary_matmul_rows(c16_table, part[q[keep]], pocp[keep]).argmax(-1)
+            q, cond, poci, y = q[keep], cond[keep], pocp[keep], dec.state[keep]
+        outs = []
+        for c, (_, _, gens) in enumerate(conditions):
+            coin = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q)  # time-out: a random answer
+            timeout = winner[c] < 0
+            answer = torch.where(timeout, (coin < 0.5).long(), winner[c])
+            shape = (P, B)
+            outs.append({"answer": answer.reshape(shape), "rt": rt[c].reshape(shape), "rotation_steps": (steps[c] - 1).reshape(shape),
+                         "rotations": rotations[c].reshape(shape), "rotation_deg": angle[c].reshape(shape),
+                         "decided": (~timeout).reshape(shape), "history": histories[c]})
+        return outs
+
+    def _snapshot(self, pfct, pfcft, poci, pocp, ppct, ppcp, move, tm, fm, y) -> dict:
+        v = lambda x: x.view(self.size, self.size)
+        nu = ppct.shape[-1]
+        return {"PFCt": v(pfct), "PFCft": v(pfcft), "POCi": v(poci), "POCp": v(pocp), "PPCt": ppct,
+                "PPCp": torch.zeros(nu), "PPCc": torch.zeros(nu, nu),
+                "PMCm": torch.nn.functional.one_hot(move, 3).float(), "PFCtm": v(tm), "PFCfm": v(fm), "PMCd": y.clone()}
+
+    @staticmethod
+    def _note_ppc(history, rec, qc, ppcp, ppcc) -> None:
+        """Add the wrist maps that chose the next move to the last recorded step of each sample trial."""
+        for qq, k in rec:
+            hit = (qc == qq).nonzero()
+            if hit.numel() and history[k]:
+                i = int(hit[0])
+                history[k][-1]["PPCp"], history[k][-1]["PPCc"] = ppcp[i], ppcc[i]

@@ -5,7 +5,8 @@ Maps, batched ``(P, B, n)``: V1 (32x32 edge map); PP_1 (three 32x32 maps: clockw
 counter-clockwise; only the one chosen by M1_2 is active); PP_2 (32x32, predicted image); SS and
 PMC_1 (4 units each, wrist postures of the current and of the target image, eq. 6.5-6.6); M1_1
 (4x4 gain field, eq. 6.1); M1_2 (3 units n1/n2/n3, eq. 6.2, softmax eq. 6.3); PFC_1 (target),
-PFC_2 (PFC_1 - PP_2, one-to-one +1 / -1) and PMC_2 (their rectified sum).
+PFC_2 (PFC_1 - PP_2: +1 one-to-one, -1 from the PP_2 units within ``match_tolerance``) and
+PMC_2 (the sum of the rectified PFC_2).
 
 Connections: C6 (PP_1 -> PP_2, all-to-all, delta rule eq. 6.4) is the forward model; C2
 (PP_2 -> SS) and C3 (PFC_1 -> PMC_1) are supervised Kohonen maps (eq. 6.7-6.8); the rest are
@@ -59,6 +60,35 @@ class RotationGeneralising(nn.Module):
         d = som.distances(x)
         return torch.exp(-(d - d.min(-1, keepdim=True).values) / (2 * self.p.posture_code_sigma ** 2))
 
+    def m1_2(self, m11: torch.Tensor) -> torch.Tensor:
+        """M1_2 activity (eq. 6.2): a Gaussian of the distance between M1_1 ``(P, B, 16)`` and the
+        weight vector of each of n1, n2, n3.
+
+        Both vectors are compared as directions (scaled to unit length, as eq. 6.8 rescales
+        trained weights), so the distance says *which* triangle of M1_1 holds the activity and not
+        how much activity there is, and the 4-unit diagonal is not favoured over the 6-unit
+        triangles by its size alone. The Gaussian is centred on the nearest weight vector (its
+        unit is 1), as in the posture code of eq. 6.5-6.6; ``m1_sigma`` sets how far the others
+        fall (see the config).
+        """
+        w = self.m1_masks / self.m1_masks.norm(dim=-1, keepdim=True)
+        m = m11 / m11.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+        d2 = ((m.unsqueeze(-2) - w) ** 2).sum(-1)  # (P, B, 3), in [0, 2]
+        return torch.exp(-(d2 - d2.min(-1, keepdim=True).values) / (2 * self.p.m1_sigma ** 2))
+
+    def uncovered(self, pfc1: torch.Tensor, pp2: torch.Tensor) -> torch.Tensor:
+        """PFC_2: target units not covered by the imagined image (C7 +1, C8 -1, rectified).
+
+        C8 reaches each PFC_2 unit from the PP_2 units within ``match_tolerance`` map units
+        (a max over that square neighbourhood), so an edge displaced by resampling a rotated
+        image on the 32x32 grid still covers the target edge next to it.
+        """
+        r = int(self.p.match_tolerance)
+        if r > 0:
+            shape = pp2.shape
+            pp2 = torch.nn.functional.max_pool2d(pp2.reshape(-1, 1, self.size, self.size), 2 * r + 1, 1, r).reshape(shape)
+        return (pfc1 - pp2).clamp_min(0.0)
+
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
         """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; output > threshold."""
         if self._table is None:
@@ -92,8 +122,7 @@ class RotationGeneralising(nn.Module):
                 break
             ss = self.posture(self.c2, pp2)
             m11 = gain_field(pmc1, ss).reshape(P, B, nu * nu)  # eq. 6.1
-            d2 = ((m11.unsqueeze(-2) - self.m1_masks) ** 2).sum(-1)  # (P, B, 3)
-            m12 = torch.exp(-d2 / (2 * p.m1_sigma ** 2))  # eq. 6.2
+            m12 = self.m1_2(m11)  # eq. 6.2
             move = softmax_select(m12, p.softmax_tau, generators)  # eq. 6.3
             stop = act & ((move == 1) | (rotations >= p.max_steps))
             go = act & ~stop
@@ -102,12 +131,12 @@ class RotationGeneralising(nn.Module):
                 if bool(act[0, k]):
                     history[k].append({"PFC_1": pfc1[0, k].view(self.size, self.size), "PP_2": pp2[0, k].view(self.size, self.size),
                                        "SS": ss[0, k], "PMC_1": pmc1[0, k], "M1_1": m11[0, k].view(nu, nu), "M1_2": m12[0, k],
-                                       "PFC_2": (pfc1[0, k] - pp2[0, k]).clamp_min(0).view(self.size, self.size)})
+                                       "PFC_2": self.uncovered(pfc1[0, k], pp2[0, k]).view(self.size, self.size)})
             angle = angle + torch.where(go, step_deg[move], torch.zeros(()))
             rotations = rotations + go.long()
             pp2 = new
             done = done | stop
-        pfc2 = (pfc1 - pp2).clamp_min(0.0)  # C7 (+1), C8 (-1), rectified
+        pfc2 = self.uncovered(pfc1, pp2)  # C7 (+1), C8 (-1), rectified
         pmc2 = pfc2.sum(-1)  # C9
         no = (pmc2 > p.match_threshold * pfc1.sum(-1)) | (rotations >= p.max_steps)
         return {"answer": no.long(), "rt": rotations.float(), "rotation_steps": rotations, "rotations": rotations,

@@ -1,0 +1,187 @@
+"""Experiment 1 model: mental rotation by affordance and forward-model loops (thesis 5.1, Fig. 5.1).
+
+Maps (thesis sizes):
+
+* ``PC`` 32x32: edge map of the object being rotated (the mental image);
+* ``PFC_1`` 32x32: edge map of the target (working memory);
+* ``PMC_1`` 31x105: wrist postures. Columns code the wrist angle (-90..90 deg), the rows code
+  which of the two objects is held (object A in the upper band, B in the lower), so the map holds
+  the thesis's 26 postures (2 objects x 13 orientations) as Gaussian clusters (eq. 4.1);
+* ``PFC_2`` 32x64: Kohonen SOM (eq. 4.5) over the concatenated ``[PC, PFC_1]`` (matching);
+* ``PMC_2`` 10x20: the answer map, "yes" cluster on the left, "no" cluster on the right.
+
+Connections (all initialised U[0, 0.1]):
+
+* ``C1`` PC -> PMC_1, outstar Hebbian (eq. 4.2-4.3): the affordance, image -> posture cluster;
+* ``C2`` PMC_1 -> PC, outstar Hebbian: the forward model, posture of angle ``a`` -> image of
+  angle ``a -+ 15`` (one step towards 0), so that repeating C1, C2 rotates the mental image;
+* ``C3, C4`` PC, PFC_1 -> PFC_2: the SOM's input weights (4 clusters: AA, AB, BA, BB at 0 deg);
+* ``C5`` PFC_2 -> PMC_2, outstar Hebbian: matching cluster -> answer cluster.
+
+Competition: the posture cluster of PMC_1 and the answer of PMC_2 are chosen by a dynamic field
+(short-range excitation, long-range inhibition) iterated to threshold; its cycles are the RT
+(1 cycle = 1 ms). For PMC_1 the field runs over the wrist-angle axis (the column profile of the
+map, 105 units); the object row is then read at the winning column.
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
+from ..experiments.protocol_ch5 import hebbian_shared
+
+
+class AffordanceRotationModel(nn.Module):
+    """Fig. 5.1 for ``participants`` robots with independent initial weights (batched).
+
+    ``e`` is an :class:`~neuroimagery.experiments.exp1.Exp1Config`.
+    """
+
+    def __init__(self, e, participants: int, seed: int) -> None:
+        super().__init__()
+        self.e = e
+        P = participants
+        # rows and columns of PMC_1 both in degrees: row spacing 3 deg, column spacing 180/104 deg
+        self.pc = PopulationMap("PC", (32, 32))
+        self.pfc1 = PopulationMap("PFC_1", (32, 32))
+        self.pmc1 = PopulationMap("PMC_1", (31, 105), low=(-45.0, -90.0), high=(45.0, 90.0), sigma=e.posture_sigma_deg)
+        self.pmc2 = PopulationMap("PMC_2", (10, 20), low=(0.0, 0.0), high=(9.0, 19.0), sigma=e.answer_sigma)
+        g = lambda s: participant_generators(seed, P, stream=s)  # noqa: E731
+        self.c1 = AllToAll(1024, self.pmc1.n, init=(0.0, e.init_high), generators=g(0), rules=Hebbian(e.hebb_eta, "outstar"), name="C1")
+        self.c2 = AllToAll(self.pmc1.n, 1024, init=(0.0, e.init_high), generators=g(1), rules=Hebbian(e.hebb_eta, "outstar"), name="C2")
+        self.pfc2 = SOM((32, 64), 2048, generators=g(2), init=(0.0, e.init_high), eta=e.som_eta,
+                        sigma=e.som_sigma, sigma_final=e.som_sigma_final, eta_final=e.som_eta_final,
+                        iterations=e.som_iterations, name="PFC_2")
+        self.c5 = AllToAll(2048, self.pmc2.n, init=(0.0, e.init_high), generators=g(3), rules=Hebbian(e.hebb_eta, "outstar"), name="C5")
+        self.posture_field = DynamicField((105,), tau=e.field_tau, h=e.field_h, a_exc=e.field_a_exc,
+                                          sigma_exc=e.field_sigma_exc, a_inh=e.field_a_inh,
+                                          threshold=e.field_threshold, name="PMC_1")
+        self.answer_field = DynamicField((10, 20), tau=e.field_tau, h=e.field_h, a_exc=e.field_a_exc,
+                                         sigma_exc=e.field_sigma_exc, a_inh=e.field_a_inh,
+                                         threshold=e.field_threshold, name="PMC_2")
+        self.seed = seed
+
+    # ------------------------------------------------------------------ codes
+    def object_row(self, obj_index: torch.Tensor) -> torch.Tensor:
+        """Row coordinate (deg units) of object 0 (A) or 1 (B) in PMC_1."""
+        return torch.where(obj_index == 0, -self.e.object_band_deg, self.e.object_band_deg).float()
+
+    def posture_code(self, obj_index: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
+        """Gaussian cluster in PMC_1 for the wrist posture holding ``obj`` at ``angle`` -> ``(..., 3255)``."""
+        v = torch.stack([self.object_row(obj_index), angle.float()], -1)
+        return self.pmc1.flat(self.pmc1.encode(v))
+
+    def answer_code(self, yes: torch.Tensor) -> torch.Tensor:
+        c = torch.where(yes, torch.tensor(4.5), torch.tensor(14.5))
+        return self.pmc2.flat(self.pmc2.encode(torch.stack([torch.full_like(c, 4.5), c], -1)))
+
+    def pfc2_activity(self, pc: torch.Tensor, pfc1: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Filtered PFC_2 read-out: a Gaussian cluster around the best-matching unit -> (activity, bmu)."""
+        x = torch.cat([pc, pfc1], -1)
+        bmu = self.pfc2.bmu(x)  # (P, B)
+        d2 = ((self.pfc2.grid[bmu].unsqueeze(-2) - self.pfc2.grid) ** 2).sum(-1)
+        return torch.exp(-d2 / (2 * self.e.som_filter_sigma ** 2)), bmu
+
+    # ------------------------------------------------------------------ training
+    @torch.no_grad()
+    def fit(self, images: dict[tuple[int, float], torch.Tensor], log=None) -> None:
+        """Train C1, C2 (Hebbian, shared sequence), PFC_2 (SOM) and C5 (Hebbian).
+
+        ``images[(obj, angle)]`` is the 1024-vector edge map of object 0/1 at a training angle.
+        Patterns are fed object A first, then object B (the thesis's sequential feed), or shuffled.
+        """
+        e = self.e
+        angles = [float(a) for a in range(-90, 91, int(e.step_deg))]
+        seq = [(o, a) for o in (0, 1) for a in angles]
+        if e.feed_order == "shuffled":
+            gen = torch.Generator().manual_seed(self.seed)
+            seq = [seq[i] for i in torch.randperm(len(seq), generator=gen)]
+        seq = seq * e.hebb_epochs
+        obj = torch.tensor([s[0] for s in seq])
+        ang = torch.tensor([s[1] for s in seq])
+        x = torch.stack([images[s] for s in seq])  # (T, 1024)
+        post = self.posture_code(obj, ang)  # (T, 3255)
+        nxt = ang - torch.sign(ang) * torch.clamp(ang.abs(), max=e.step_deg)
+        nxt_img = torch.stack([images[(int(o), float(a))] for o, a in zip(obj, nxt)])
+        self.c1.weight.copy_(hebbian_shared(self.c1.weight, x, post, e.hebb_eta))  # affordance
+        self.c2.weight.copy_(hebbian_shared(self.c2.weight, post, nxt_img, e.hebb_eta))  # forward model
+        # matching SOM on the 4 combinations of upright images, then the answer association
+        up = [images[(0, 0.0)], images[(1, 0.0)]]
+        pairs = [(i, j) for i in (0, 1) for j in (0, 1)]
+        X = torch.stack([torch.cat([up[i], up[j]]) for i, j in pairs])  # (4, 2048)
+        P = self.c1.participants
+        self.pfc2.train()
+        self.pfc2.fit(X, generators=participant_generators(self.seed, P, stream=4), method=e.som_method)
+        act, _ = self.pfc2_activity(X[:, :1024].expand(P, -1, -1), X[:, 1024:].expand(P, -1, -1))
+        yes = torch.tensor([i == j for i, j in pairs])
+        target = self.answer_code(yes)  # (4, 200)
+        self.c5.train()
+        for _ in range(e.hebb_epochs):
+            for k in range(len(pairs)):
+                self.c5.learn(act[:, k:k + 1], target[k].expand(P, 1, -1))
+        self.eval()
+
+    # ------------------------------------------------------------------ a trial
+    @torch.no_grad()
+    def select_posture(self, pc: torch.Tensor):
+        """C1 then the competition in PMC_1: winning (row, column), cycles, PMC_1 net input."""
+        s = self.c1.net(pc)  # (P, B, 3255)
+        s = s / s.amax(-1, keepdim=True).clamp_min(1e-9)
+        grid = s.reshape(*s.shape[:-1], 31, 105)
+        prof = grid.amax(-2) ** self.e.sharpen  # wrist-angle profile
+        d = self.posture_field(self.e.field_gain * prof, max_cycles=self.e.field_max_cycles)
+        col = torch.where(d.decided, d.winner, prof.argmax(-1))
+        row = grid.gather(-1, col[..., None, None].expand(*col.shape, 31, 1)).squeeze(-1).argmax(-1)
+        return row, col, d.cycles, s
+
+    @torch.no_grad()
+    def trial(self, pc0: torch.Tensor, pfc1: torch.Tensor, record: int = 0) -> dict:
+        """Rotate the images ``pc0`` ``(P, B, 1024)`` towards upright and answer against ``pfc1``.
+
+        Returns ``(P, B)`` tensors: ``steps`` (C2 applications), ``rotated_ok`` (posture cluster at
+        the centre within the cycle budget), ``yes``, ``rt`` (competition cycles), and for the first
+        ``record`` trials of participant 0 the maps of every cycle (``frames``).
+        """
+        e = self.e
+        P, B, _ = pc0.shape
+        pc = pc0.clone()
+        steps = torch.zeros(P, B, dtype=torch.long)
+        rt = torch.zeros(P, B, dtype=torch.long)
+        live = torch.ones(P, B, dtype=torch.bool)
+        ok = torch.zeros(P, B, dtype=torch.bool)
+        frames = [[] for _ in range(record)]
+        col_angle = self.pmc1.coords[:105, 1]
+        for cycle in range(e.max_cycles):
+            row, col, cyc, s = self.select_posture(pc)
+            rt += torch.where(live, cyc, torch.zeros_like(cyc))
+            centred = col_angle[col].abs() <= e.centre_tolerance_deg
+            ok |= live & centred
+            stop = live & centred
+            go = live & ~centred
+            cluster = self.pmc1.flat(self.pmc1.encode(torch.stack([self.pmc1.coords[row * 105, 0], col_angle[col]], -1)))
+            for k in range(record):
+                frames[k].append({"PC": pc[0, k].reshape(32, 32).clone(), "PMC_1": cluster[0, k].reshape(31, 105).clone()})
+            live = go
+            if not live.any() or cycle == e.max_cycles - 1:
+                break
+            img = self.c2.net(cluster)
+            img = img / img.amax(-1, keepdim=True).clamp_min(1e-9)
+            img = (img >= e.image_threshold).float()
+            pc = torch.where(live.unsqueeze(-1), img, pc)
+            steps += live.long()
+            del stop
+        act, bmu = self.pfc2_activity(pc, pfc1)
+        a = self.c5.net(act)
+        a = a / a.amax(-1, keepdim=True).clamp_min(1e-9)
+        d = self.answer_field(self.e.field_gain * self.pmc2.unflat(a), max_cycles=e.field_max_cycles)
+        win = torch.where(d.decided, d.winner, a.argmax(-1))
+        yes = (win % 20) < 10
+        rt += d.cycles
+        out = {"steps": steps, "rotated_ok": ok, "yes": yes, "rt": rt, "frames": frames}
+        for k in range(record):
+            grid = torch.zeros(32 * 64)
+            grid[:] = act[0, k]
+            frames[k].append({"PC": pc[0, k].reshape(32, 32), "PFC_1": pfc1[0, k].reshape(32, 32),
+                              "PFC_2": grid.reshape(32, 64), "PMC_2": d.state[0, k].reshape(10, 20)})
+        return out

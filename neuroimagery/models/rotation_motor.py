@@ -1,0 +1,233 @@
+"""Experiment 2 model: mental rotation through inverse and forward motor models with wrist
+proprioception (thesis 5.2, Fig. 5.6, Table 5.1).
+
+Maps (thesis sizes): ``PP`` 32x32 (mental image), ``PFC_1`` 32x32 (target), ``SS`` 31x100 (wrist
+proprioception: columns = wrist angle -90..90, rows = the held object, A upper band / B lower),
+``PMC_1`` 31x100 (desired wrist posture, one central band), ``PMC_2`` 10x20 (answer), ``PFC_2``
+64x64 SOM over ``[PP, PFC_1]``, ``M1_1`` 64x64 SOM over ``[SS, PMC_1]`` (6,200 inputs), ``M1_2``
+10x30 with clusters N1 (30 deg clockwise), N2 (stay), N3 (30 deg counter-clockwise).
+
+Connections: C1 PP->PMC_1 (pre-activates the 7 postures at 0.2), C6 PFC_1->PMC_1 (selects one at
+1.0), C7/C8 -> M1_1 (SOM), C9 M1_1->M1_2, C10 M1_1->SS (forward model), C2 SS->PP (image of the
+predicted posture), C3/C4 -> PFC_2 (SOM), C5 PFC_2->PMC_2; every Hebbian one is outstar Oja
+(eq. 4.2-4.3), initial weights U[0, 0.1]. Training cycles follow Table 5.1.
+
+The competition inside SS (forward prediction + weaker proprioception) and inside PMC_2 is a
+dynamic field run to threshold; the SS field runs along the wrist-angle axis (100 units). RT =
+SS competition cycles over the rotation steps + PMC_2 cycles (1 cycle = 1 ms).
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from ..experiments.protocol_ch5 import hebbian_indexed, hebbian_shared
+from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
+
+ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]
+
+
+class MotorRotationModel(nn.Module):
+    """Fig. 5.6 for ``participants`` robots (batched); ``e`` is an ``Exp2Config``."""
+
+    def __init__(self, e, participants: int, seed: int) -> None:
+        super().__init__()
+        self.e, self.seed = e, seed
+        P = participants
+        g = lambda s: participant_generators(seed, P, stream=s)  # noqa: E731
+        lo, hi = (-45.0, -90.0), (45.0, 90.0)
+        self.ss = PopulationMap("SS", (31, 100), lo, hi, sigma=e.posture_sigma_deg)
+        self.pmc1 = PopulationMap("PMC_1", (31, 100), lo, hi, sigma=e.posture_sigma_deg)
+        self.pmc2 = PopulationMap("PMC_2", (10, 20), (0.0, 0.0), (9.0, 19.0), sigma=e.answer_sigma)
+        self.m12 = PopulationMap("M1_2", (10, 30), (0.0, 0.0), (9.0, 29.0), sigma=e.answer_sigma)
+        h = Hebbian(e.hebb_eta, "outstar")
+        init = (0.0, e.init_high)
+        self.c1 = AllToAll(1024, 3100, init=init, generators=g(0), rules=h, name="C1")
+        self.c6 = AllToAll(1024, 3100, init=init, generators=g(1), rules=h, name="C6")
+        self.c2 = AllToAll(3100, 1024, init=init, generators=g(2), rules=h, name="C2")
+        self.c9 = AllToAll(4096, 300, init=init, generators=g(3), rules=h, name="C9")
+        self.c10 = AllToAll(4096, 3100, init=init, generators=g(4), rules=h, name="C10")
+        self.c5 = AllToAll(4096, 200, init=init, generators=g(5), rules=h, name="C5")
+        som = dict(init=init, eta=e.som_eta, eta_final=e.som_eta_final, sigma=e.som_sigma,
+                   sigma_final=e.som_sigma_final, iterations=e.som_iterations)
+        self.m11 = SOM((64, 64), 6200, generators=g(6), name="M1_1", **som)
+        self.pfc2 = SOM((64, 64), 2048, generators=g(7), name="PFC_2", **som)
+        fk = dict(tau=e.field_tau, h=e.field_h, a_exc=e.field_a_exc, sigma_exc=e.field_sigma_exc,
+                  a_inh=e.field_a_inh, threshold=e.field_threshold)
+        self.ss_field = DynamicField((100,), name="SS", **fk)
+        self.answer_field = DynamicField((10, 20), name="PMC_2", **fk)
+
+    # ------------------------------------------------------------------ codes
+    def ss_code(self, obj: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
+        row = torch.where(obj == 0, -self.e.object_band_deg, self.e.object_band_deg).float()
+        return self.ss.flat(self.ss.encode(torch.stack([row, angle.float()], -1)))
+
+    def pmc1_code(self, angle: torch.Tensor, amplitude: float = 1.0) -> torch.Tensor:
+        v = torch.stack([torch.zeros_like(angle, dtype=torch.float32), angle.float()], -1)
+        return self.pmc1.flat(self.pmc1.encode(v, amplitude))
+
+    def cluster(self, shape_grid: torch.Tensor, centre_col: torch.Tensor) -> torch.Tensor:
+        return self.m12.flat(self.m12.encode(torch.stack([torch.full_like(centre_col, 4.5), centre_col], -1)))
+
+    def som_bump(self, som: SOM, x: torch.Tensor) -> torch.Tensor:
+        """The winning cluster of a SOM: a truncated Gaussian around the best-matching unit."""
+        bmu = som.bmu(x)
+        d2 = ((som.grid[bmu].unsqueeze(-2) - som.grid) ** 2).sum(-1)
+        b = torch.exp(-d2 / (2 * self.e.cluster_sigma ** 2))
+        return torch.where(b < 1e-3, torch.zeros_like(b), b)
+
+    # ------------------------------------------------------------------ training
+    @torch.no_grad()
+    def babble(self, steps: int) -> dict:
+        """Motor babbling (a)-(g) of 5.2.1 D, per participant -> patterns ``(P, steps)`` of indices.
+
+        (a) random wrist posture (one of the 7) holding a random object; (b) random direction and
+        number of 30-deg rotations that stay in [-90, 90] (0 = keep still); (c) the final posture
+        is the desired one (PMC_1); each step records (object, current, desired, action, next).
+        """
+        gens = participant_generators(self.seed, self.c1.participants, stream=8)
+        out = {k: [] for k in ("obj", "cur", "des", "act", "nxt")}
+        for gen in gens:
+            rec = {k: [] for k in out}
+            while len(rec["obj"]) < steps:
+                obj = int(torch.randint(2, (1,), generator=gen))
+                start = int(torch.randint(7, (1,), generator=gen))
+                dr = 1 if int(torch.randint(2, (1,), generator=gen)) else -1  # +1 = counter-clockwise
+                room = 6 - start if dr > 0 else start
+                nr = int(torch.randint(room + 1, (1,), generator=gen))
+                goal = start + dr * nr
+                cur = start
+                for _ in range(nr + 1):
+                    act = 0 if cur == goal else dr  # -1 = N1 (clockwise), 0 = N2, +1 = N3
+                    for k, v in zip(rec, (obj, cur, goal, act, cur + act)):
+                        rec[k].append(v)
+                    cur += act
+            for k in out:
+                out[k].append(rec[k][:steps])
+        return {k: torch.tensor(v) for k, v in out.items()}
+
+    @torch.no_grad()
+    def fit(self, images: dict[tuple[int, float], torch.Tensor]) -> dict:
+        """Train every connection (Table 5.1). ``images[(obj, angle)]``: 1024-vector edge maps."""
+        e = self.e
+        P = self.c1.participants
+        ang = torch.tensor(ANGLES)
+        items = [(o, a) for o in (0, 1) for a in ANGLES]
+        img = torch.stack([images[it] for it in items])  # (14, 1024)
+        # C1: every image pre-activates the 7 postures at 0.2; C6: the target image selects its own
+        all7 = self.pmc1_code(ang, e.preactivation).sum(0)
+        seq = list(range(14)) * e.c1_epochs
+        self.c1.weight.copy_(hebbian_shared(self.c1.weight, img[seq], all7.expand(len(seq), -1), e.hebb_eta))
+        own = self.pmc1_code(torch.tensor([a for _, a in items]), e.bias)
+        self.c6.weight.copy_(hebbian_shared(self.c6.weight, img[seq], own[seq], e.hebb_eta))
+        # babbling stream: SOM M1_1 (C7, C8), then C9, C10, C2 on its first hebb_steps steps
+        T = max(e.som_iterations, e.hebb_steps)
+        b = self.babble(T)
+        ai = lambda a: (a + 0).long()  # noqa: E731  (index 0..6)
+        pat = b["obj"] * 49 + ai(b["cur"]) * 7 + ai(b["des"])  # (P, T) index into 98 patterns
+        objs, curs, dess = torch.meshgrid(torch.arange(2), torch.arange(7), torch.arange(7), indexing="ij")
+        objs, curs, dess = objs.reshape(-1), curs.reshape(-1), dess.reshape(-1)
+        X = torch.cat([self.ss_code(objs, ang[curs]), self.pmc1_code(ang[dess])], -1)  # (98, 6200)
+        self.m11.train()
+        self.m11.fit(X, order=pat[:, : e.som_iterations], method=e.som_method)
+        Th = e.hebb_steps
+        m_act = self.som_bump(self.m11, X.expand(P, -1, -1))  # (P, 98, 4096)
+        pre = torch.stack([m_act[p, pat[p, :Th]] for p in range(P)])  # (P, Th, 4096)
+        acts = self.m12.flat(self.m12.encode(torch.stack([torch.full((3,), 4.5), torch.tensor([4.5, 14.5, 24.5])], -1)))
+        self.c9.weight.copy_(hebbian_indexed(self.c9.weight, pre, b["act"][:, :Th] + 1, acts, e.hebb_eta))
+        nxt_idx = b["obj"][:, :Th] * 7 + b["nxt"][:, :Th]
+        ss_set = self.ss_code(torch.tensor([o for o, _ in items]), torch.tensor([a for _, a in items]))  # (14, 3100)
+        self.c10.weight.copy_(hebbian_indexed(self.c10.weight, pre, nxt_idx, ss_set, e.hebb_eta))
+        self.c2.weight.copy_(hebbian_indexed(self.c2.weight, ss_set[nxt_idx], nxt_idx, img, e.hebb_eta))
+        # matching SOM on the 196 (PP, PFC_1) pairs; C5 to the answer clusters
+        pairs = [(i, j) for i in range(14) for j in range(14)]
+        Y = torch.stack([torch.cat([img[i], img[j]]) for i, j in pairs])
+        gens = participant_generators(self.seed, P, stream=9)
+        self.pfc2.train()
+        self.pfc2.fit(Y, generators=gens, method=e.som_method)
+        same = torch.tensor([items[i][0] == items[j][0] for i, j in pairs])
+        order = torch.stack([torch.cat([torch.randperm(196, generator=g_) for _ in range(e.c5_epochs)]) for g_ in gens])
+        p_act = self.som_bump(self.pfc2, Y.expand(P, -1, -1))
+        pre5 = torch.stack([p_act[p, order[p]] for p in range(P)])
+        ans = self.pmc2.flat(self.pmc2.encode(torch.tensor([[4.5, 4.5], [4.5, 14.5]])))
+        self.c5.weight.copy_(hebbian_indexed(self.c5.weight, pre5, (~same[order]).long(), ans, e.hebb_eta))
+        self.eval()
+        return {"m11_patterns": X, "pfc2_patterns": Y}
+
+    # ------------------------------------------------------------------ a trial
+    @torch.no_grad()
+    def trial(self, pp0, pfc1, condition: str = "none", record: int = 0) -> dict:
+        """Rotate ``pp0`` ``(P, B, 1024)`` toward the target ``pfc1`` and answer.
+
+        condition: ``none`` (no proprioceptive input to SS), ``match`` (the felt posture equals the
+        predicted one) or ``mismatch`` (a random posture every step, from the participant's generator).
+        """
+        e = self.e
+        P, B, _ = pp0.shape
+        ang = torch.tensor(ANGLES)
+        col_angle = self.ss.coords[:100, 1]
+        gens = participant_generators(self.seed, P, stream=10)
+        # desired posture: C1 pre-activation + C6 bias, strongest column wins
+        pm = self.c1.net(pp0) + self.c6.net(pfc1)
+        desired = col_angle[pm.reshape(P, B, 31, 100).amax(-2).argmax(-1)]
+        desired = ang[(desired.unsqueeze(-1) - ang).abs().argmin(-1)]
+        pmc1 = self.pmc1_code(desired)
+        # current posture of the seen object: C2 read backwards (image -> posture)
+        s0 = torch.bmm(pp0, self.c2.weight).reshape(P, B, 31, 100)
+        col = s0.amax(-2).argmax(-1)
+        row = s0.gather(-1, col[..., None, None].expand(P, B, 31, 1)).squeeze(-1).argmax(-1)
+        obj = (row >= 15).long()
+        cur = ang[(col_angle[col].unsqueeze(-1) - ang).abs().argmin(-1)]
+        ss = self.ss_code(obj, cur)
+        pp = pp0.clone()
+        steps = torch.zeros(P, B, dtype=torch.long)
+        rt = torch.zeros(P, B, dtype=torch.long)
+        live = torch.ones(P, B, dtype=torch.bool)
+        stopped = torch.zeros(P, B, dtype=torch.bool)
+        frames = [[] for _ in range(record)]
+        for cycle in range(e.max_cycles):
+            m = self.som_bump(self.m11, torch.cat([ss, pmc1], -1))  # (P, B, 4096)
+            a = self.c9.net(m).reshape(P, B, 10, 3, 10).sum((-3, -1)).argmax(-1)  # 0 N1, 1 N2, 2 N3
+            stopped |= live & (a == 1)
+            live = live & (a != 1)
+            if not live.any():
+                break
+            pred = self.c10.net(m)
+            pred = pred / pred.amax(-1, keepdim=True).clamp_min(1e-9)
+            grid = pred.reshape(P, B, 31, 100)
+            prof = grid.amax(-2)
+            if condition != "none":
+                if condition == "match":
+                    felt = col_angle[prof.argmax(-1)]
+                else:
+                    felt = ang[torch.stack([torch.randint(7, (B,), generator=g_) for g_ in gens])]
+                prof = prof + e.proprio_gain * self.ss_code(obj, felt).reshape(P, B, 31, 100).amax(-2)
+            d = self.ss_field(e.field_gain * prof, max_cycles=e.field_max_cycles)
+            col = torch.where(d.decided, d.winner, prof.argmax(-1))
+            row = grid.gather(-1, col[..., None, None].expand(P, B, 31, 1)).squeeze(-1).argmax(-1)
+            new_obj = (row >= 15).long()
+            new_ss = self.ss_code(new_obj, col_angle[col])
+            img = self.c2.net(new_ss)
+            img = (img / img.amax(-1, keepdim=True).clamp_min(1e-9) >= e.image_threshold).float()
+            rt += torch.where(live, d.cycles, torch.zeros_like(d.cycles))
+            ss = torch.where(live.unsqueeze(-1), new_ss, ss)
+            obj = torch.where(live, new_obj, obj)
+            pp = torch.where(live.unsqueeze(-1), img, pp)
+            steps += live.long()
+            for k in range(record):
+                frames[k].append({"PP": pp[0, k].reshape(32, 32).clone(), "SS": ss[0, k].reshape(31, 100).clone(),
+                                  "M1_1": m[0, k].reshape(64, 64).clone()})
+        final = col_angle[ss.reshape(P, B, 31, 100).amax(-2).argmax(-1)]
+        target_angle = desired
+        ok = stopped & ((final - target_angle).abs() < 15.0)
+        act = self.som_bump(self.pfc2, torch.cat([pp, pfc1], -1))
+        s = self.c5.net(act)
+        s = s / s.amax(-1, keepdim=True).clamp_min(1e-9)
+        d = self.answer_field(e.field_gain * self.pmc2.unflat(s), max_cycles=e.field_max_cycles)
+        win = torch.where(d.decided, d.winner, s.argmax(-1))
+        yes = (win % 20) < 10
+        rt += d.cycles
+        for k in range(record):
+            frames[k].append({"PP": pp[0, k].reshape(32, 32), "PFC_1": pfc1[0, k].reshape(32, 32),
+                              "PFC_2": act[0, k].reshape(64, 64), "PMC_2": d.state[0, k].reshape(10, 20)})
+        return {"steps": steps, "rotated_ok": ok, "yes": yes, "rt": rt, "frames": frames}

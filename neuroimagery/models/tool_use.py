@@ -1,0 +1,670 @@
+"""The tool-use development model of thesis chapter 7 (Fig. 7.4) and its two algorithms.
+
+Maps (Fig. 7.4)
+    V1 / PC   the eye image and its colour-filtered version: two 240 x 320 channels (red toy,
+              green rake) flattened to one vector ``x`` (the environment renders them).
+    PMC       10 units, one affordance per motor primitive; PMC unit ``j`` drives M1 unit ``j``
+              (a fixed one-to-one link, not a connection).
+    M1        10 DMPs (eq. 7.2-7.5), free until a skill is learnt on them.
+    HIP       6 distal-goal units, one per intrinsically motivating event.
+    PFC       the mental image: an imagined PC pattern.
+
+Connections
+    C1  PC -> PMC   Hebbian (outstar, eq. 4.2-4.3) with the teaching signal successes / K of
+                    one PI^BB update; read out as the mean weight over the active PC units, so an
+                    affordance lies in [0, 1].
+    C2  PC -> HIP   Hebbian (outstar) with teaching signal 1 when a skill succeeds from a posture.
+    C3  PMC <-> PFC bidirectional supervised SOM (``nn.som.BidirectionalSOM``): a unit per
+                    (posture, primitive) pair keeps the situation image plus the primitive's code
+                    on one side and the outcome image on the other; run backwards (situation +
+                    intended action -> outcome) it yields the mental image.
+    C4  PC -> PMC   Q-learning (eq. 7.1, ``nn.rules.QLearning``), standard sign by default.
+
+Algorithms
+    :func:`acquire_skills`  skill acquisition, Fig. 7.5 (exploration, PI^BB learning with the
+                            competence stopping rule, training of C1, C2, C3).
+    :func:`sequence_trial`  action sequencing, Fig. 7.6 (softmax over C1 + C4, a reactive child
+                            moves, a planning child imagines the outcome through C3, Q-learning).
+
+The model talks to the world through the small :class:`Environment` protocol, so the same code
+runs on the pybullet rake-and-toy world (:class:`ToolWorldEnvironment`) and on cheap stand-ins
+in the tests.  Weight tensors live in buffers of :class:`ToolUseBrain` (one individual).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Protocol, Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from ..motor.pibb import PIBB
+from ..nn.connections import AllToAll
+from ..nn.functional import softmax_select
+from ..nn.rules import Hebbian, QLearning
+from ..nn.som import BidirectionalSOM
+
+EVENTS = ("retrieve", "touch", "south", "north", "west", "east")  # thesis Fig. 7.3 / Table 7.1 order
+SKILL_LETTERS = ("P", "T", "S", "N", "W", "E")  # Table 7.1 column names of the skills
+N_POSTURES = 4
+
+
+# ---------------------------------------------------------------------------------- environment
+@dataclass(frozen=True)
+class State:
+    """A scene: the initial posture it started from, and (after moves) the arm and toy state.
+
+    ``q`` / ``toy_xy`` are None for the untouched initial situation of ``posture``.
+    """
+
+    posture: int
+    q: tuple[float, ...] | None = None
+    toy_xy: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
+class Result:
+    """What executing one primitive did: events (``EVENTS`` order), the state it left."""
+
+    events: tuple[bool, ...]
+    next_state: State
+    fired_first: str | None = None
+
+    @property
+    def retrieved(self) -> bool:
+        return bool(self.events[0])
+
+
+class Environment(Protocol):
+    """What the brain needs from a world (the pybullet robot or a stand-in).
+
+    image_shape: (H, W) of one PC channel; the PC vector has ``2 * H * W`` units (toy, tool).
+    n_params: length of a primitive's flat parameter vector.
+    """
+
+    image_shape: tuple[int, int]
+    n_params: int
+
+    def start(self, posture: int) -> State: ...
+
+    def random_params(self, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
+        """``n`` random movements around ``posture`` (the exploration step of Fig. 7.5)."""
+
+    def search_sigma(self) -> torch.Tensor:
+        """Standard deviation of the PI^BB exploration noise per parameter (eq. 7.6)."""
+
+    def execute(self, params: torch.Tensor, state: State, watched: str | None) -> list[Result]:
+        """Run each parameter row from ``state``; stop a row when ``watched`` fires."""
+
+    def perceive(self, state: State) -> torch.Tensor:
+        """The PC map of a state: float (2, H, W) in [0, 1] (toy channel, tool channel)."""
+
+    def reward(self, image: torch.Tensor) -> float:
+        """The toy-related reward read from a PC image: 1 if the toy lies in reach, else 0."""
+
+
+# ---------------------------------------------------------------------------------- the brain
+class GatedHebbian(Hebbian):
+    """Outstar Hebbian change (eq. 4.2-4.3) restricted to the rows of the unit being trained.
+
+    Fig. 7.5 trains C1 (and C2) for one primitive (one goal) at a time; the other units' weights
+    must keep what they learnt, so the change is masked by ``gate`` ``(P, out)``.
+    """
+
+    def delta(self, weight, pre, post, gate=None, repeats: int = 1, **kw):
+        """``repeats`` > 1: the change of that many identical steps in one go. With binary
+        input (as the PC map is) ``k`` outstar steps give ``(1 - (1 - eta)^k) / eta`` times the
+        one-step change, exactly."""
+        d = super().delta(weight, pre=pre, post=post)
+        if repeats > 1:
+            if not bool(((pre == 0) | (pre == 1)).all()):
+                raise ValueError("GatedHebbian: repeats > 1 needs binary input")
+            d = d * ((1.0 - (1.0 - self.eta) ** repeats) / self.eta)
+        return d if gate is None else d * gate.unsqueeze(-1)
+
+
+class ToolUseBrain(nn.Module):
+    """One infant robot's maps and connections C1-C4 (Fig. 7.4)."""
+
+    def __init__(self, image_shape: tuple[int, int], n_dmps: int = 10, n_goals: int = 6,
+                 c1_eta: float = 0.1, c2_eta: float = 0.1, c3_eta: float = 0.1, c3_sigma: float = 0.1,
+                 c3_action_gain: float = 100.0, q_eta: float = 1e-4, q_gamma: float = 0.8,
+                 q_form: str = "standard", seed: int = 0) -> None:
+        super().__init__()
+        self.image_shape = tuple(image_shape)
+        self.n_pc = 2 * image_shape[0] * image_shape[1]
+        self.n_dmps, self.n_goals = int(n_dmps), int(n_goals)
+        self.c3_action_gain = float(c3_action_gain)
+        self.c1 = AllToAll(self.n_pc, n_dmps, init="zeros", rules=GatedHebbian(c1_eta), name="C1")
+        self.c2 = AllToAll(self.n_pc, n_goals, init="zeros", rules=GatedHebbian(c2_eta), name="C2")
+        self.c4 = AllToAll(self.n_pc, n_dmps, init="zeros", rules=QLearning(q_eta, q_gamma, q_form), name="C4")
+        # C3: a = outcome image (PFC), b = [situation image, gain * primitive code] (PC + PMC)
+        self.c3 = BidirectionalSOM(N_POSTURES * n_dmps, self.n_pc, self.n_pc + n_dmps, seed=seed, eta=c3_eta,
+                                   sigma=c3_sigma, iterations=1, name="C3")
+        self.register_buffer("acquired", torch.zeros(n_dmps, dtype=torch.bool))  # M1 units holding a skill
+        self.register_buffer("c3_trained", torch.zeros(N_POSTURES * n_dmps, dtype=torch.bool))
+
+    # --- read-outs
+    @staticmethod
+    def flat(image: torch.Tensor) -> torch.Tensor:
+        return image.reshape(1, -1).float()
+
+    def affordance(self, image: torch.Tensor) -> torch.Tensor:
+        """C1: mean weight over the active PC units -> (n_dmps,) in [0, 1]."""
+        x = self.flat(image)
+        return self.c1(x)[0] / x.sum().clamp_min(1.0)
+
+    def distal_goals(self, image: torch.Tensor) -> torch.Tensor:
+        """C2 -> HIP activity (6,) in [0, 1]: which goals this situation is known to afford."""
+        x = self.flat(image)
+        return self.c2(x)[0] / x.sum().clamp_min(1.0)
+
+    def q_values(self, image: torch.Tensor) -> torch.Tensor:
+        """C4 -> (n_dmps,) action values."""
+        return self.c4(self.flat(image))[0]
+
+    def pmc(self, image: torch.Tensor) -> torch.Tensor:
+        """PMC activity: affordance (C1) plus learnt action value (C4), Fig. 7.6."""
+        return self.affordance(image) + self.q_values(image)
+
+    def _c3_b(self, image: torch.Tensor, unit: int) -> torch.Tensor:
+        code = torch.zeros(1, self.n_dmps)
+        code[0, unit] = self.c3_action_gain
+        return torch.cat([self.flat(image), code], dim=1)
+
+    def imagine(self, image: torch.Tensor, unit: int) -> torch.Tensor:
+        """C3 run backwards: the mental image of doing primitive ``unit`` in situation ``image``."""
+        b = self._c3_b(image, unit)
+        winner = int(self.c3._match(b, self.n_pc, 2 * self.n_pc + self.n_dmps)[0, 0])
+        if not bool(self.c3_trained[winner]):  # nothing learnt about this primitive: no change imagined
+            return image.reshape(2, *self.image_shape).float().clone()
+        a = self.c3.backward(b)  # (1, 1, n_pc)
+        return a.reshape(2, *self.image_shape).clamp(0.0, 1.0)
+
+    # --- learning (Fig. 7.5 and 7.6)
+    @torch.no_grad()
+    def train_c1(self, image: torch.Tensor, unit: int, signal: float, times: int) -> None:
+        x, y, gate = self.flat(image), torch.zeros(1, self.n_dmps), torch.zeros(1, self.n_dmps)
+        y[0, unit], gate[0, unit] = float(signal), 1.0
+        if times > 0:
+            self.c1.learn(pre=x, post=y, gate=gate, repeats=times)
+
+    @torch.no_grad()
+    def train_c2(self, image: torch.Tensor, goal: int, times: int) -> None:
+        x, y, gate = self.flat(image), torch.zeros(1, self.n_goals), torch.zeros(1, self.n_goals)
+        y[0, goal], gate[0, goal] = 1.0, 1.0
+        if times > 0:
+            self.c2.learn(pre=x, post=y, gate=gate, repeats=times)
+
+    @torch.no_grad()
+    def train_c3(self, image: torch.Tensor, unit: int, posture: int, outcome: torch.Tensor, times: int,
+                 generator: torch.Generator) -> None:
+        label = (posture - 1) * self.n_dmps + unit
+        a, b = self.flat(outcome).unsqueeze(0), self._c3_b(image, unit).unsqueeze(0)
+        if not self.training or times < 1:
+            return
+        rule = self.c3.som.rule
+        eta, sigma = rule.schedule(0)
+        theta = rule.neighbourhood(self.c3.som.grid, torch.tensor([label]), sigma)[0]
+        if int((theta > 0).sum()) == 1:
+            # the neighbourhood is below the rule's cutoff: ``times`` online steps of eq. 4.5 with
+            # the forced winner move only the winner's row, w <- x + (1 - eta)^times (w - x)
+            w = self.c3.som.weight[0, label]
+            x = torch.cat([a, b], dim=-1)[0, 0]
+            w.copy_(x + (1.0 - float(eta)) ** times * (w - x))
+            self.c3.som.steps += times
+        else:
+            self.c3.fit(a, b, labels=torch.tensor([[label]]), iterations=times,
+                        order=torch.zeros(1, times, dtype=torch.long))
+        self.c3_trained[label] = True
+
+    @torch.no_grad()
+    def q_update(self, x0: torch.Tensor, unit: int, reward: float, x1: torch.Tensor, done: bool) -> None:
+        """Eq. 7.1 on C4 for the transition ``x0 --unit--> x1``."""
+        self.c4.learn(pre=self.flat(x0).unsqueeze(0), action=torch.tensor([[unit]]),
+                      reward=torch.tensor([[float(reward)]]), next_pre=self.flat(x1).unsqueeze(0),
+                      done=torch.tensor([[bool(done)]]))
+
+    def reset_state(self) -> None:
+        """The brain keeps no activity between trials."""
+
+
+# ---------------------------------------------------------------------------------- skills
+@dataclass
+class AcquisitionConfig:
+    """Parameters of Fig. 7.5 (see ``experiments/exp5.Exp5Config`` for their meaning)."""
+
+    n_dmps: int = 10
+    pibb_samples: int = 10
+    pibb_temperature: float = 0.1
+    pibb_decay: float = 0.9
+    max_epochs: int = 10
+    competence_tolerance: float = 0.05
+    c1_repeats: int = 10
+    c2_repeats: int = 10
+    c3_repeats: int = 50
+    hip_threshold: float = 0.5
+    explore_batch: int = 8
+    explore_max_rollouts: int = 400
+
+
+@dataclass
+class Skill:
+    """One learnt primitive: the event it achieves, its DMP parameters and its training history."""
+
+    event: str
+    unit: int
+    theta: torch.Tensor
+    found_from: int  # posture where exploration first produced the event
+    competence: list[float] = field(default_factory=list)  # per epoch (successes / (4 K))
+    succeeds_from: tuple[bool, ...] = (False,) * N_POSTURES  # last competence check, per posture
+    log: list[tuple] = field(default_factory=list)  # ("c1", posture, signal) | ("c23", posture, State)
+
+
+@dataclass
+class Library:
+    """The outcome of Fig. 7.5 for one robot: skills in acquisition order, what exploration saw."""
+
+    skills: list[Skill]
+    events_seen: list[list[int]]  # [posture][event] count of exploration rollouts that fired it
+    explore_rollouts: int = 0
+    learn_rollouts: int = 0
+    missing: list[str] = field(default_factory=list)  # enabled events never found
+
+    def subset(self, events: Sequence[str]) -> "Library":
+        keep = set(events)
+        return Library([s for s in self.skills if s.event in keep], self.events_seen, self.explore_rollouts,
+                       self.learn_rollouts, [e for e in self.missing if e in keep])
+
+    def to_state(self) -> dict:
+        return {"skills": [dict(event=s.event, unit=s.unit, theta=s.theta, found_from=s.found_from,
+                                competence=s.competence, succeeds_from=s.succeeds_from,
+                                log=[(op[0], op[1], op[2] if op[0] == "c1" else _state_tuple(op[2])) for op in s.log])
+                           for s in self.skills],
+                "events_seen": self.events_seen, "explore_rollouts": self.explore_rollouts,
+                "learn_rollouts": self.learn_rollouts, "missing": self.missing}
+
+    @classmethod
+    def from_state(cls, d: dict) -> "Library":
+        skills = [Skill(s["event"], s["unit"], s["theta"], s["found_from"], list(s["competence"]),
+                        tuple(s["succeeds_from"]),
+                        [(op[0], op[1], op[2] if op[0] == "c1" else State(*op[2])) for op in s["log"]])
+                  for s in d["skills"]]
+        return cls(skills, d["events_seen"], d["explore_rollouts"], d["learn_rollouts"], list(d["missing"]))
+
+
+def _state_tuple(s: State) -> tuple:
+    return (s.posture, s.q, s.toy_xy)
+
+
+def _new_event(result: Result, wanted: Sequence[str]) -> str | None:
+    fired = [e for e, f in zip(EVENTS, result.events) if f and e in wanted]
+    if not fired:
+        return None
+    return result.fired_first if result.fired_first in fired else fired[0]
+
+
+def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionConfig, generator: torch.Generator,
+                   brain: ToolUseBrain | None = None, perceive: Callable[[State], torch.Tensor] | None = None,
+                   progress: Callable[[str], None] | None = None) -> Library:
+    """Skill acquisition, Fig. 7.5, with the IM detectors ``enabled`` switched on.
+
+    A. Exploration: pick a free DMP at random; roll out random movements from random initial
+       postures until one makes a new event happen (an enabled detector whose skill is not yet
+       acquired and whose distal goal, C2 -> HIP, is not already active for that situation).
+    B. Learning: PI^BB (eq. 7.6-7.8) from the captured parameters, K samples per posture and one
+       update per posture; after each posture C1 is trained ``c1_repeats`` times with the teaching
+       signal successes / K. After each epoch the mean movement is tried from the four postures:
+       each success trains C2 ``c2_repeats`` times and C3 ``c3_repeats`` times. The epoch's
+       competence is successes / (4 K); learning stops when it changes by less than
+       ``competence_tolerance`` from the previous epoch, or after ``max_epochs``.
+    If ``brain`` is given it is trained on the way; the returned :class:`Library` also records
+    every training step so that a brain can be rebuilt later (:func:`build_brain`).
+    """
+    perceive = perceive or env.perceive
+    unknown = [e for e in enabled if e not in EVENTS]
+    if unknown:
+        raise ValueError(f"unknown events {unknown}; known: {EVENTS}")
+    lib = Library([], [[0] * len(EVENTS) for _ in range(N_POSTURES)])
+    free = list(range(cfg.n_dmps))
+    wanted = [e for e in EVENTS if e in enabled]
+    while wanted and free:
+        slot = free[int(torch.randint(len(free), (1,), generator=generator))]
+        found = None
+        tried = 0
+        # ---- A. exploration (batched: the first new event in draw order wins; all are recorded)
+        while found is None and tried < cfg.explore_max_rollouts:
+            postures = torch.randint(1, N_POSTURES + 1, (cfg.explore_batch,), generator=generator).tolist()
+            results: list[tuple[int, torch.Tensor, Result]] = []
+            for p in sorted(set(postures)):
+                idx = [i for i, q in enumerate(postures) if q == p]
+                theta = env.random_params(p, len(idx), generator)
+                for i, th, r in zip(idx, theta, env.execute(theta, env.start(p), None)):
+                    results.append((i, th, r))
+            results.sort(key=lambda t: t[0])
+            for i, th, r in results:
+                tried += 1
+                lib.explore_rollouts += 1
+                p = postures[i]
+                for k, f in enumerate(r.events):
+                    lib.events_seen[p - 1][k] += int(f)
+                if found is None:
+                    e = _new_event(r, wanted)
+                    if e is not None and brain is not None:
+                        hip = brain.distal_goals(perceive(env.start(p)))[EVENTS.index(e)]
+                        if hip >= cfg.hip_threshold:
+                            e = None
+                    if e is not None:
+                        found = (e, th.clone(), p)
+        if found is None:
+            lib.missing.extend(wanted)
+            break
+        event, theta, p0 = found
+        if progress:
+            progress(f"learning {event} on DMP {slot}")
+        skill = Skill(event, slot, theta, p0)
+        _learn_skill(env, skill, cfg, generator, brain, perceive, lib)
+        lib.skills.append(skill)
+        free.remove(slot)
+        wanted.remove(event)  # the detector is disabled once its skill is acquired
+    return lib
+
+
+def _learn_skill(env, skill: Skill, cfg: AcquisitionConfig, generator, brain, perceive, lib: Library) -> None:
+    """Part B of Fig. 7.5 for one primitive (PI^BB + competence stopping rule)."""
+    pibb = PIBB.from_sigma(skill.theta, env.search_sigma(), n_samples=cfg.pibb_samples,
+                           temperature=cfg.pibb_temperature, decay=cfg.pibb_decay)
+    goal = EVENTS.index(skill.event)
+    prev = None
+    for epoch in range(cfg.max_epochs):
+        successes = 0
+        for p in range(1, N_POSTURES + 1):
+            samples = pibb.sample(generator)
+            results = env.execute(samples, env.start(p), skill.event)
+            lib.learn_rollouts += len(samples)
+            costs = torch.tensor([0.0 if r.events[goal] else 1.0 for r in results])
+            pibb = pibb.update(samples, costs)
+            n_ok = int((costs == 0).sum())
+            successes += n_ok
+            signal = n_ok / cfg.pibb_samples
+            skill.log.append(("c1", p, signal))
+            if brain is not None:
+                brain.train_c1(perceive(env.start(p)), skill.unit, signal, cfg.c1_repeats)
+        # competence check with the mean movement from every posture
+        ok = []
+        for p in range(1, N_POSTURES + 1):
+            r = env.execute(pibb.mean.unsqueeze(0), env.start(p), skill.event)[0]
+            lib.learn_rollouts += 1
+            ok.append(bool(r.events[goal]))
+            if ok[-1]:
+                skill.log.append(("c23", p, r.next_state))
+                if brain is not None:
+                    _train_c23(brain, env, perceive, skill, p, r.next_state, cfg, generator)
+        skill.succeeds_from = tuple(ok)
+        skill.theta = pibb.mean.clone()
+        competence = successes / (N_POSTURES * cfg.pibb_samples)
+        skill.competence.append(competence)
+        if prev is not None and abs(competence - prev) < cfg.competence_tolerance:
+            break
+        prev = competence
+
+
+def _train_c23(brain: ToolUseBrain, env, perceive, skill: Skill, p: int, outcome: State, cfg, generator) -> None:
+    situation = perceive(env.start(p))
+    brain.train_c2(situation, EVENTS.index(skill.event), cfg.c2_repeats)
+    brain.train_c3(situation, skill.unit, p, perceive(outcome), cfg.c3_repeats, generator)
+
+
+def build_brain(env: Environment, lib: Library, cfg: AcquisitionConfig, brain: ToolUseBrain,
+                generator: torch.Generator, perceive: Callable[[State], torch.Tensor] | None = None) -> ToolUseBrain:
+    """Replay the C1/C2/C3 training of Fig. 7.5 for the skills of ``lib`` (in their order).
+
+    Used when one acquired library serves several individuals (a HP1 robot keeps only the skills
+    of its enabled detectors): the brain ends exactly as if only those skills had been trained.
+    """
+    perceive = perceive or env.perceive
+    brain.train()
+    for s in lib.skills:
+        brain.acquired[s.unit] = True
+        for op in s.log:
+            if op[0] == "c1":
+                brain.train_c1(perceive(env.start(op[1])), s.unit, op[2], cfg.c1_repeats)
+            else:
+                _train_c23(brain, env, perceive, s, op[1], op[2], cfg, generator)
+    return brain
+
+
+# ---------------------------------------------------------------------------------- sequencing
+@dataclass
+class TrialRecord:
+    """One action-sequencing trial (Fig. 7.6)."""
+
+    actions: list[str]
+    rewards: list[float]
+    success: bool  # the toy was really retrieved
+    imagined_success: bool = False  # planning: the plan reached the goal in mind
+    frames: list[dict] = field(default_factory=list)  # optional film strip (real / imagined PC)
+
+
+class Outcomes:
+    """Deterministic real outcomes of skill sequences from an initial posture, computed once.
+
+    The physics is deterministic, so the scene after primitives ``(a1, ..., an)`` from posture
+    ``p`` depends on nothing else; every individual sharing a skill library shares this cache.
+    """
+
+    def __init__(self, env: Environment, skills: dict[str, Skill], perceive: Callable[[State], torch.Tensor]):
+        self.env, self.skills, self.perceive = env, skills, perceive
+        self.table: dict[tuple, Result] = {}
+        self.rollouts = 0
+
+    def after(self, posture: int, events: tuple[str, ...]) -> Result | None:
+        if not events:
+            return None
+        key = (posture, events)
+        if key not in self.table:
+            prev = self.after(posture, events[:-1])
+            state = self.env.start(posture) if prev is None else prev.next_state
+            s = self.skills[events[-1]]
+            r = self.env.execute(s.theta.unsqueeze(0), state, s.event)[0]
+            if prev is not None and prev.retrieved:  # once in reach, the toy stays retrieved
+                r = Result((True,) + r.events[1:], r.next_state, r.fired_first)
+            self.table[key] = r
+            self.rollouts += 1
+        return self.table[key]
+
+    def image(self, posture: int, events: tuple[str, ...]) -> torch.Tensor:
+        r = self.after(posture, events)
+        return self.perceive(self.env.start(posture) if r is None else r.next_state)
+
+
+def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Skill], posture: int, strategy: str,
+                   training: bool, attempts: int, temperature: float, generator: torch.Generator,
+                   record_frames: bool = False) -> TrialRecord:
+    """One trial of Fig. 7.6 from initial posture ``posture``.
+
+    Each attempt: feed the current PC image through C1 and C4, pick one acquired PMC unit with
+    softmax, then a reactive child performs the primitive (the real scene is perceived next)
+    while a planning child imagines it through C3 (the mental image becomes the next input). The
+    toy-related reward is read from that next image (reactive: the retrieve detector). In
+    training mode C4 learns by eq. 7.1. A planning child trains in mind only; its test ends by
+    performing the imagined plan for real, so test success is always judged in the real world.
+    """
+    if strategy not in ("reactive", "planning"):
+        raise ValueError(f"strategy must be 'reactive' or 'planning', got {strategy!r}")
+    env = outcomes.env
+    units = torch.tensor([s.unit for s in skills])
+    by_unit = {s.unit: s for s in skills}
+    done_events: tuple[str, ...] = ()
+    x0 = outcomes.image(posture, ())
+    rec = TrialRecord([], [], False)
+    if len(skills) == 0:
+        return rec
+    brain.train(training)
+    for _ in range(attempts):
+        act = brain.pmc(x0)[units]
+        k = int(softmax_select(act.view(1, -1), temperature, generators=[generator])[0])
+        skill = by_unit[int(units[k])]
+        done_events = done_events + (skill.event,)
+        if strategy == "reactive":
+            r = outcomes.after(posture, done_events)
+            x1 = outcomes.perceive(r.next_state)
+            reward = 1.0 if r.retrieved else 0.0
+        else:
+            x1 = brain.imagine(x0, skill.unit)
+            reward = float(env.reward(x1))
+        rec.actions.append(skill.event)
+        rec.rewards.append(reward)
+        if record_frames:
+            real = outcomes.image(posture, done_events)
+            rec.frames.append({"action": skill.event, "real": real, "imagined": brain.imagine(x0, skill.unit),
+                               "reward": reward})
+        if training:
+            brain.q_update(x0, skill.unit, reward, x1, done=reward > 0)
+        x0 = x1
+        if reward > 0:
+            break
+    if strategy == "reactive":
+        rec.success = bool(rec.rewards and rec.rewards[-1] > 0)
+    else:
+        rec.imagined_success = bool(rec.rewards and rec.rewards[-1] > 0)
+        # in the test the plan is performed for real (prefixes are cached); stop once the toy is in reach
+        for n in range(1, 0 if training else len(rec.actions) + 1):
+            if outcomes.after(posture, tuple(rec.actions[:n])).retrieved:
+                rec.success = True
+                break
+    brain.eval()
+    return rec
+
+
+# ---------------------------------------------------------------------------------- the robot
+class ToolWorldEnvironment:
+    """:class:`Environment` over the pybullet rake-and-toy world (``robot.world.ToolWorld``).
+
+    Primitives are DMPs (``motor.dmp.DMP``, 7 goals + 28 shape weights) rolled out from the
+    arm's current joints. A scene after earlier moves (arm elsewhere, toy displaced) is restored
+    through ``ToolWorld.reset(q=..., toy_xy=...)`` before the next rollout.
+    """
+
+    def __init__(self, world_config=None, duration_s: float = 1.5, explore_goal_sigma: float = 0.35,
+                 explore_weight_sigma: float = 300.0, search_goal_sigma: float = 0.05,
+                 search_weight_sigma: float = 30.0) -> None:
+        from ..motor.dmp import DMP
+        from ..robot.world import ToolWorld
+
+        class _World(ToolWorld):
+            """ToolWorld whose rollouts can start from a given arm and toy state."""
+
+            start_state: tuple | None = None
+
+            def reset(self, posture, q=None, toy_xy=None):
+                if q is None and toy_xy is None and self.start_state is not None:
+                    q, toy_xy = self.start_state
+                super().reset(posture, q=q, toy_xy=toy_xy)
+
+        self.world = _World(world_config)
+        self.dmp = DMP()
+        self.n_params = self.dmp.n_params
+        cfg = self.world.cfg
+        self.image_shape = (cfg.image_height, cfg.image_width)
+        self.duration_s, self.dt = float(duration_s), float(cfg.control_dt)
+        self.explore = (float(explore_goal_sigma), float(explore_weight_sigma))
+        J, B = self.dmp.n_joints, self.dmp.n_basis
+        self._sigma = torch.cat([torch.full((J,), float(search_goal_sigma)), torch.full((J * B,), float(search_weight_sigma))])
+        self._images: dict[State, torch.Tensor] = {}
+        self._inv: np.ndarray | None = None
+        self.timing = {"rollout_s": 0.0, "render_s": 0.0, "rollouts": 0, "renders": 0}
+
+    def close(self) -> None:
+        self.world.close()
+
+    def start(self, posture: int) -> State:
+        return State(int(posture))
+
+    def _q(self, state: State) -> torch.Tensor:
+        return self.world.initial_posture(state.posture) if state.q is None else torch.tensor(state.q)
+
+    def random_params(self, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
+        q0 = self.world.initial_posture(posture)
+        gs, ws = self.explore
+        goals = self.world.kin.clamp(q0 + gs * torch.randn(n, 7, generator=generator))
+        weights = ws * torch.randn(n, 7, self.dmp.n_basis, generator=generator)
+        return self.dmp.pack(goals, weights)
+
+    def search_sigma(self) -> torch.Tensor:
+        return self._sigma.clone()
+
+    def execute(self, params: torch.Tensor, state: State, watched: str | None) -> list[Result]:
+        import time
+
+        t0 = time.perf_counter()
+        q0 = self._q(state)
+        traj = self.world.kin.clamp(self.dmp.rollout(params.float(), q0, self.duration_s, self.dt))
+        fresh = state.q is None and state.toy_xy is None
+        self.world.start_state = None if fresh else (q0, state.toy_xy)
+        try:
+            outs = self.world.rollout(traj, state.posture, watched=watched, use_filter=fresh)
+        finally:
+            self.world.start_state = None
+        res = []
+        for n, o in enumerate(outs):
+            q_end = tuple(round(float(v), 6) for v in traj[n, o.stop_step])
+            toy = tuple(round(float(v), 6) for v in o.final_toy_xy)
+            res.append(Result(tuple(bool(e) for e in o.events), State(state.posture, q_end, toy), o.fired_first))
+        self.timing["rollout_s"] += time.perf_counter() - t0
+        self.timing["rollouts"] += len(outs)
+        return res
+
+    def perceive(self, state: State) -> torch.Tensor:
+        import time
+
+        if state not in self._images:
+            t0 = time.perf_counter()
+            q = None if state.q is None else torch.tensor(state.q)
+            obs = self.world.observe(posture=state.posture, q=q, toy_xy=state.toy_xy)
+            self._images[state] = torch.stack([obs["toy"], obs["rake"]]).to(torch.uint8)
+            self.timing["render_s"] += time.perf_counter() - t0
+            self.timing["renders"] += 1
+        return self._images[state].float()
+
+    def eye_image(self, state: State) -> np.ndarray:
+        """The RGB image the eye sees in ``state`` (for figures)."""
+        q = None if state.q is None else torch.tensor(state.q)
+        return self.world.observe(posture=state.posture, q=q, toy_xy=state.toy_xy)["image"]
+
+    def _table_point(self, u: float, v: float) -> tuple[float, float]:
+        """Where the ray through pixel (u, v) meets the plane of the toy's centre (world x, y)."""
+        cfg, c = self.world.cfg, self.world.client
+        if self._inv is None:
+            eye, target, up = self.world.camera()
+            view = np.array(c.computeViewMatrix(eye, target, up)).reshape(4, 4).T
+            proj = np.array(c.computeProjectionMatrixFOV(cfg.camera_fov, cfg.image_width / cfg.image_height,
+                                                         0.02, 3.0)).reshape(4, 4).T
+            self._inv = np.linalg.inv(proj @ view)
+        H, W = self.image_shape
+        ndc = np.array([2 * (u + 0.5) / W - 1, 1 - 2 * (v + 0.5) / H])
+        p0 = self._inv @ np.array([ndc[0], ndc[1], -1.0, 1.0])
+        p1 = self._inv @ np.array([ndc[0], ndc[1], 1.0, 1.0])
+        p0, p1 = p0[:3] / p0[3], p1[:3] / p1[3]
+        z = cfg.table_top + cfg.toy_size / 2
+        t = (z - p0[2]) / (p1[2] - p0[2])
+        pt = p0 + t * (p1 - p0)
+        return float(pt[0]), float(pt[1])
+
+    def reward(self, image: torch.Tensor) -> float:
+        """1 if the toy blob's centre, projected back onto the table, lies in the reachable area."""
+        toy = image[0]
+        m = float(toy.sum())
+        if m < 1.0:
+            return 0.0
+        vs, us = torch.meshgrid(torch.arange(toy.shape[0]), torch.arange(toy.shape[1]), indexing="ij")
+        u, v = float((us * toy).sum()) / m, float((vs * toy).sum()) / m
+        x, _ = self._table_point(u, v)
+        return 1.0 if x < self.world.cfg.retrieve_x else 0.0
+
+
+__all__ = ["EVENTS", "SKILL_LETTERS", "State", "Result", "Environment", "ToolUseBrain", "GatedHebbian",
+           "AcquisitionConfig", "Skill", "Library", "acquire_skills", "build_brain", "Outcomes", "TrialRecord",
+           "sequence_trial", "ToolWorldEnvironment"]
