@@ -1,0 +1,66 @@
+"""Experiment 1: exact Hebbian shortcuts, config checks, and a reduced end-to-end run."""
+import json
+
+import pytest
+import torch
+
+from neuroimagery.experiments.exp1 import Exp1Config
+from neuroimagery.experiments.protocol_ch5 import hebbian_indexed, hebbian_online, hebbian_shared
+from neuroimagery.nn import AllToAll, Hebbian
+
+
+def test_hebbian_shared_equals_online_rule():
+    g = torch.Generator().manual_seed(0)
+    w0 = torch.rand(3, 20, 16, generator=g) * 0.1
+    pre = (torch.rand(30, 16, generator=g) > 0.6).float()
+    post = torch.rand(30, 20, generator=g)
+    assert torch.allclose(hebbian_shared(w0, pre, post, 0.3), hebbian_online(w0, pre, post, 0.3), atol=1e-6)
+
+
+def test_hebbian_indexed_equals_online_rule():
+    g = torch.Generator().manual_seed(1)
+    P, T = 2, 25
+    w0 = torch.rand(P, 12, 9, generator=g) * 0.1
+    pre = torch.rand(P, T, 9, generator=g)
+    idx = torch.randint(0, 4, (P, T), generator=g)
+    ps = torch.rand(4, 12, generator=g)
+    c = AllToAll(9, 12, participants=P, init="zeros", rules=Hebbian(0.3))
+    c.weight.copy_(w0)
+    for t in range(T):
+        c.learn(pre[:, t:t + 1], ps[idx[:, t]].unsqueeze(1))
+    assert torch.allclose(hebbian_indexed(w0, pre, idx, ps, 0.3), c.weight, atol=1e-6)
+
+
+@pytest.mark.parametrize("key,value", [("hebb_eta", 0.0), ("max_cycles", 0), ("feed_order", "random"), ("step_deg", 7.0)])
+def test_config_rejects_bad_values(key, value):
+    with pytest.raises(ValueError, match=key):
+        Exp1Config(**{key: value})
+
+
+def test_exp1_quick_run_writes_outputs_and_rotates(tmp_path):
+    from hydra import compose, initialize_config_dir
+
+    from neuroimagery.config import register_configs
+    from neuroimagery.run import evaluate, train
+
+    register_configs()
+    with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
+        cfg = compose("config", overrides=["experiment=exp1", "participants=2", "preset=quick", "progress=false"])
+    s = evaluate(cfg, out_dir=tmp_path / "ev")
+    for f in ("trials.csv", "summary.json", "report.md"):
+        assert (tmp_path / "ev" / f).exists()
+    assert list((tmp_path / "ev" / "figures").glob("*.png"))
+    assert (tmp_path / "ev" / "tb").exists()
+    js = json.loads((tmp_path / "ev" / "summary.json").read_text())
+    assert set(js) >= {"experiment", "participants", "tests", "targets", "runtime_s"}
+    rec = s["tests"]["recognition/none"]
+    assert rec["n_trials"] == 2 * 52 and s["tests"]["generalisation/none"]["n_trials"] == 2 * 96
+    assert rec["rt_r"] >= 0.9  # RT rises with |disparity|
+    assert rec["rotation_success_rate"] >= 0.9
+    # checkpoints load back and give the same answers
+    train(cfg, out_dir=tmp_path / "tr")
+    with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
+        cfg2 = compose("config", overrides=["experiment=exp1", "participants=2", "preset=quick", "progress=false",
+                                            f"checkpoint={tmp_path / 'tr'}", "logger=none"])
+    s2 = evaluate(cfg2, out_dir=tmp_path / "ev2")
+    assert s2["tests"]["recognition/none"]["rt_by_disparity"] == rec["rt_by_disparity"]
