@@ -1,0 +1,62 @@
+"""Benchmark of Experiment 5: individuals per minute and where the time goes.
+
+    python benchmarks/bench_exp5.py [--repetitions 1] [--situation far] [--standin]
+
+Runs whole tasks (one repetition x one situation: skill acquisition, then every HP1/HP2
+individual built on that library, both strategies) in this process and prints the cost split:
+physics rollouts, eye renders, and the rest (DMP integration, C1-C4 updates, bookkeeping).
+An individual = one robot (repetition x situation) of one group, tested as reactive and planning.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repetitions", type=int, default=1)
+    ap.add_argument("--situation", default="far", choices=["behind", "far"])
+    ap.add_argument("--standin", action="store_true", help="use the tests' 2-D stand-in world (not the robot)")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+
+    from neuroimagery.experiments import exp5
+
+    kw = {}
+    if args.standin:
+        sys.path.insert(0, str(ROOT / "tests"))
+        kw["environment"] = "support_tool_env:StandInToolEnv"
+    e = exp5.Exp5Config(situations=[args.situation], **kw)
+    totals: dict[str, float] = {}
+    individuals = 0
+    t0 = time.perf_counter()
+    for r in range(args.repetitions):
+        task = dict(repetition=r, situations=[args.situation], key=f"bench{r}")
+        res = exp5.run_task(e, args.seed, task)
+        individuals += len(exp5.groups(e))
+        for k, v in res["timing"].items():
+            totals[k] = totals.get(k, 0.0) + float(v)
+    wall = time.perf_counter() - t0
+    print(f"tasks {args.repetitions}, individuals {individuals} (each tested reactive + planning), wall {wall:.1f} s")
+    print(f"individuals per minute (one core): {60 * individuals / wall:.2f}")
+    acq = totals.get("acquisition_s", 0.0)
+    print(f"skill acquisition (Fig. 7.5): {acq:.1f} s ({100 * acq / wall:.0f} %), "
+          f"{totals.get('explore_rollouts', 0):.0f} exploration + {totals.get('learn_rollouts', 0):.0f} PI^BB rollouts")
+    print(f"action sequencing + brain replay (Fig. 7.6): {wall - acq:.1f} s ({100 * (wall - acq) / wall:.0f} %)")
+    for k in ("rollout_s", "render_s"):
+        if k in totals:
+            n = totals.get(k.replace("_s", "s"), 0)
+            print(f"  {k:10s} {totals[k]:8.1f} s  ({100 * totals[k] / wall:.0f} %, {n:.0f} calls)")
+    full = 30 * 2 * len(exp5.groups(e))
+    print(f"full HP1 + HP2 ({full} individuals) estimate on 2 cores: {full / (60 * individuals / wall) / 2:.1f} min")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,441 @@
+"""Experiment 5: tool-use development in infant robots (thesis ch. 7, Fig. 7.5-7.6, 7.9-7.10).
+
+Two simulations, each group 30 repetitions x 2 situations (tool behind toy = posture 1, tool far
+from toy = posture 4), every individual tested both as a reactive and as a planning child:
+
+* HP1: 2, 3, 4, 5, 6 IM detectors (ages 14-22 months; retrieve and touch always on, the others
+  drawn at random per individual), 10 training trials.
+* HP2: all six detectors, 0, 2, 4, 6, 8, 10 training trials (ages 14, 14, 16, 18, 20, 22 months).
+
+Work unit ("task"): one repetition and one situation (or both, with
+``share_library_across_situations``). The task acquires one skill library with all six
+detectors (Fig. 7.5); every individual of that task keeps the skills of its own enabled
+detectors, its C1/C2/C3 training is replayed for exactly those skills, and it then runs Fig. 7.6.
+All individuals of a task share the (deterministic) outcomes of skill sequences, so the physics
+of a given sequence runs once. Tasks run in parallel (joblib) and each leaves one small result
+file in ``checkpoints/`` so an interrupted run resumes where it stopped (rerun with the same
+``hydra.run.dir``).
+
+``cfg.participants`` is not used: the individuals are ``repetitions x situations`` per group.
+``train`` runs the whole developmental simulation (acquisition, training trials and the test of
+every individual, since each individual's training is its own); ``evaluate`` aggregates, draws
+and reports.
+"""
+from __future__ import annotations
+
+import copy
+import importlib
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+
+from ..errors import UserInputError
+from ..models.tool_use import (EVENTS, N_POSTURES, AcquisitionConfig, Library, Outcomes, ToolUseBrain, acquire_skills,
+                               build_brain, sequence_trial)
+from ..nn.seeding import participant_seed
+
+SITUATIONS = {"behind": 1, "far": 4}  # thesis: posture 1 = tool behind toy, posture 4 = tool far from toy
+THESIS = {  # read off Fig. 7.9-7.10 and the text of section 7.1.3 (approximate)
+    "hp1": {"behind": {2: 1.0, 3: 0.9, 4: 0.9, 5: 0.9, 6: 0.9}, "far": {2: 0.0, 3: 0.1, 4: 0.4, 5: 0.45, 6: 0.6}},
+    "hp2": {"behind": {0: 0.6}, "far": {0: 0.2}},
+}
+THESIS_TABLE_7_1 = {
+    "posture-1": {"events": [1, 0, 1, 0, 1, 0], "skills": [1, 0, 1, 0, 1, 0]},
+    "posture-2": {"events": [0, 1, 1, 0, 1, 0], "skills": [1, 1, 1, 0, 1, 0]},
+    "posture-3": {"events": [0, 1, 1, 1, 1, 1], "skills": [0, 1, 1, 1, 1, 1]},
+    "posture-4": {"events": [0, 1, 1, 1, 1, 1], "skills": [0, 1, 1, 1, 1, 1]},
+}
+
+
+@dataclass
+class Exp5Config:
+    """Schema of ``conf/experiment/exp5.yaml``; every value is checked in ``__post_init__``."""
+
+    name: str = "exp5"
+    # --- simulations (section 7.1.3)
+    repetitions: int = 30  # repetitions per group and situation (thesis: 30)
+    quick_repetitions: int = 3  # repetitions with preset=quick (a first look in a few minutes)
+    hp1_levels: list[int] = field(default_factory=lambda: [2, 3, 4, 5, 6])  # IM detectors per HP1 group
+    hp1_ages: list[int] = field(default_factory=lambda: [14, 16, 18, 20, 22])  # months, one per HP1 level
+    hp1_training_trials: int = 10  # training trials of every HP1 robot
+    hp2_trials: list[int] = field(default_factory=lambda: [0, 2, 4, 6, 8, 10])  # training trials per HP2 group
+    hp2_ages: list[int] = field(default_factory=lambda: [14, 14, 16, 18, 20, 22])  # months, one per HP2 level
+    base_detectors: list[str] = field(default_factory=lambda: ["retrieve", "touch"])  # always on under HP1
+    situations: list[str] = field(default_factory=lambda: ["behind", "far"])  # tool behind / far from toy
+    # --- action sequencing (Fig. 7.6, eq. 7.1)
+    attempts: int = 5  # primitives per trial (thesis: 5)
+    q_form: str = "standard"  # eq. 7.1 sign: 'standard' r + gamma maxQ (default) | 'printed' r - gamma maxQ
+    eta: float = 1e-4  # C4 Q-learning rate (thesis: 0.0001) on the 2 x 240 x 320 binary PC map
+    gamma: float = 0.8  # discount (thesis: 0.8)
+    temperature: float = 0.1  # softmax temperature of action selection in training trials (not given)
+    test_temperature: float = 0.1  # softmax temperature in the test trial (not given)
+    # --- skill acquisition (Fig. 7.5, eq. 7.6-7.8)
+    n_dmps: int = 10  # M1 / PMC units (thesis: 10)
+    pibb_samples: int = 10  # K samples per posture and update (thesis: 10)
+    pibb_temperature: float = 0.1  # tau of eq. 7.7 on the 0/1 costs (not given)
+    pibb_decay: float = 0.9  # exploration covariance factor per PI^BB update (not given)
+    max_epochs: int = 10  # PI^BB epochs at most (thesis: 10)
+    competence_tolerance: float = 0.05  # stop when the competence changes by less (thesis: 0.05)
+    c1_repeats: int = 10  # C1 updates per PI^BB update (thesis: 10)
+    c2_repeats: int = 10  # C2 updates per successful competence check (thesis: 10)
+    c3_repeats: int = 50  # C3 updates per successful competence check (thesis: 50)
+    c1_eta: float = 0.1  # C1 Hebbian rate (not given)
+    c2_eta: float = 0.1  # C2 Hebbian rate (not given)
+    c3_eta: float = 0.1  # C3 SOM rate (not given); 50 steps make the prototype the last outcome
+    c3_sigma: float = 0.1  # C3 neighbourhood width in units; small: each pair keeps its own unit
+    c3_action_gain: float = 100.0  # weight of the primitive's code against the image in C3's match
+    hip_threshold: float = 0.5  # a distal goal (C2 -> HIP) this active makes an event "not new"
+    explore_batch: int = 8  # exploration movements rolled out per batch (the first new event wins)
+    explore_max_rollouts: int = 400  # give up looking for further events after this many movements
+    # --- movements (DMP eq. 7.2-7.5 on the pybullet world)
+    duration_s: float = 1.5  # duration of one primitive (DMP time constant)
+    explore_goal_sigma: float = 0.35  # rad, goal noise of an exploratory movement
+    explore_weight_sigma: float = 300.0  # shape-weight noise of an exploratory movement
+    search_goal_sigma: float = 0.05  # rad, PI^BB exploration std of the goals
+    search_weight_sigma: float = 30.0  # PI^BB exploration std of the shape weights
+    # --- engine
+    environment: str = "robot"  # 'robot' (pybullet ToolWorld) or 'module:Class' of another Environment
+    share_library_across_situations: bool = False  # one library per repetition for both situations
+    n_jobs: int = 2  # parallel tasks (joblib processes); 1 runs in this process
+    filmstrip_repetition: int = 0  # repetition whose planning test is filmed (imagined vs real)
+
+    def __post_init__(self) -> None:
+        def bad(key, why):
+            raise ValueError(f"experiment.{key} {why}, got {getattr(self, key)!r}")
+
+        if self.name != "exp5":
+            bad("name", "must be 'exp5'")
+        for key in ("repetitions", "quick_repetitions", "attempts", "n_dmps", "pibb_samples", "max_epochs",
+                    "explore_batch", "explore_max_rollouts", "n_jobs"):
+            if int(getattr(self, key)) < 1:
+                bad(key, "must be >= 1")
+        for key in ("hp1_training_trials", "c1_repeats", "c2_repeats", "c3_repeats", "filmstrip_repetition"):
+            if int(getattr(self, key)) < 0:
+                bad(key, "must be >= 0")
+        if self.pibb_samples < 2:
+            bad("pibb_samples", "must be >= 2")
+        if self.n_dmps < len(EVENTS):
+            bad("n_dmps", f"must be >= {len(EVENTS)} (one primitive per event)")
+        if self.q_form not in ("standard", "printed"):
+            bad("q_form", "must be 'standard' or 'printed'")
+        for key in ("eta", "c1_eta", "c2_eta", "c3_eta"):
+            if not 0 < getattr(self, key) <= 1:
+                bad(key, "must be in (0, 1]")
+        if not 0 <= self.gamma <= 1:
+            bad("gamma", "must be in [0, 1]")
+        if not 0 < self.pibb_decay <= 1:
+            bad("pibb_decay", "must be in (0, 1]")
+        if not 0 <= self.competence_tolerance <= 1:
+            bad("competence_tolerance", "must be in [0, 1]")
+        if not 0 <= self.hip_threshold <= 1:
+            bad("hip_threshold", "must be in [0, 1]")
+        for key in ("temperature", "test_temperature", "pibb_temperature", "c3_sigma", "c3_action_gain",
+                    "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
+                    "search_weight_sigma"):
+            if not getattr(self, key) > 0:
+                bad(key, "must be > 0")
+        if len(self.hp1_levels) != len(self.hp1_ages) or not self.hp1_levels:
+            bad("hp1_ages", "must give one age per entry of hp1_levels")
+        if len(self.hp2_trials) != len(self.hp2_ages) or not self.hp2_trials:
+            bad("hp2_ages", "must give one age per entry of hp2_trials")
+        if any(t < 0 for t in self.hp2_trials):
+            bad("hp2_trials", "must be >= 0")
+        if any(e not in EVENTS for e in self.base_detectors) or len(set(self.base_detectors)) != len(self.base_detectors):
+            bad("base_detectors", f"must be distinct events of {EVENTS}")
+        if any(not len(self.base_detectors) <= k <= len(EVENTS) for k in self.hp1_levels):
+            bad("hp1_levels", f"must lie in [{len(self.base_detectors)}, {len(EVENTS)}]")
+        if not self.situations or any(s not in SITUATIONS for s in self.situations) or len(set(self.situations)) != len(self.situations):
+            bad("situations", f"must be distinct names of {sorted(SITUATIONS)}")
+        if self.environment != "robot" and ":" not in self.environment:
+            bad("environment", "must be 'robot' or 'module:Class'")
+
+
+CONFIG = Exp5Config
+STRATEGIES = ("reactive", "planning")
+
+
+# ---------------------------------------------------------------------------------- helpers
+def _exp(cfg) -> Exp5Config:
+    return cfg.experiment
+
+
+def repetitions(cfg) -> int:
+    e = _exp(cfg)
+    return e.quick_repetitions if cfg.preset == "quick" else e.repetitions
+
+
+def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
+    return AcquisitionConfig(n_dmps=e.n_dmps, pibb_samples=e.pibb_samples, pibb_temperature=e.pibb_temperature,
+                             pibb_decay=e.pibb_decay, max_epochs=e.max_epochs,
+                             competence_tolerance=e.competence_tolerance, c1_repeats=e.c1_repeats,
+                             c2_repeats=e.c2_repeats, c3_repeats=e.c3_repeats, hip_threshold=e.hip_threshold,
+                             explore_batch=e.explore_batch, explore_max_rollouts=e.explore_max_rollouts)
+
+
+def make_environment(e: Exp5Config):
+    """The world the robots live in: the pybullet ToolWorld, or ``module:Class`` (tests' stand-ins)."""
+    if e.environment == "robot":
+        from ..models.tool_use import ToolWorldEnvironment
+
+        return ToolWorldEnvironment(duration_s=e.duration_s, explore_goal_sigma=e.explore_goal_sigma,
+                                    explore_weight_sigma=e.explore_weight_sigma,
+                                    search_goal_sigma=e.search_goal_sigma, search_weight_sigma=e.search_weight_sigma)
+    mod, _, cls = e.environment.partition(":")
+    try:
+        return getattr(importlib.import_module(mod), cls)()
+    except (ImportError, AttributeError) as err:
+        raise UserInputError(f"experiment.environment: cannot load {e.environment!r} ({err})") from None
+
+
+def groups(e: Exp5Config) -> list[dict]:
+    """Every group: hypothesis, level, age, training trials and number of detectors."""
+    out = [dict(hypothesis="hp1", level=k, age_months=a, trials=e.hp1_training_trials, detectors=k)
+           for k, a in zip(e.hp1_levels, e.hp1_ages)]
+    out += [dict(hypothesis="hp2", level=t, age_months=a, trials=t, detectors=len(EVENTS))
+            for t, a in zip(e.hp2_trials, e.hp2_ages)]
+    return out
+
+
+def tasks(cfg) -> list[dict]:
+    e = _exp(cfg)
+    sits = list(e.situations)
+    out = []
+    for r in range(repetitions(cfg)):
+        if e.share_library_across_situations:
+            out.append(dict(repetition=r, situations=sits, key=f"rep{r:03d}"))
+        else:
+            out += [dict(repetition=r, situations=[s], key=f"rep{r:03d}_{s}") for s in sits]
+    return out
+
+
+def _gen(seed: int, *ids: int) -> torch.Generator:
+    key = 0
+    for i in ids:
+        key = key * 1009 + int(i) + 1
+    g = torch.Generator()
+    g.manual_seed(participant_seed(seed, key % (2**31)))
+    return g
+
+
+def detectors_for(e: Exp5Config, n: int, g: torch.Generator) -> list[str]:
+    """The ``n`` enabled IM detectors: the base ones plus a random draw of the rest."""
+    rest = [x for x in EVENTS if x not in e.base_detectors]
+    extra = [rest[i] for i in torch.randperm(len(rest), generator=g)[: n - len(e.base_detectors)].tolist()]
+    return [x for x in EVENTS if x in e.base_detectors or x in extra]
+
+
+def _pack(img: torch.Tensor) -> torch.Tensor:
+    return (img.clamp(0, 1) * 255).round().to(torch.uint8)
+
+
+# ---------------------------------------------------------------------------------- one task
+def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> dict:
+    """Acquire one library, then simulate every individual built on it (all groups, strategies)."""
+    torch.set_num_threads(1)
+    t0 = time.perf_counter()
+    env = make_environment(e)
+    acq = acquisition_config(e)
+    r = task["repetition"]
+    sit_ids = [list(SITUATIONS).index(s) for s in task["situations"]]
+    g_lib = _gen(seed, 1, r, *sit_ids)
+    brain_kw = dict(n_dmps=e.n_dmps, c1_eta=e.c1_eta, c2_eta=e.c2_eta, c3_eta=e.c3_eta, c3_sigma=e.c3_sigma,
+                    c3_action_gain=e.c3_action_gain, q_eta=e.eta, q_gamma=e.gamma, q_form=e.q_form)
+    lib_brain = ToolUseBrain(env.image_shape, seed=seed, **brain_kw)
+    lib = acquire_skills(env, EVENTS, acq, g_lib, brain=lib_brain)
+    t_acq = time.perf_counter() - t0
+    rows, film = [], None
+    built: dict[tuple, ToolUseBrain] = {}
+    for sit in task["situations"]:
+        posture = SITUATIONS[sit]
+        outcomes = Outcomes(env, {s.event: s for s in lib.skills}, env.perceive)
+        for gi, grp in enumerate(groups(e)):
+            g_ind = _gen(seed, 2, r, list(SITUATIONS).index(sit), gi)
+            enabled = detectors_for(e, grp["detectors"], g_ind)
+            sub = lib.subset(enabled)
+            key = tuple(enabled)
+            if key not in built:
+                built[key] = build_brain(env, sub, acq, ToolUseBrain(env.image_shape, seed=seed, **brain_kw),
+                                         _gen(seed, 3, r), env.perceive)
+            for strategy in STRATEGIES:
+                brain = copy.deepcopy(built[key])
+                train_ok = []
+                for _ in range(grp["trials"]):
+                    rec = sequence_trial(brain, outcomes, sub.skills, posture, strategy, True, e.attempts,
+                                         e.temperature, g_ind)
+                    train_ok.append(rec.success if strategy == "reactive" else rec.imagined_success)
+                filming = (film is None and r == e.filmstrip_repetition and strategy == "planning")
+                test = sequence_trial(brain, outcomes, sub.skills, posture, strategy, False, e.attempts,
+                                      e.test_temperature, g_ind, record_frames=filming)
+                if filming and test.success and (sit == "far" or gi == len(groups(e)) - 1):
+                    film = dict(situation=sit, hypothesis=grp["hypothesis"], level=grp["level"],
+                                strategy=strategy, start=_pack(outcomes.image(posture, ())),
+                                frames=[dict(action=f["action"], reward=f["reward"], real=_pack(f["real"]),
+                                             imagined=_pack(f["imagined"])) for f in test.frames])
+                rows.append(dict(
+                    hypothesis=grp["hypothesis"], level=grp["level"], age_months=grp["age_months"],
+                    situation=sit, strategy=strategy, repetition=r, library=task["key"],
+                    training_trials=grp["trials"], n_detectors=len(enabled), detectors="+".join(enabled),
+                    n_skills=len(sub.skills), skills="+".join(s.event for s in sub.skills),
+                    train_success_rate=float(np.mean(train_ok)) if train_ok else float("nan"),
+                    success=int(test.success), imagined_success=int(test.imagined_success),
+                    test_actions=">".join(test.actions), test_attempts=len(test.actions)))
+    timing = dict(task_s=time.perf_counter() - t0, acquisition_s=t_acq,
+                  explore_rollouts=lib.explore_rollouts, learn_rollouts=lib.learn_rollouts)
+    timing.update({k: v for k, v in getattr(env, "timing", {}).items()})
+    if hasattr(env, "close"):
+        env.close()
+    out = dict(task=task, rows=rows, library=lib.to_state(), film=film, timing=timing, config=asdict(e), seed=seed)
+    if path is not None:
+        tmp = Path(str(path) + ".tmp")
+        torch.save(out, tmp)
+        tmp.replace(path)
+    return out
+
+
+# ---------------------------------------------------------------------------------- contract
+def _task_path(run_or_dir, key: str) -> Path:
+    root = run_or_dir.checkpoints if hasattr(run_or_dir, "checkpoints") else Path(run_or_dir) / "checkpoints"
+    return Path(root) / f"exp5_{key}.pt"
+
+
+def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
+    if not path.exists():
+        return None
+    try:
+        d = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception:
+        return None
+    return d if d.get("config") == asdict(e) and d.get("seed") == seed else None
+
+
+def train(cfg, run) -> dict:
+    """Run every task (skipping those already finished in this run directory); return the results."""
+    from joblib import Parallel, delayed
+    from tqdm.auto import tqdm
+
+    e = _exp(cfg)
+    todo, done = [], []
+    for t in tasks(cfg):
+        d = _valid(_task_path(run, t["key"]), e, cfg.seed)
+        (done if d is not None else todo).append(d if d is not None else t)
+    bar = tqdm(total=len(todo) + len(done), initial=len(done), desc="exp5 tasks", disable=not cfg.progress)
+    if todo:
+        jobs = (delayed(run_task)(e, cfg.seed, t, str(_task_path(run, t["key"]))) for t in todo)
+        results = Parallel(n_jobs=min(e.n_jobs, len(todo)), return_as="generator_unordered")(jobs)
+        for res in results:
+            done.append(res)
+            bar.update(1)
+            run.logger.scalar("train/task_s", res["timing"]["task_s"], len(done))
+    bar.close()
+    done.sort(key=lambda d: d["task"]["key"])
+    run.save_checkpoint("exp5_index", {"keys": [d["task"]["key"] for d in done], "seed": cfg.seed})
+    return {"results": done}
+
+
+def load(cfg, checkpoint_dir) -> dict:
+    e = _exp(cfg)
+    out = []
+    for t in tasks(cfg):
+        d = _valid(_task_path(checkpoint_dir, t["key"]), e, cfg.seed)
+        if d is None:
+            raise UserInputError(f"checkpoint: {checkpoint_dir} has no finished task {t['key']} for this configuration")
+        out.append(d)
+    return {"results": out}
+
+
+def table_7_1(results: list[dict]) -> dict:
+    """Which events exploration produced and which skills work, per posture, over all robots."""
+    seen = np.zeros((N_POSTURES, len(EVENTS)))
+    works = np.zeros((N_POSTURES, len(EVENTS)))
+    have = np.zeros(len(EVENTS))
+    for d in results:
+        lib = Library.from_state(d["library"])
+        seen += (np.array(lib.events_seen) > 0)
+        for s in lib.skills:
+            k = EVENTS.index(s.event)
+            have[k] += 1
+            works[:, k] += np.array(s.succeeds_from, dtype=float)
+    n = max(len(results), 1)
+    out = {}
+    for p in range(N_POSTURES):
+        out[f"posture-{p + 1}"] = {
+            "events": [int(v > 0) for v in seen[p]], "skills": [int(v > 0) for v in works[p]],
+            "events_share": [round(v / n, 3) for v in seen[p]],
+            "skills_share": [round(w / h, 3) if h else 0.0 for w, h in zip(works[p], have)]}
+    return out
+
+
+def _spearman(x, y) -> float | None:
+    from scipy.stats import spearmanr
+
+    if len(set(y)) < 2:
+        return None
+    return float(spearmanr(x, y).statistic)
+
+
+def evaluate(cfg, run, trained) -> dict:
+    """individuals.csv, summary (RESULTS.md exp5 layout), figures and TensorBoard scalars."""
+    from . import exp5_figures as figs
+
+    e = _exp(cfg)
+    results = trained["results"]
+    df = pd.DataFrame([row for d in results for row in d["rows"]])
+    df.insert(0, "individual", df["library"] + "_" + df["situation"])
+    run.write_csv("individuals.csv", df)
+    grp_rows = []
+    for (h, lvl, sit, strat), g in df.groupby(["hypothesis", "level", "situation", "strategy"], sort=False):
+        grp_rows.append(dict(hypothesis=h, level=int(lvl), age_months=int(g["age_months"].iloc[0]), situation=sit,
+                             strategy=strat, n=int(len(g)), success_rate=round(float(g["success"].mean()), 4),
+                             mean_skills=round(float(g["n_skills"].mean()), 3)))
+    rate = {(r["hypothesis"], r["level"], r["situation"], r["strategy"]): r["success_rate"] for r in grp_rows}
+    checks = {}
+    for strat in STRATEGIES + ("pooled",):
+        ys = [np.mean([rate.get(("hp1", k, "far", s), np.nan) for s in (STRATEGIES if strat == "pooled" else (strat,))])
+              for k in e.hp1_levels]
+        checks[f"hp1_far_spearman_{strat}"] = _spearman(e.hp1_levels, ys)
+    diffs = [abs(rate[(h, lv, si, "reactive")] - rate[(h, lv, si, "planning")])
+             for (h, lv, si, st) in rate if st == "reactive" and (h, lv, si, "planning") in rate]
+    checks["reactive_planning_max_abs_diff"] = round(float(max(diffs)), 4) if diffs else None
+    timing = [d["timing"] for d in results]
+    summary = {
+        "experiment": "exp5",
+        "groups": grp_rows,
+        "table_7_1": table_7_1(results),
+        "targets": {
+            "hp1/behind": {str(k): v for k, v in THESIS["hp1"]["behind"].items()},
+            "hp1/far": {str(k): v for k, v in THESIS["hp1"]["far"].items()},
+            "hp2/behind": {str(k): v for k, v in THESIS["hp2"]["behind"].items()},
+            "hp2/far": {str(k): v for k, v in THESIS["hp2"]["far"].items()},
+            "hp1_far_spearman_min": 0.8,
+        },
+        "checks": checks,
+        "repetitions": repetitions(cfg),
+        "individuals": int(df[["library", "situation"]].drop_duplicates().shape[0]),
+        "environment": e.environment,
+        "cost": {"tasks": len(results), "task_s_total": round(sum(t["task_s"] for t in timing), 2),
+                 "acquisition_s_total": round(sum(t["acquisition_s"] for t in timing), 2),
+                 "explore_rollouts": int(sum(t["explore_rollouts"] for t in timing)),
+                 "learn_rollouts": int(sum(t["learn_rollouts"] for t in timing)),
+                 "rollouts": int(sum(t.get("rollouts", 0) for t in timing)),
+                 "renders": int(sum(t.get("renders", 0) for t in timing)),
+                 "rollout_s": round(sum(t.get("rollout_s", 0.0) for t in timing), 2),
+                 "render_s": round(sum(t.get("render_s", 0.0) for t in timing), 2)},
+    }
+    for i, r in enumerate(grp_rows):
+        run.logger.scalar(f"success/{r['hypothesis']}/{r['situation']}/{r['strategy']}", r["success_rate"], r["level"])
+    figs.draw_all(cfg, run, df, summary, results)
+    return summary
+
+
+def report(cfg, run, summary) -> None:
+    from . import exp5_figures as figs
+
+    figs.write_report(cfg, run, summary)
+
+
+__all__ = ["Exp5Config", "CONFIG", "train", "load", "evaluate", "report", "run_task", "groups", "tasks"]

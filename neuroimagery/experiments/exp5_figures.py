@@ -1,0 +1,216 @@
+"""Figures and report of Experiment 5 (Fig. 7.9, 7.10, the four situations, a retrieval film strip)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..analysis.figures import plt, save
+from ..analysis.report import Report, reproducibility_note
+from ..models.tool_use import EVENTS, N_POSTURES, SKILL_LETTERS
+
+COLOURS = {"behind": "tab:blue", "far": "tab:red"}
+
+
+def _pc_rgb(img) -> np.ndarray:
+    """A PC map (2, H, W) (toy, tool) as an RGB picture: toy red, tool green on white."""
+    a = np.asarray(img, dtype=float)
+    if a.max() > 1.0:
+        a = a / 255.0
+    toy, tool = a[0], a[1]
+    rgb = np.ones(toy.shape + (3,))
+    rgb[..., 1] -= toy
+    rgb[..., 2] -= toy
+    rgb[..., 0] -= tool
+    rgb[..., 2] -= tool
+    return rgb.clip(0, 1)
+
+
+def success_curves(summary: dict, hypothesis: str, path: Path, xkey: str, xlabel: str, title: str) -> Path:
+    """Success rate (%) per group, one panel per strategy, a line per situation (as Fig. 7.9/7.10)."""
+    from .exp5 import THESIS
+
+    g = pd.DataFrame([r for r in summary["groups"] if r["hypothesis"] == hypothesis])
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), sharey=True)
+    for ax, strat in zip(axes, ("reactive", "planning")):
+        for sit, s in g[g["strategy"] == strat].groupby("situation", sort=False):
+            s = s.sort_values("level")
+            x = s["age_months"] if xkey == "age" else s["level"]
+            ax.plot(x, 100 * s["success_rate"], marker="o", color=COLOURS.get(sit), label=f"{sit} (this run)")
+            th = THESIS[hypothesis][sit]
+            if th:
+                lv = sorted(th)
+                xs = [int(s.loc[s["level"] == k, "age_months"].iloc[0]) if xkey == "age" and (s["level"] == k).any() else k
+                      for k in lv]
+                ax.plot(xs, [100 * th[k] for k in lv], ls="--", marker="x", color=COLOURS.get(sit), alpha=0.6,
+                        label=f"{sit} (thesis)")
+        ax.set_title(f"({'ab'[strat == 'planning']}) {strat} system", fontsize=9)
+        ax.set_xlabel(xlabel)
+        ax.set_ylim(-5, 105)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("success rate (%)")
+    axes[1].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    return save(fig, path)
+
+
+def situations_figure(env, path: Path) -> Path | None:
+    """The eye's view of the four initial situations with their colour-filtered PC maps."""
+    if not hasattr(env, "eye_image"):
+        return None
+    fig, axes = plt.subplots(2, N_POSTURES, figsize=(11, 4.6))
+    for p in range(1, N_POSTURES + 1):
+        st = env.start(p)
+        axes[0, p - 1].imshow(env.eye_image(st))
+        axes[0, p - 1].set_title(f"posture-{p}" + (" (tool behind toy)" if p == 1 else " (tool far from toy)" if p == 4 else ""),
+                                 fontsize=8)
+        axes[1, p - 1].imshow(_pc_rgb(env.perceive(st).numpy()))
+        for ax in axes[:, p - 1]:
+            ax.set_xticks([])
+            ax.set_yticks([])
+    axes[0, 0].set_ylabel("eye (V1)", fontsize=8)
+    axes[1, 0].set_ylabel("PC (colour filtered)", fontsize=8)
+    return save(fig, path)
+
+
+def filmstrip(film: dict, path: Path) -> Path:
+    """One planning retrieval: at each step the imagined (C3) outcome beside the real one."""
+    frames = film["frames"]
+    n = len(frames) + 1
+    fig, axes = plt.subplots(2, n, figsize=(2.6 * n, 4.4), squeeze=False)
+    axes[0, 0].imshow(_pc_rgb(film["start"].numpy()))
+    axes[0, 0].set_title("start (real)", fontsize=8)
+    axes[1, 0].axis("off")
+    for i, f in enumerate(frames, start=1):
+        axes[0, i].imshow(_pc_rgb(f["imagined"].numpy()))
+        axes[0, i].set_title(f"step {i}: {f['action']} imagined", fontsize=8)
+        axes[1, i].imshow(_pc_rgb(f["real"].numpy()))
+        axes[1, i].set_title(f"step {i}: {f['action']} real", fontsize=8)
+    for ax in axes.ravel():
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.suptitle(f"{film['strategy']} child, tool {film['situation']} ({film['hypothesis']} level {film['level']}): "
+                 "mental image (top) vs the scene after really moving (bottom)", fontsize=9)
+    return save(fig, path)
+
+
+def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> None:
+    figs = {}
+    figs["fig_7_9"] = success_curves(summary, "hp1", run.figures / "fig_7_9_hp1_skills.png", "age",
+                                     "age (months) = 2..6 IM detectors", "HP1: success vs number of skills")
+    figs["fig_7_10"] = success_curves(summary, "hp2", run.figures / "fig_7_10_hp2_trials.png", "level",
+                                      "training trials", "HP2: success vs training trials")
+    film = next((d["film"] for d in results if d.get("film")), None)
+    if film is not None:
+        figs["filmstrip"] = filmstrip(film, run.figures / "retrieval_filmstrip.png")
+    if cfg.experiment.environment == "robot":
+        from .exp5 import make_environment
+
+        env = make_environment(cfg.experiment)
+        try:
+            p = situations_figure(env, run.figures / "situations.png")
+            if p is not None:
+                figs["situations"] = p
+        finally:
+            env.close()
+    summary["figures"] = {k: str(Path(v).relative_to(run.root)) for k, v in figs.items()}
+
+
+def _rate(summary, h, lv, sit, strat):
+    for r in summary["groups"]:
+        if (r["hypothesis"], r["level"], r["situation"], r["strategy"]) == (h, lv, sit, strat):
+            return r["success_rate"]
+    return None
+
+
+def write_report(cfg, run, summary: dict) -> None:
+    from .exp5 import THESIS, THESIS_TABLE_7_1
+
+    e = cfg.experiment
+    rep = Report("Experiment 5: tool-use development in infant robots")
+    env_note = ("the pybullet rake-and-toy world (`robot.world.ToolWorld`)" if e.environment == "robot"
+                else f"`{e.environment}` (a STAND-IN environment, not the thesis's robot: these numbers are not results)")
+    rep.p(f"{summary['repetitions']} repetitions per group and situation, each individual tested as a reactive and "
+          f"as a planning child; world: {env_note}. Preset `{cfg.preset}`.")
+    for h, xl in (("hp1", "IM detectors"), ("hp2", "training trials")):
+        rep.h(f"{h.upper()}: success rate by {xl}")
+        rows = []
+        levels = e.hp1_levels if h == "hp1" else e.hp2_trials
+        ages = e.hp1_ages if h == "hp1" else e.hp2_ages
+        for lv, age in zip(levels, ages):
+            row = [str(lv), str(age)]
+            for sit in e.situations:
+                for strat in ("reactive", "planning"):
+                    r = _rate(summary, h, lv, sit, strat)
+                    row.append("-" if r is None else f"{100 * r:.0f} %")
+                th = THESIS[h][sit].get(lv)
+                row.append("-" if th is None else f"~{100 * th:.0f} %")
+            rows.append(row)
+        head = [xl, "age (months)"]
+        for sit in e.situations:
+            head += [f"{sit} reactive", f"{sit} planning", f"{sit} thesis"]
+        rep.table(head, rows)
+        key = "fig_7_9" if h == "hp1" else "fig_7_10"
+        if key in summary.get("figures", {}):
+            rep.figure(run.root / summary["figures"][key], f"Redrawn Fig. {'7.9' if h == 'hp1' else '7.10'}", run.root)
+    c = summary["checks"]
+    rep.h("Checks against the thesis")
+    rho = c.get("hp1_far_spearman_pooled")
+    far2 = np.mean([_rate(summary, "hp1", e.hp1_levels[0], "far", s) or 0 for s in ("reactive", "planning")])
+    far6 = np.mean([_rate(summary, "hp1", e.hp1_levels[-1], "far", s) or 0 for s in ("reactive", "planning")])
+    beh = [_rate(summary, "hp1", k, "behind", s) for k in e.hp1_levels for s in ("reactive", "planning")]
+    beh = [b for b in beh if b is not None]
+    rep.bullets([
+        f"HP1 tool behind toy: {100 * min(beh):.0f}-{100 * max(beh):.0f} % over ages and strategies (thesis ~90 %, 100 % at 14 months)." if beh else "HP1 behind: not run",
+        f"HP1 tool far from toy: {100 * far2:.0f} % at {e.hp1_ages[0]} months, {100 * far6:.0f} % at {e.hp1_ages[-1]} months "
+        f"(thesis ~0 % and ~60 %).",
+        f"Spearman's rho of far-from-toy success over the HP1 groups: pooled {fmt(rho)}, reactive "
+        f"{fmt(c.get('hp1_far_spearman_reactive'))}, planning {fmt(c.get('hp1_far_spearman_planning'))} (target >= 0.8).",
+        f"Largest reactive-planning difference over all groups: {fmt(c.get('reactive_planning_max_abs_diff'), pct=True)} "
+        "(thesis: the two systems look identical).",
+    ])
+    rep.h("Table 7.1: what the robots discovered")
+    rows = []
+    for p in range(1, N_POSTURES + 1):
+        k = f"posture-{p}"
+        m, t = summary["table_7_1"][k], THESIS_TABLE_7_1[k]
+        rows.append([k, " ".join(map(str, m["events"])), " ".join(map(str, t["events"])),
+                     " ".join(map(str, m["skills"])), " ".join(map(str, t["skills"])),
+                     " ".join(f"{v:.2f}" for v in m["skills_share"])])
+    rep.p(f"Events in order {', '.join(EVENTS)}; skills {', '.join(SKILL_LETTERS)}. 1 = happened / worked for at "
+          "least one robot; the share column gives, per skill, the fraction of robots whose learnt skill works from "
+          "that posture.")
+    rep.table(["posture", "events (run)", "events (thesis)", "skills (run)", "skills (thesis)", "skill share"], rows)
+    for key, cap in (("situations", "The eye's view of the four initial situations and their PC maps"),
+                     ("filmstrip", "One retrieval by a planning child: imagined outcome (C3) above the real scene")):
+        if key in summary.get("figures", {}):
+            rep.figure(run.root / summary["figures"][key], cap, run.root)
+    rep.h("What differs from the thesis, and why")
+    rep.bullets([
+        "The world is a pybullet rake-and-toy scene driven through the iCub's kinematics, not the iCub simulator; "
+        "which movements touch or move the toy, and so which skills exist from which posture, follows from this "
+        "physics (Table 7.1 above) rather than from the thesis's simulator.",
+        "Several values are not given in the thesis (softmax and PI^BB temperatures, exploration noise, Hebbian and "
+        "SOM rates, movement duration); they are named parameters of `conf/experiment/exp5.yaml` (docs/exp5.md).",
+        "Each repetition acquires one skill library with all six detectors; a HP1 robot keeps the skills of its "
+        "enabled detectors (its C1-C3 training replayed for those skills only), so groups of one repetition are "
+        "paired rather than independent samples.",
+        "The physics is deterministic, so the outcome of a given skill sequence from a posture is computed once; "
+        "the thesis notes run-to-run variation of tool-toy contacts that this world does not have.",
+    ])
+    cost = summary.get("cost", {})
+    rt = summary.get("runtime_s", {})
+    rep.h("Cost")
+    rep.p(f"{cost.get('tasks')} tasks, {summary.get('individuals')} individuals; rollouts {cost.get('rollouts')} "
+          f"({cost.get('rollout_s')} s), renders {cost.get('renders')} ({cost.get('render_s')} s); summed task time "
+          f"{cost.get('task_s_total')} s of which skill acquisition {cost.get('acquisition_s_total')} s; wall clock "
+          f"train {rt.get('train')} s, evaluate {rt.get('evaluate')} s.")
+    rep.p(reproducibility_note(cfg.seed))
+    rep.write(run.report_path)
+
+
+def fmt(v, pct: bool = False) -> str:
+    if v is None or (isinstance(v, float) and np.isnan(v)):
+        return "n/a"
+    return f"{100 * v:.0f} %" if pct else f"{v:.2f}"

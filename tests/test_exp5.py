@@ -1,0 +1,212 @@
+"""Experiment 5: brain (C1-C4), Fig. 7.5 / 7.6 algorithms and the run contract.
+
+Fast tests use the STAND-IN environment of ``tests/support_tool_env.py`` (a 2-D kinematic toy, not
+the robot); the pybullet world is exercised only by the slow test at the end.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import torch
+
+sys.path.insert(0, str(Path(__file__).parent))
+from support_tool_env import StandInToolEnv  # noqa: E402
+
+from neuroimagery.experiments import exp5  # noqa: E402
+from neuroimagery.models.tool_use import (EVENTS, AcquisitionConfig, Outcomes, ToolUseBrain, acquire_skills,  # noqa: E402
+                                          build_brain, sequence_trial)
+
+CONF = str(Path(__file__).resolve().parents[1] / "conf")
+STANDIN = "support_tool_env:StandInToolEnv"
+
+
+def compose(*overrides):
+    from hydra import compose as hcompose, initialize_config_dir
+
+    from neuroimagery.config import register_configs
+
+    register_configs()
+    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
+        return hcompose("config", overrides=["experiment=exp5", *overrides])
+
+
+def small_acq(**kw):
+    base = dict(max_epochs=3, explore_max_rollouts=200, c3_repeats=5, c1_repeats=3, c2_repeats=3)
+    base.update(kw)
+    return AcquisitionConfig(**base)
+
+
+# ---------------------------------------------------------------------------------- config
+def test_config_composes_and_validates():
+    from neuroimagery.config import validate
+
+    conf = validate(compose("preset=quick"))
+    e = conf.experiment
+    assert e.name == "exp5" and e.q_form == "standard" and e.eta == 1e-4 and e.gamma == 0.8 and e.attempts == 5
+    assert exp5.repetitions(conf) == e.quick_repetitions
+    assert len(exp5.groups(e)) == 11
+
+
+@pytest.mark.parametrize("key,value", [("q_form", "sideways"), ("attempts", 0), ("gamma", 1.5),
+                                       ("hp1_ages", [14]), ("situations", ["near"]), ("temperature", 0.0)])
+def test_config_rejects_bad_values_naming_the_key(key, value):
+    with pytest.raises(ValueError, match=key):
+        exp5.Exp5Config(**{key: value})
+
+
+def test_misspelt_key_is_rejected():
+    with pytest.raises(Exception):
+        compose("experiment.attempt=4")
+
+
+# ---------------------------------------------------------------------------------- brain
+def test_c1_training_changes_only_the_trained_unit():
+    b = ToolUseBrain((6, 8))
+    x = torch.zeros(2, 6, 8)
+    x[0, 2, 3] = x[1, 4, 5] = 1.0
+    b.train_c1(x, unit=3, signal=0.7, times=200)
+    aff = b.affordance(x)
+    assert aff[3] == pytest.approx(0.7, abs=1e-3)
+    assert torch.count_nonzero(aff) == 1
+    b.train_c1(x, unit=5, signal=0.2, times=200)
+    assert b.affordance(x)[3] == pytest.approx(0.7, abs=1e-3)  # unit 3 kept what it learnt
+
+
+@pytest.mark.parametrize("form,sign", [("standard", 1.0), ("printed", -1.0)])
+def test_q_update_matches_eq_7_1_by_hand(form, sign):
+    b = ToolUseBrain((2, 2), q_eta=0.1, q_gamma=0.8, q_form=form)
+    x0, x1 = torch.zeros(2, 2, 2), torch.zeros(2, 2, 2)
+    x0[0, 0, 0] = 1.0
+    x1[1, 1, 1] = 1.0
+    b.c4.weight[0, 4, 7] = 0.5  # q(x1, unit 4) = 0.5 = qMax_t
+    b.train()
+    b.q_update(x0, unit=2, reward=1.0, x1=x1, done=False)
+    # dw_{2,i} = eta (r +- gamma qMax_t - qWin_{t-1}) x_{i,t-1}; qWin = 0
+    assert b.c4.weight[0, 2, 0].item() == pytest.approx(0.1 * (1.0 + sign * 0.8 * 0.5))
+    assert torch.count_nonzero(b.c4.weight[0, 2]) == 1
+
+
+def test_imagination_returns_the_trained_outcome_for_the_intended_action():
+    b = ToolUseBrain((6, 8), c3_eta=0.5)
+    b.train()
+    g = torch.Generator().manual_seed(0)
+    sit = torch.zeros(2, 6, 8)
+    sit[0, 1, 1] = sit[1, 5, 5] = 1
+    out_a, out_b = torch.zeros(2, 6, 8), torch.zeros(2, 6, 8)
+    out_a[0, 4, 1] = 1
+    out_b[0, 0, 7] = 1
+    b.train_c3(sit, unit=1, posture=1, outcome=out_a, times=40, generator=g)
+    b.train_c3(sit, unit=2, posture=1, outcome=out_b, times=40, generator=g)
+    assert torch.allclose(b.imagine(sit, 1), out_a, atol=1e-3)
+    assert torch.allclose(b.imagine(sit, 2), out_b, atol=1e-3)
+    assert torch.equal(b.imagine(sit, 7), sit)  # an untrained primitive imagines no change
+
+
+# ---------------------------------------------------------------------------------- algorithms
+@pytest.fixture(scope="module")
+def acquired():
+    env = StandInToolEnv()
+    brain = ToolUseBrain(env.image_shape)
+    brain.train()
+    lib = acquire_skills(env, ["retrieve", "touch", "west"], small_acq(), torch.Generator().manual_seed(1), brain=brain)
+    return env, brain, lib
+
+
+def test_skill_acquisition_learns_only_enabled_events(acquired):
+    env, brain, lib = acquired
+    events = [s.event for s in lib.skills]
+    assert set(events) <= {"retrieve", "touch", "west"} and len(events) == len(set(events))
+    assert len(events) + len(lib.missing) == 3
+    for s in lib.skills:
+        assert 1 <= len(s.competence) <= 3 and all(0 <= c <= 1 for c in s.competence)
+        assert s.theta.shape == (env.n_params,)
+    assert len({s.unit for s in lib.skills}) == len(lib.skills)
+    assert lib.explore_rollouts > 0 and lib.learn_rollouts > 0
+
+
+def test_replayed_brain_equals_the_brain_trained_during_acquisition(acquired):
+    env, brain, lib = acquired
+    rebuilt = build_brain(env, lib, small_acq(), ToolUseBrain(env.image_shape), torch.Generator().manual_seed(0))
+    assert torch.allclose(rebuilt.c1.weight, brain.c1.weight, atol=1e-5)
+    assert torch.allclose(rebuilt.c2.weight, brain.c2.weight, atol=1e-5)
+    assert torch.equal(rebuilt.c3_trained, brain.c3_trained)
+
+
+def test_planning_child_trains_without_moving_and_reactive_child_moves(acquired):
+    env, _, lib = acquired
+    brain = build_brain(env, lib, small_acq(), ToolUseBrain(env.image_shape), torch.Generator().manual_seed(0))
+    outcomes = Outcomes(env, {s.event: s for s in lib.skills}, env.perceive)
+    g = torch.Generator().manual_seed(3)
+    before = env.rollouts
+    for _ in range(3):
+        rec = sequence_trial(brain, outcomes, lib.skills, 4, "planning", True, 5, 0.1, g)
+        assert 1 <= len(rec.actions) <= 5
+    assert env.rollouts == before  # imagined through C3 only
+    w0 = brain.c4.weight.clone()
+    rec = sequence_trial(brain, outcomes, lib.skills, 1, "reactive", True, 5, 0.1, g)
+    assert env.rollouts > before or len(outcomes.table) > 0
+    assert rec.success == bool(rec.rewards[-1] > 0)
+    if any(rec.rewards):
+        assert not torch.equal(w0, brain.c4.weight)
+
+
+# ---------------------------------------------------------------------------------- the run
+def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
+    import neuroimagery.run as R
+
+    cfg = compose("preset=quick", f"experiment.environment={STANDIN}", "experiment.n_jobs=1",
+                  "experiment.quick_repetitions=1", "experiment.max_epochs=2", "experiment.explore_max_rollouts=120",
+                  "experiment.hp2_trials=[0,2]", "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
+    summary = R.evaluate(cfg, out_dir=tmp_path)
+    df = pd.read_csv(tmp_path / "individuals.csv")
+    assert {"hypothesis", "level", "age_months", "situation", "strategy", "success"} <= set(df.columns)
+    assert len(df) == 2 * 2 * (5 + 2)  # situations x strategies x groups
+    saved = json.loads((tmp_path / "summary.json").read_text())
+    assert saved["experiment"] == "exp5" and set(saved["table_7_1"]) == {f"posture-{p}" for p in range(1, 5)}
+    g0 = saved["groups"][0]
+    assert set(g0) >= {"hypothesis", "level", "age_months", "situation", "strategy", "n", "success_rate"}
+    assert all(len(v["events"]) == 6 and len(v["skills"]) == 6 for v in saved["table_7_1"].values())
+    assert "STAND-IN" in (tmp_path / "report.md").read_text()
+    assert (tmp_path / "figures" / "fig_7_9_hp1_skills.png").exists()
+    # an interrupted run resumes: finished tasks are read back, not recomputed
+    monkeypatch.setattr(exp5, "run_task", lambda *a, **k: pytest.fail("a finished task was recomputed"))
+    summary2 = R.evaluate(cfg, out_dir=tmp_path)
+    assert summary2["groups"] == summary["groups"]
+
+
+@pytest.mark.slow
+def test_quick_run_on_the_robot_world(tmp_path):
+    import neuroimagery.run as R
+
+    cfg = compose("preset=quick", "experiment.quick_repetitions=1", "experiment.n_jobs=1", "logger=none",
+                  "progress=false")
+    summary = R.evaluate(cfg, out_dir=tmp_path)
+    assert summary["environment"] == "robot"
+    assert (tmp_path / "figures" / "situations.png").exists()
+    assert len(pd.read_csv(tmp_path / "individuals.csv")) == 2 * 2 * 11
+
+
+def test_batched_c1_and_c3_updates_equal_repeated_single_steps():
+    g = torch.Generator().manual_seed(0)
+    x = (torch.rand(2, 6, 8, generator=g) < 0.3).float()
+    out = (torch.rand(2, 6, 8, generator=g) < 0.3).float()
+    a, b = ToolUseBrain((6, 8)), ToolUseBrain((6, 8))
+    a.c1.weight.uniform_(0, 1, generator=g)
+    b.c1.weight.copy_(a.c1.weight)
+    a.train_c1(x, unit=2, signal=0.4, times=7)
+    for _ in range(7):
+        b.train_c1(x, unit=2, signal=0.4, times=1)
+    assert torch.allclose(a.c1.weight, b.c1.weight, atol=1e-6)
+    # closed-form C3 update == the SOM block's own online training (neighbourhood below cutoff)
+    c, d = ToolUseBrain((6, 8), c3_eta=0.2), ToolUseBrain((6, 8), c3_eta=0.2)
+    d.c3.som.weight.copy_(c.c3.som.weight)
+    c.train(), d.train()
+    d.train_c3(x, unit=3, posture=2, outcome=out, times=9, generator=g)
+    A, B = c.flat(out).unsqueeze(0), c._c3_b(x, 3).unsqueeze(0)
+    c.c3.fit(A, B, labels=torch.tensor([[13]]), iterations=9, order=torch.zeros(1, 9, dtype=torch.long))
+    assert torch.allclose(c.c3.som.weight, d.c3.som.weight, atol=1e-4)
+    assert not torch.equal(c.c3.som.weight, ToolUseBrain((6, 8), c3_eta=0.2).c3.som.weight)
