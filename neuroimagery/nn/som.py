@@ -7,10 +7,10 @@ participants. Two exact implementations of the same online rule are offered:
 
 * ``method='online'`` updates the weight matrix at every step (cost ``units x in`` per step);
 * ``method='factored'`` never touches the weights while training. Every weight vector stays a
-  combination ``w_k = c_k w0_k + sum_n A_kn x_n`` of its initial value and the ``N`` training
-  patterns, so the step ``w_k <- (1 - a_k) w_k + a_k x_s`` only rescales ``c_k`` and ``A_k`` and
-  adds ``a_k`` to ``A_ks``; distances come from the maintained dot products ``D_kn = w_k . x_n``
-  and norms ``|w_k|^2``. The cost per step is ``units x N``, independent of the input size, and
+  scaled combination ``w_k = c_k (w0_k + sum_n R_kn x_n)`` of its initial value and the ``N``
+  training patterns, so the step ``w_k <- (1 - a_k) w_k + a_k x_s`` only rescales ``c_k`` and
+  adds to ``R_ks``; distances come from maintained dot products with the patterns and closed-form
+  norms. A step costs ``(units in the neighbourhood) x N``, independent of the input size, and
   the weights are formed once at the end. Same sequence of winners, same weights up to float
   rounding (see ``tests/test_som.py``).
 
@@ -172,7 +172,9 @@ class SOM(nn.Module):
         if not self.training:
             return order
         if method == "auto":
-            method = "factored" if N < self.n_in else "online"
+            method = "factored" if N < self.n_in and max(self.rule.eta0, self.rule.eta1) < 1 else "online"
+        if method == "factored" and max(self.rule.eta0, self.rule.eta1) >= 1:
+            raise ValueError("method='factored' needs learning rates below 1 (a unit may not jump onto a pattern)")
         it = range(T)
         if progress:
             from tqdm.auto import tqdm
@@ -193,16 +195,25 @@ class SOM(nn.Module):
         return winners
 
     def _fit_factored(self, X, order, labels, it) -> torch.Tensor:
+        """Exact online training without touching the weights (see the module docstring).
+
+        Invariants, per participant and unit ``k`` (``W0`` the initial weights, ``x_n`` the patterns):
+        ``w_k = c_k (W0_k + sum_m R_km x_m)`` and ``w_k . x_n = c_k Q_kn`` with
+        ``Q_kn = W0_k . x_n + sum_m R_km G_mn``, ``G = X X^T``. A step with rate ``a_k`` toward
+        ``x_s`` sets ``c_k <- (1 - a_k) c_k``, ``R_ks += a_k / c_k``, ``Q_k += (a_k / c_k) G_s``: only the
+        units inside the neighbourhood (``a_k > 0``) are touched. Norms ``|w_k|^2`` are updated in
+        closed form; a unit-sum normalisation (supervised maps) only rescales ``c_k``.
+        """
         P, N, _ = X.shape
         p = torch.arange(P)
         dt = torch.float64  # the recurrences are exact in real arithmetic; float64 keeps them so
-        W0 = self.weight.to(dt)
+        W0 = self.weight.to(dt).clone()
         Xd = X.to(dt)
         G = torch.bmm(Xd, Xd.transpose(1, 2))  # (P, N, N)
-        D = torch.bmm(W0, Xd.transpose(1, 2))  # (P, U, N)  w_k . x_n
+        Q = torch.bmm(W0, Xd.transpose(1, 2))  # (P, U, N)
         nrm = (W0 * W0).sum(-1)  # (P, U)
         c = torch.ones(P, self.units, dtype=dt)
-        A = torch.zeros(P, self.units, N, dtype=dt)
+        R = torch.zeros(P, self.units, N, dtype=dt)
         rowsum = W0.sum(-1)
         xsum = Xd.sum(-1)  # (P, N)
         normalise = isinstance(self.rule, SupervisedKohonen) and self.rule.normalise
@@ -211,30 +222,33 @@ class SOM(nn.Module):
         for t in it:
             s = order[:, t]
             Gs = G[p, s]  # (P, N)
-            Ds = D[p, :, s]  # (P, U)
-            if labels is None:
-                win = (nrm - 2 * Ds).argmin(-1)
-            else:
-                win = labels[p, s]
+            Ds = c * Q[p, :, s]  # (P, U)  w_k . x_s
+            win = (nrm - 2 * Ds).argmin(-1) if labels is None else labels[p, s]
             winners[:, t] = win
             eta, sigma = self.rule.schedule(t0 + t)
             a = (eta * self.rule.neighbourhood(self.grid, win, sigma)).to(dt)  # (P, U)
             b = 1 - a
-            gss = Gs[p, s].unsqueeze(-1)  # (P, 1)
-            nrm = b * b * nrm + 2 * a * b * Ds + a * a * gss
-            D = b.unsqueeze(-1) * D + a.unsqueeze(-1) * Gs.unsqueeze(1)
+            nrm = b * b * nrm + 2 * a * b * Ds + a * a * Gs[p, s].unsqueeze(-1)
             c = b * c
-            A = b.unsqueeze(-1) * A
-            A[p, :, s] += a
+            on = (a > 0).any(0).nonzero()  # units inside any participant's neighbourhood
+            lo, hi = int(on[0]), int(on[-1]) + 1  # a contiguous span of rows: updated in place as a view
+            u = a[:, lo:hi] / c[:, lo:hi]  # (P, k), zero outside the neighbourhoods
+            Q[:, lo:hi].baddbmm_(u.unsqueeze(-1), Gs.unsqueeze(1))
+            R[p.unsqueeze(1), torch.arange(lo, hi).unsqueeze(0), s.unsqueeze(1)] += u
             if normalise:
                 rowsum = b * rowsum + a * xsum[p, s].unsqueeze(-1)
-                k = 1.0 / rowsum.clamp_min(1e-12)
+                k = 1.0 / rowsum.clamp_min(1e-300)
                 nrm = nrm * k * k
-                D = D * k.unsqueeze(-1)
                 c = c * k
-                A = A * k.unsqueeze(-1)
                 rowsum = torch.ones_like(rowsum)
-        self.weight.copy_((c.unsqueeze(-1) * W0 + torch.bmm(A, Xd)).to(self.weight.dtype))
+            small = c < 1e-12  # fold tiny scales back in before they cost precision
+            if bool(small.any()):
+                pi, ki = small.nonzero(as_tuple=True)
+                Q[pi, ki] *= c[pi, ki].unsqueeze(-1)
+                R[pi, ki] *= c[pi, ki].unsqueeze(-1)
+                W0[pi, ki] *= c[pi, ki].unsqueeze(-1)
+                c[pi, ki] = 1.0
+        self.weight.copy_((c.unsqueeze(-1) * (W0 + torch.bmm(R, Xd))).to(self.weight.dtype))
         self.steps += order.shape[1]
         return winners
 
