@@ -19,39 +19,52 @@ import torch
 
 
 def bench_world(reps: int = 3) -> dict:
+    """Rollouts/s of K = 10 babbling samples from each posture, one camera image per batch.
+
+    Both rake drives: "kinematic" (default: imposed pose, far steps skipped) and "constraint"
+    (the reference: every control step simulated, rake dragged by a constraint).
+    """
     from neuroimagery.motor.dmp import DMP
     from neuroimagery.robot.babble import BabbleConfig, random_thetas, trajectories
+    from neuroimagery.robot.config import WorldConfig
     from neuroimagery.robot.world import ToolWorld
 
     out = {}
-    cfg, dmp = BabbleConfig(), DMP()
-    with ToolWorld() as w:
-        for use_filter in (False, True):
-            g = torch.Generator().manual_seed(0)
-            w.timing.update(physics_s=0.0, tensor_s=0.0, render_s=0.0)
-            n, t0 = 0, time.perf_counter()
-            for _ in range(reps):
-                for k in range(1, 5):
-                    t1 = time.perf_counter()
-                    traj = trajectories(w, dmp, random_thetas(w, dmp, k, 10, cfg, g), k, cfg)
-                    w.timing["tensor_s"] += time.perf_counter() - t1
-                    w.rollout(traj, k, None, use_filter=use_filter)
-                    w.observe()  # one camera image per batch, as a learner would look
-                    n += 10
-            total = time.perf_counter() - t0
-            key = "with_filter" if use_filter else "without_filter"
-            out[key] = {
-                "rollouts_per_s": n / total,
-                "share_physics": w.timing["physics_s"] / total,
-                "share_render": w.timing["render_s"] / total,
-                "share_tensors": w.timing["tensor_s"] / total,
-            }
-        # raw physics stepping of the rake/toy/table scene
-        w.reset(1)
-        t0 = time.perf_counter()
-        for _ in range(5000):
-            w.client.stepSimulation()
-        out["physics_steps_per_s"] = 5000 / (time.perf_counter() - t0)
+    dmp = DMP()
+    for drive in ("kinematic", "constraint"):
+        with ToolWorld(WorldConfig(rake_drive=drive)) as w:
+            cfg = BabbleConfig(dt=w.cfg.control_dt)
+            for use_filter in (False, True):
+                g = torch.Generator().manual_seed(0)
+                w.timing.update(physics_s=0.0, tensor_s=0.0, render_s=0.0)
+                w.steps_simulated = w.steps_total = 0
+                n, t0, c0 = 0, time.perf_counter(), time.process_time()
+                for _ in range(reps):
+                    for k in range(1, 5):
+                        t1 = time.perf_counter()
+                        traj = trajectories(w, dmp, random_thetas(w, dmp, k, 10, cfg, g), k, cfg)
+                        w.timing["tensor_s"] += time.perf_counter() - t1
+                        w.rollout(traj, k, None, use_filter=use_filter)
+                        w.observe()  # one camera image per batch, as a learner would look
+                        n += 10
+                total = time.perf_counter() - t0
+                cpu = time.process_time() - c0
+                key = f"{drive}_{'with' if use_filter else 'without'}_filter"
+                out[key] = {
+                    "rollouts_per_s": round(n / total, 1),
+                    "rollouts_per_cpu_s": round(n / cpu, 1),  # less sensitive to other jobs on the cores
+                    "share_physics_loop": round(w.timing["physics_s"] / total, 3),
+                    "share_render": round(w.timing["render_s"] / total, 3),
+                    "share_tensors": round(w.timing["tensor_s"] / total, 3),
+                }
+                if drive == "kinematic":
+                    out[key]["share_of_steps_simulated"] = round(w.steps_simulated / max(w.steps_total, 1), 3)
+            # raw physics stepping of the rake/toy/table scene
+            w.reset(1)
+            t0 = time.perf_counter()
+            for _ in range(2000):
+                w.client.stepSimulation()
+            out[f"{drive}_physics_steps_per_s"] = round(2000 / (time.perf_counter() - t0))
     return out
 
 
@@ -94,7 +107,7 @@ def bench_fk() -> dict:
     return {"fk_configs_per_s": len(q) / (time.perf_counter() - t0)}
 
 
-def pibb_curve(event: str, seed: int, out_png: Path) -> dict:
+def pibb_curve(event: str, seed: int, out_png: Path, cost: str = "graded") -> dict:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -106,31 +119,32 @@ def pibb_curve(event: str, seed: int, out_png: Path) -> dict:
     g = torch.Generator().manual_seed(seed)
     with ToolWorld() as w:
         theta0 = discover(w, event, 1, g)
-        curve = learn(w, theta0, event, n_updates=10, generator=g)
+        curve = learn(w, theta0, event, n_updates=10, generator=g, cost=cost)
     fig, ax = plt.subplots(figsize=(5, 3.2))
     ax.plot(range(1, 11), curve.sample_success, "o-", label="exploration samples (40 per update)")
     ax.plot(range(0, 11), curve.mean_success, "s--", label="mean DMP, 4 postures")
     ax.set_xlabel("PI$^{BB}$ update")
-    ax.set_ylabel(f"success rate ({event})")
+    ax.set_ylabel(f"success rate ({event}, {cost} cost)")
     ax.set_ylim(-0.02, 1.02)
     ax.legend(fontsize=8)
     fig.tight_layout()
     out_png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out_png, dpi=120)
-    return {"event": event, "sample_success": curve.sample_success, "mean_success": curve.mean_success}
+    return {"event": event, "cost": cost, "seed": seed, "sample_success": curve.sample_success, "mean_success": curve.mean_success}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-pibb", action="store_true")
     ap.add_argument("--event", default="south")
+    ap.add_argument("--cost", default="graded", choices=("graded", "binary"))
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     res = {"fk": bench_fk(), "dmp": bench_dmp(), "world": bench_world()}
     print(json.dumps(res, indent=2), flush=True)
     if not args.skip_pibb:
         png = Path(__file__).resolve().parents[1] / "docs" / "figures" / "robot" / "pibb_curve.png"
-        print(json.dumps(pibb_curve(args.event, args.seed, png), indent=2))
+        print(json.dumps(pibb_curve(args.event, args.seed, png, args.cost), indent=2))
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 import pytest
 import torch
 
-from neuroimagery.motor.pibb import PIBB, event_costs
+from neuroimagery.motor.pibb import PIBB, event_costs, graded_costs
 
 
 def test_sample_statistics():
@@ -57,3 +57,22 @@ def test_event_costs():
             return self.f
 
     assert event_costs([O(True), O(False), O(True, True)], "south").tolist() == [0.0, 1.0, 1.0]
+
+
+def test_graded_costs_rank_misses():
+    from types import SimpleNamespace as NS
+
+    def out(events, disp, gap, blew=False):
+        names = ("retrieve", "touch", "south", "north", "west", "east")
+        return NS(fired=lambda e: e in events, toy_displacement=disp, min_gap=gap, blew_up=blew)
+
+    outs = [out({"south"}, (-0.05, 0.0), 0.0), out(set(), (-0.01, 0.0), 0.0), out(set(), (0.0, 0.0), 0.0),
+            out(set(), (0.0, 0.0), 0.05), out(set(), (0.0, 0.0), 0.5), out({"south"}, (-0.05, 0.0), 0.0, blew=True)]
+    c = graded_costs(outs, "south", move_threshold=0.02)
+    # fired = 0; half-way pushed = 1 - 0.6*0.5 - 0.3 = 0.4; touched but not moved = 0.7;
+    # 5 cm away = 0.85; far = 1; blown up = 1
+    assert torch.allclose(c, torch.tensor([0.0, 0.4, 0.7, 0.85, 1.0, 1.0]))
+    # moving the wrong way earns nothing
+    assert graded_costs([out(set(), (0.05, 0.0), 0.5)], "south")[0] == 1.0
+    with pytest.raises(ValueError, match="unknown event"):
+        graded_costs(outs, "up")

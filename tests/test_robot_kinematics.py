@@ -38,8 +38,11 @@ def test_fk_matches_pybullet(kin):
         lo, hi = kin.joint_limits[:, 0], kin.joint_limits[:, 1]
         qs = lo + (hi - lo) * torch.rand(50, 7, generator=gen)
         ours = kin.arm.forward_kinematics(qs).get_matrix()  # chest -> r_hand
-        errs, rot_errs = [], []
-        for q, T in zip(qs, ours):
+        fast = kin.rake_pose_np(qs.numpy())  # world -> rake, float64 numpy chain
+        chest_T_world = np.linalg.inv(kin.world_T_chest.double().numpy())
+        hand_T_rake_inv = np.linalg.inv(kin.grasp.double().numpy())
+        errs, rot_errs, fast_errs = [], [], []
+        for q, T, F in zip(qs, ours, fast):
             for name, v in zip(ARM_JOINTS, q.tolist()):
                 p.resetJointState(body, index[name], v, physicsClientId=cid)
             c = p.getLinkState(body, chest, computeForwardKinematics=True, physicsClientId=cid)
@@ -48,9 +51,12 @@ def test_fk_matches_pybullet(kin):
             R = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
             errs.append(np.linalg.norm(np.array(pos) - T[:3, 3].numpy()))
             rot_errs.append(np.abs(R - T[:3, :3].numpy()).max())
+            F_hand = chest_T_world @ F @ hand_T_rake_inv  # back to chest -> r_hand
+            fast_errs.append(max(np.linalg.norm(np.array(pos) - F_hand[:3, 3]), np.abs(R - F_hand[:3, :3]).max()))
         # measured: max position error ~1e-7 m (float32 rounding), rotation ~1e-7
         assert max(errs) < 1e-5, max(errs)
         assert max(rot_errs) < 1e-5, max(rot_errs)
+        assert max(fast_errs) < 1e-5, max(fast_errs)
     finally:
         p.disconnect(cid)
 

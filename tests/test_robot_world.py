@@ -41,6 +41,8 @@ def test_config_errors_name_the_key():
         WorldConfig(toy_mass=-1.0)
     with pytest.raises(ValueError, match="retrieve_x"):
         WorldConfig(retrieve_x=0.9)
+    with pytest.raises(ValueError, match="rake_drive"):
+        WorldConfig(rake_drive="magnetic")
 
 
 def test_scene_is_at_rest(world):
@@ -64,7 +66,7 @@ def test_pulling_from_posture_1_moves_toy_south_and_stops_on_watched(world):
 
 def test_direction_events_agree_with_displacement(world):
     thr = world.cfg.move_threshold
-    for k, delta in ((2, (-0.03, 0.16, 0.0)), (1, (-0.12, 0.05, 0.0))):
+    for k, delta in ((1, (-0.12, 0.05, 0.0)), (1, (-0.16, 0.0, 0.0))):
         out = world.rollout(_line(world, k, delta), k, None)[0]
         dx, dy = out.toy_displacement
         assert np.hypot(dx, dy) > thr  # the sweep did push the toy
@@ -75,18 +77,60 @@ def test_direction_events_agree_with_displacement(world):
         assert (not dy < -thr) or out.fired("east")
 
 
-def test_fk_filter_never_changes_an_outcome(world):
+def test_fk_filter_and_skipped_steps_never_change_an_outcome(world):
+    """Reference: the same world simulating every control step of every rollout."""
     dmp = DMP()
     gen = torch.Generator().manual_seed(5)
     cfg = BabbleConfig()
-    for k in (1, 4):
-        traj = trajectories(world, dmp, random_thetas(world, dmp, k, 12, cfg, gen), k, cfg)
-        fast = world.rollout(traj, k, None, use_filter=True)
-        slow = world.rollout(traj, k, None, use_filter=False)
-        for a, b in zip(fast, slow):
-            assert a.events == b.events
-            if not a.simulated:
-                assert np.hypot(*b.toy_displacement) < 1e-3
+    with ToolWorld(WorldConfig(skip_far_steps=False)) as full:
+        for k in (1, 2, 4):
+            traj = trajectories(world, dmp, random_thetas(world, dmp, k, 16, cfg, gen), k, cfg)
+            fast = world.rollout(traj, k, None, use_filter=True)
+            slow = full.rollout(traj, k, None, use_filter=False)
+            assert any(a.simulated for a in fast)
+            for a, b in zip(fast, slow):
+                assert a.events == b.events, (k, a, b)
+                assert np.allclose(a.toy_displacement, b.toy_displacement, atol=2e-3), (k, a, b)
+                if not a.simulated:
+                    assert np.hypot(*b.toy_displacement) < 1e-3
+
+
+def test_kinematic_drive_agrees_with_constraint_drive(world):
+    """The fast kinematic rake and the reference constraint-dragged rake push the toy alike."""
+    with ToolWorld(WorldConfig(rake_drive="constraint")) as ref:
+        for k, delta in ((1, (-0.16, 0.0, 0.0)), (1, (-0.12, 0.05, 0.0)), (2, (-0.03, 0.16, 0.0))):
+            traj = _line(world, k, delta)
+            a, b = world.rollout(traj, k, None)[0], ref.rollout(traj, k, None)[0]
+            assert np.allclose(a.toy_displacement, b.toy_displacement, atol=0.02), (a, b)
+            assert a.fired("south") == b.fired("south") and a.fired("retrieve") == b.fired("retrieve"), (a, b)
+            # a side event may differ only when the sideways drift is borderline (a graze of the
+            # toy's top, "touch", is too fine a detail to compare)
+            thr = world.cfg.move_threshold
+            for name, d in (("north", b.toy_displacement[0]), ("west", b.toy_displacement[1]),
+                            ("east", -b.toy_displacement[1])):
+                if a.fired(name) != b.fired(name):
+                    assert abs(abs(d) - thr) < 0.015, (name, a, b)
+
+
+def test_quaternion_helpers_match_scipy():
+    from scipy.spatial.transform import Rotation
+
+    from neuroimagery.robot.world import _quat_from_matrix, _rotvec_between
+
+    r0, r1 = Rotation.random(500, random_state=0), Rotation.random(500, random_state=1)
+    q = _quat_from_matrix(r0.as_matrix())
+    assert np.allclose(np.abs((q * r0.as_quat()).sum(-1)), 1.0, atol=1e-12)  # same rotation (q ~ -q)
+    assert np.allclose(_rotvec_between(r0.as_quat(), r1.as_quat()), (r1 * r0.inv()).as_rotvec(), atol=1e-9)
+
+
+def test_rake_never_goes_through_the_table(world):
+    q0 = world.initial_posture(1)
+    down = q0.clone()
+    down[0] += 0.4  # shoulder pitch: swing the arm down, the head would sink into the table
+    traj = (q0 + torch.linspace(0, 1, 30)[:, None] * (down - q0))[None]
+    plan = world._plan(world.kin.rake_pose_np(traj.numpy()))
+    low = (plan["pts"][..., 2] - world._point_radius).min(-1)
+    assert low.min() >= world.cfg.table_top + world.cfg.table_clearance - 1e-9
 
 
 def test_errors(world):

@@ -91,3 +91,36 @@ def event_costs(outcomes, event: str) -> torch.Tensor:
     whose physics blew up costs 1.
     """
     return torch.tensor([0.0 if (o.fired(event) and not o.blew_up) else 1.0 for o in outcomes])
+
+
+def graded_costs(outcomes, event: str, move_threshold: float = 0.02, retrieve_distance: float = 0.08,
+                 reach: float = 0.10) -> torch.Tensor:
+    """Cost in [0, 1] that also ranks the rollouts that missed the event (gives PI^BB a slope).
+
+    0 when the event fired.  Otherwise ``1 - 0.6 * progress - 0.3 * closeness``, where
+    ``progress`` in [0, 1] is how far the toy went the wanted way (displacement along the event's
+    direction over ``move_threshold``; for "retrieve" the southward displacement over
+    ``retrieve_distance``; 0 for "touch") and ``closeness`` in [0, 1] is ``1 - min_gap / reach``
+    (``min_gap``: the closest the rake came to the toy, if the outcome reports it).  A blown-up
+    rollout costs 1.
+    """
+    direction = {"south": (-1.0, 0.0), "north": (1.0, 0.0), "west": (0.0, 1.0), "east": (0.0, -1.0),
+                 "retrieve": (-1.0, 0.0), "touch": (0.0, 0.0)}
+    if event not in direction:
+        raise ValueError(f"unknown event {event!r}")
+    ux, uy = direction[event]
+    scale = retrieve_distance if event == "retrieve" else move_threshold
+    costs = []
+    for o in outcomes:
+        if o.blew_up:
+            costs.append(1.0)
+            continue
+        if o.fired(event):
+            costs.append(0.0)
+            continue
+        dx, dy = o.toy_displacement
+        progress = min(max((ux * dx + uy * dy) / scale, 0.0), 1.0)
+        gap = getattr(o, "min_gap", float("nan"))
+        closeness = 0.0 if gap != gap else 1.0 - min(max(gap / reach, 0.0), 1.0)
+        costs.append(1.0 - 0.6 * progress - 0.3 * closeness)
+    return torch.tensor(costs)

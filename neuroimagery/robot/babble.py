@@ -44,8 +44,8 @@ class BabbleConfig:
 
     goal_sigma: float = 0.35  # rad, std of the goal noise around the initial posture
     weight_sigma: float = 300.0  # std of the random shape weights
-    duration_s: float = 2.0  # movement duration (DMP time constant)
-    dt: float = 0.01  # trajectory step (= WorldConfig.control_dt)
+    duration_s: float = 1.5  # movement duration (DMP time constant)
+    dt: float = 0.02  # trajectory step (= WorldConfig.control_dt)
 
     def __post_init__(self) -> None:
         for key in ("goal_sigma", "weight_sigma", "duration_s", "dt"):

@@ -14,13 +14,14 @@ URDF_DIR = Path(__file__).resolve().parents[2] / "urdf"
 # inverse-kinematics fit of the rake head's centre to a point on the table (see docs/robot.md):
 #   1 head behind the toy (north of it)        -> pulling south brings it in
 #   2 head beside the toy, on its right (east)
-#   3 head in front of the toy and to its right
-#   4 head far from the toy, near the robot and to the right
+#   3 head level with the toy, on its right, a hand's width away
+#   4 head farther from the toy, on its right and beyond it (arm stretched; postures 3 and 4 keep
+#     the shoulder, elbow and wrist away from their limits so exploration can move every way)
 DEFAULT_POSTURES: tuple[tuple[float, ...], ...] = (
     (-0.620, 0.390, 0.065, 1.066, -0.215, 0.031, -0.197),
     (-0.538, 0.602, -0.116, 1.331, -0.332, -0.025, 0.242),
-    (-0.005, 0.121, 0.685, 1.556, 0.366, -1.277, -0.200),
-    (0.040, 0.116, 0.298, 1.721, 0.417, -1.157, -0.037),
+    (-1.013, 0.554, 0.211, 0.627, -0.245, -0.096, -0.128),
+    (-1.110, 0.537, 0.149, 0.391, -0.100, -0.163, -0.300),
 )
 
 # Hand (r_hand) -> rake transform of the fixed grasp: at the reference posture
@@ -53,13 +54,22 @@ class WorldConfig:
     toy_xy: tuple[float, float] = (0.56, -0.10)  # initial toy centre on the table
     toy_size: float = 0.05  # side of the red toy cube (urdf/toy.urdf)
     toy_mass: float = 0.05  # kg
-    rake_mass: float = 0.2  # kg; the rake is driven by a constraint, its mass only sets inertia
-    rake_max_force: float = 200.0  # N, strength of the constraint that makes the rake follow the hand
+    rake_mass: float = 2.0  # kg; heavy enough that the 50 g toy barely deflects it between two
+    #                         imposed poses (kinematic drive)
+    rake_max_force: float = 200.0  # N, strength of the constraint (only with rake_drive="constraint")
+    # how the hand moves the rake: "kinematic" imposes the rake's pose and velocity at every control
+    # step (the table stops it by lifting the pose); "constraint" drags it with a fixed constraint of
+    # force rake_max_force (slower; kept as a reference)
+    rake_drive: str = "kinematic"
+    table_clearance: float = 0.002  # kinematic drive: lowest rake point kept this far above the table
     friction: float = 0.5  # lateral friction of toy, rake and table
     # --- simulation ---------------------------------------------------------------------------
-    physics_dt: float = 0.005  # pybullet time step (200 Hz; two steps per control step)
-    control_dt: float = 0.01  # time between trajectory points (DMP integration step)
+    physics_dt: float = 0.01  # pybullet time step (100 Hz; two steps per control step)
+    control_dt: float = 0.02  # time between trajectory points (DMP integration step, 50 Hz)
     settle_steps: int = 10  # physics steps after placing the scene, before a rollout
+    skip_far_steps: bool = True  # kinematic drive: skip control steps where the resting toy is out of the rake's reach
+    rest_speed: float = 0.005  # m/s; a toy slower than this is at rest: control steps in which the
+    #                            rake cannot reach it are skipped (kinematic drive)
     # --- events -------------------------------------------------------------------------------
     move_threshold: float = 0.02  # toy displacement (m) that counts as a south/north/west/east move
     retrieve_x: float = 0.48  # reachable area: toy centre closer than this to the robot (x < ...)
@@ -88,6 +98,12 @@ class WorldConfig:
         for key in positive:
             if not float(getattr(self, key)) > 0:
                 raise ValueError(f"WorldConfig.{key} must be > 0, got {getattr(self, key)!r}")
+        if self.rake_drive not in ("kinematic", "constraint"):
+            raise ValueError(f"WorldConfig.rake_drive must be 'kinematic' or 'constraint', got {self.rake_drive!r}")
+        if not self.table_clearance >= 0:
+            raise ValueError(f"WorldConfig.table_clearance must be >= 0, got {self.table_clearance}")
+        if not self.rest_speed > 0:
+            raise ValueError(f"WorldConfig.rest_speed must be > 0, got {self.rest_speed}")
         if not 0 <= self.friction <= 5:
             raise ValueError(f"WorldConfig.friction must be in [0, 5], got {self.friction}")
         if not 0 < self.touch_normal_z <= 1:

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import torch
 
 from neuroimagery.motor.dmp import DMP
-from neuroimagery.motor.pibb import PIBB, event_costs
+from neuroimagery.motor.pibb import PIBB, event_costs, graded_costs
 from neuroimagery.robot.babble import BabbleConfig, random_thetas, trajectories
 from neuroimagery.robot.world import ToolWorld, event_index
 
@@ -45,8 +45,15 @@ def mean_success(world: ToolWorld, theta: torch.Tensor, event: str, cfg: BabbleC
 
 def learn(world: ToolWorld, theta0: torch.Tensor, event: str, n_updates: int = 10, generator=None,
           goal_sigma: float = 0.1, weight_sigma: float = 60.0, temperature: float = 0.1, decay: float = 0.9,
-          cfg: BabbleConfig | None = None) -> SkillCurve:
-    """PI^BB on a DMP's 35 parameters, the skill's event as the only reward (eq. 7.6-7.8)."""
+          cfg: BabbleConfig | None = None, cost: str = "graded") -> SkillCurve:
+    """PI^BB on a DMP's 35 parameters (eq. 7.6-7.8).
+
+    ``cost="binary"``: 0 when the skill's event fired, else 1 (the thesis's reward only);
+    ``cost="graded"`` (default): :func:`~neuroimagery.motor.pibb.graded_costs`, which also ranks the
+    misses by how far the toy went the wanted way and how close the rake came to it.
+    """
+    if cost not in ("binary", "graded"):
+        raise ValueError(f"cost must be 'binary' or 'graded', got {cost!r}")
     cfg, dmp = cfg or BabbleConfig(), DMP()
     sigma = torch.cat([torch.full((7,), goal_sigma), torch.full((28,), weight_sigma)])
     dist = PIBB.from_sigma(theta0, sigma, n_samples=10, temperature=temperature, decay=decay)
@@ -59,7 +66,11 @@ def learn(world: ToolWorld, theta0: torch.Tensor, event: str, n_updates: int = 1
             s[:, :7] = torch.maximum(torch.minimum(s[:, :7], hi), lo)
             outs = world.rollout(trajectories(world, dmp, s, k, cfg), k, event)
             samples.append(s)
-            costs.append(event_costs(outs, event))
+            if cost == "binary":
+                costs.append(event_costs(outs, event))
+            else:
+                costs.append(graded_costs(outs, event, world.cfg.move_threshold,
+                                          world.cfg.toy_xy[0] - world.cfg.retrieve_x))
         samples, costs = torch.cat(samples), torch.cat(costs)
         sample_curve.append(float((costs == 0).float().mean()))
         big = PIBB(dist.mean, dist.covariance, n_samples=len(samples), temperature=temperature, decay=decay)

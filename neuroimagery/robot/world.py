@@ -2,9 +2,20 @@
 
 Only the rake, the toy and the table take part in the physics.  The iCub's body is represented by
 its kinematics: the right arm's joint trajectory goes through batched forward kinematics
-(:class:`~neuroimagery.robot.kinematics.ArmKinematics`), the fixed grasp gives the pose the rake
-must have at every control step, and a strong fixed constraint drags the (dynamic) rake body to that
-pose.  pybullet then resolves rake-toy-table contact; the toy moves only when pushed.
+(:class:`~neuroimagery.robot.kinematics.ArmKinematics`) and the fixed grasp gives the pose the rake
+must have at every control step.
+
+Rake drive (``WorldConfig.rake_drive``):
+    "kinematic" (default)  at the start of control step t the rake is put at pose t-1 with the
+        velocity that carries it to pose t; pybullet's substeps resolve rake-toy and toy-table
+        contact (a heavy rake barely yields to the 50 g toy).  The table stops the rake: a pose
+        whose lowest rake point would sink into the table is lifted vertically (rake-table
+        collisions are not computed).  While the toy is at rest, control steps in which no rake
+        point comes within ``filter_margin`` of the toy (ends of the step, allowing for the
+        distance swept in it) cannot change anything and are skipped (``skip_far_steps``).
+    "constraint"  a fixed constraint of force ``rake_max_force`` drags the dynamic rake to every
+        pose and every control step is simulated (the slower reference).
+pybullet resolves the contacts; the toy moves only when pushed.
 
 Compass convention (seen from above, robot at the south edge looking north):
     south = toward the robot (-x), north = away from it (+x),
@@ -24,6 +35,7 @@ of interest happens).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -69,6 +81,7 @@ class Outcome:
     final_toy_xy: tuple[float, float]
     blew_up: bool = False
     simulated: bool = True
+    min_gap: float = float("nan")  # closest the rake came to the toy's start box (m, FK; NaN if unknown)
 
     def fired(self, name: str) -> bool:
         return self.events[event_index(name)]
@@ -134,14 +147,36 @@ class ToolWorld:
         for body in (self.table, self.toy, self.rake):
             c.changeDynamics(body, -1, lateralFriction=cfg.friction)
         c.changeDynamics(self.toy, -1, mass=cfg.toy_mass)
-        c.changeDynamics(self.rake, -1, mass=cfg.rake_mass)
+        if cfg.rake_drive == "constraint":
+            c.changeDynamics(self.rake, -1, mass=cfg.rake_mass)
         # the rake frame is the grip; pybullet's base frame is the inertial frame: keep the offset
         self._rake_com = np.array(c.getDynamicsInfo(self.rake, -1)[3])
         self._rake_com_orn = c.getDynamicsInfo(self.rake, -1)[4]
-        self.constraint = c.createConstraint(
-            self.rake, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [0, 0, 2]
-        )
+        self._cid = c._client
+        self._R_com = np.array(c.getMatrixFromQuaternion(self._rake_com_orn)).reshape(3, 3)
+        pts = self._rake_points()
+        self._rake_points_np = pts.double().numpy()
+        n_handle = 11  # the first points lie on the handle's axis (radius 8 mm, urdf/rake.urdf)
+        self._point_radius = np.where(np.arange(len(pts)) < n_handle, 0.008, 0.0)
+        self._point_radius_max = 0.008
+        if cfg.rake_drive == "constraint":
+            self.constraint = c.createConstraint(
+                self.rake, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [0, 0, 2]
+            )
+        else:
+            self.constraint = None
+            # the rake's pose is imposed at every control step and the table's contact is replaced
+            # by lifting the pose (``_plan``): rake-table collisions are not computed
+            c.setCollisionFilterPair(self.rake, self.table, -1, -1, 0)
+            # a heavy rake barely yields to the toy during the substeps between two imposed poses
+            m0 = c.getDynamicsInfo(self.rake, -1)[0]
+            inertia = np.array(c.getDynamicsInfo(self.rake, -1)[2]) * (cfg.rake_mass / m0)
+            c.changeDynamics(self.rake, -1, mass=cfg.rake_mass, localInertiaDiagonal=inertia.tolist())
         self.timing = {"physics_s": 0.0, "tensor_s": 0.0, "render_s": 0.0}
+        self._reset_cache: dict[bytes, tuple] = {}
+        self._settled: dict[tuple[float, float], tuple] = {}
+        self.steps_simulated = 0  # control steps that went through the physics (kinematic drive)
+        self.steps_total = 0  # control steps of all simulated rollouts
         self.reset(1)
 
     # ------------------------------------------------------------------ lifecycle
@@ -191,6 +226,8 @@ class ToolWorld:
         if teleport:
             self.client.resetBasePositionAndOrientation(self.rake, pos, orn)
             self.client.resetBaseVelocity(self.rake, [0, 0, 0], [0, 0, 0])
+        if self.constraint is None:
+            return
         self.client.changeConstraint(
             self.constraint, jointChildPivot=pos, jointChildFrameOrientation=orn, maxForce=self.cfg.rake_max_force
         )
@@ -198,16 +235,47 @@ class ToolWorld:
     def reset(self, posture: int, q: torch.Tensor | None = None, toy_xy: tuple[float, float] | None = None) -> None:
         """Put the arm (and so the rake) at ``posture`` (or joint vector ``q``) and the toy at its start."""
         q0 = self.initial_posture(posture) if q is None else q
-        self.kin.check_limits(q0)
-        T = self.kin.rake_pose(q0).detach().double().numpy()
-        self._set_rake(T, teleport=True)
         start = self._toy_start()
         if toy_xy is not None:
             start[:2] = [float(toy_xy[0]), float(toy_xy[1])]
-        self.client.resetBasePositionAndOrientation(self.toy, start, [0, 0, 0, 1])
-        self.client.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
-        for _ in range(self.cfg.settle_steps):
-            self.client.stepSimulation()
+        c = self.client
+        if self.constraint is not None:
+            self.kin.check_limits(q0)
+            T = self.kin.rake_pose(q0).detach().double().numpy()
+            self._set_rake(T, teleport=True)
+            c.resetBasePositionAndOrientation(self.toy, start, [0, 0, 0, 1])
+            c.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
+            for _ in range(self.cfg.settle_steps):
+                c.stepSimulation()
+            return
+        q_np = np.asarray(torch.as_tensor(q0, dtype=torch.float32).detach().numpy(), dtype=np.float32)
+        key = q_np.tobytes()
+        pose = self._reset_cache.get(key)
+        if pose is None:
+            self.kin.check_limits(torch.as_tensor(q_np))
+            plan = self._plan(self.kin.rake_pose_np(q_np)[None, None])  # lifted like every driven pose
+            pose = (plan["pos"][0, 0].tolist(), plan["orn"][0, 0].tolist())
+            if len(self._reset_cache) > 256:
+                self._reset_cache.clear()
+            self._reset_cache[key] = pose
+        # the toy settles on the table alone (a kinematic rake has nothing holding it up), then
+        # the rake is put in place, at rest.  Settling is deterministic, so the settled pose of
+        # the toy at each start point is computed once and then reused.
+        c.resetBasePositionAndOrientation(self.rake, [0.0, 0.0, 2.0], [0, 0, 0, 1])
+        settled = self._settled.get((start[0], start[1]))
+        if settled is None:
+            c.resetBasePositionAndOrientation(self.toy, start, [0, 0, 0, 1])
+            c.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
+            for _ in range(self.cfg.settle_steps):
+                c.stepSimulation()
+            settled = c.getBasePositionAndOrientation(self.toy)
+            if len(self._settled) > 256:
+                self._settled.clear()
+            self._settled[(start[0], start[1])] = settled
+        c.resetBasePositionAndOrientation(self.toy, settled[0], settled[1])
+        c.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
+        c.resetBasePositionAndOrientation(self.rake, pose[0], pose[1])
+        c.resetBaseVelocity(self.rake, [0, 0, 0], [0, 0, 0])
 
     def toy_xy(self) -> tuple[float, float]:
         pos, _ = self.client.getBasePositionAndOrientation(self.toy)
@@ -280,25 +348,183 @@ class ToolWorld:
         self.check_trajectories(trajectories)
         t0 = time.perf_counter()
         traj = trajectories.detach().to(torch.float32)
-        with torch.no_grad():
-            poses_t = self.kin.rake_pose(traj)  # (N, T, 4, 4)
-            near = self.near_toy(traj, poses=poses_t) if use_filter else torch.ones(len(traj), dtype=torch.bool)
-        poses = poses_t.double().numpy()
+        N, T = traj.shape[:2]
+        if self.constraint is not None:  # reference drive: dragged by a constraint, every step simulated
+            with torch.no_grad():
+                poses_t = self.kin.rake_pose(traj)
+                near = self.near_toy(traj, poses=poses_t) if use_filter else torch.ones(N, dtype=torch.bool)
+            poses = poses_t.double().numpy()
+            self.timing["tensor_s"] += time.perf_counter() - t0
+            outcomes = []
+            for n in range(N):
+                if not bool(near[n]):
+                    outcomes.append(self._skipped(T))
+                    continue
+                t1 = time.perf_counter()
+                outcomes.append(self._simulate_constraint(poses[n], posture, traj[n, 0], watched))
+                self.timing["physics_s"] += time.perf_counter() - t1
+            return outcomes
+        plan = self._plan(self.kin.rake_pose_np(traj.numpy()))
+        plan["gaps0"] = self._gaps(plan["pts"], self.cfg.toy_xy, plan["sweep"])  # toy at its start
+        if use_filter:
+            near = plan["gaps0"].min(axis=-1) < self.cfg.filter_margin
+        else:
+            near = np.ones(N, dtype=bool)
         self.timing["tensor_s"] += time.perf_counter() - t0
         outcomes = []
-        for n in range(len(traj)):
-            if not bool(near[n]):
-                xy = tuple(float(v) for v in self.cfg.toy_xy)
-                outcomes.append(
-                    Outcome((False,) * 6, None, (0.0, 0.0), traj.shape[1] - 1, xy, False, simulated=False)
-                )
+        for n in range(N):
+            if not near[n]:
+                outcomes.append(dataclasses.replace(self._skipped(T), min_gap=float(max(plan["gaps0"][n].min(), 0.0))))
                 continue
             t1 = time.perf_counter()
-            outcomes.append(self._simulate(poses[n], posture, traj[n, 0], watched))
+            out = self._simulate_kinematic({k: v[n] for k, v in plan.items()}, posture, watched)
+            outcomes.append(dataclasses.replace(out, min_gap=float(max(plan["gaps0"][n].min(), 0.0))))
             self.timing["physics_s"] += time.perf_counter() - t1
         return outcomes
 
-    def _simulate(self, poses: np.ndarray, posture: int, q0: torch.Tensor, watched: str | None) -> Outcome:
+    def _skipped(self, T: int) -> Outcome:
+        """Outcome of a rollout the FK filter showed cannot touch the toy."""
+        xy = tuple(float(v) for v in self.cfg.toy_xy)
+        return Outcome((False,) * 6, None, (0.0, 0.0), T - 1, xy, False, simulated=False)
+
+    # ---------------------------------------------------------------- kinematic drive (default)
+    def _plan(self, poses: np.ndarray) -> dict:
+        """Everything about trajectories that does not depend on the toy, batched in numpy.
+
+        ``poses`` (N, T, 4, 4) grip poses -> lifted poses (the table stops the rake: a pose whose
+        lowest rake point would sink below ``table_top + table_clearance`` is raised vertically),
+        the world points of the rake at each step (N, T, P, 3), the inertial-frame positions and
+        quaternions pybullet needs, the linear/angular velocities that carry the rake from step
+        t-1 to t, and ``sweep``, the farthest any rake point travels in each step.
+        """
+        cfg = self.cfg
+        P = self._rake_points_np[:, :3]
+        pts = poses[..., None, :3, 3] + P @ np.swapaxes(poses[..., :3, :3], -1, -2)  # (N, T, P, 3)
+        low = (pts[..., 2] - self._point_radius).min(axis=-1)  # (N, T)
+        lift = np.maximum(cfg.table_top + cfg.table_clearance - low, 0.0)
+        poses = poses.copy()
+        poses[..., 2, 3] += lift
+        pts[..., 2] += lift[..., None]
+        R = poses[..., :3, :3] @ self._R_com
+        pos = poses[..., :3, 3] + poses[..., :3, :3] @ self._rake_com
+        quat = _quat_from_matrix(R)
+        dt = cfg.control_dt
+        lin = np.zeros_like(pos)
+        ang = np.zeros_like(pos)
+        sweep = np.zeros(pts.shape[:2])
+        if pos.shape[1] > 1:
+            lin[:, 1:] = (pos[:, 1:] - pos[:, :-1]) / dt
+            ang[:, 1:] = _rotvec_between(quat[:, :-1], quat[:, 1:]) / dt
+            # the substeps' gravity is added back so the rake lands exactly on pose t
+            lin[:, 1:, 2] += 9.81 * cfg.physics_dt * (self.substeps + 1) / 2
+            sweep[:, 1:] = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=-1).max(axis=-1)
+        return {"poses": poses, "pts": pts, "pos": pos, "orn": quat, "lin": lin, "ang": ang, "sweep": sweep}
+
+    def _gaps(self, pts: np.ndarray, toy_xy, sweep: np.ndarray) -> np.ndarray:
+        """Per control step, the smallest distance between the rake and the toy's box while moving.
+
+        ``pts`` (..., T, P, 3), ``sweep`` (..., T) -> (..., T).  The toy is taken as the square
+        around its circumscribed circle (so any yaw is covered); step ``t`` moves the rake from
+        pose ``t-1`` to ``t``, so its distance is the smaller of the two ends minus half the
+        farthest any rake point travels in the step.
+        """
+        cfg = self.cfg
+        h = cfg.toy_size / 2 * math.sqrt(2.0)
+        lo = np.array([toy_xy[0] - h, toy_xy[1] - h, cfg.table_top])
+        hi = np.array([toy_xy[0] + h, toy_xy[1] + h, cfg.table_top + cfg.toy_size])
+        d = np.maximum(np.maximum(lo - pts, pts - hi), 0.0)
+        g = np.sqrt((d * d).sum(axis=-1).min(axis=-1)) - self._point_radius_max  # (..., T)
+        out = g.copy()
+        out[..., 1:] = np.minimum(g[..., 1:], g[..., :-1]) - 0.5 * sweep[..., 1:]
+        return out
+
+    def _simulate_kinematic(self, plan: dict, posture: int, watched: str | None) -> Outcome:
+        """Rake driven kinematically; physics only while the rake can reach the toy (module doc).
+
+        ``plan``: one trajectory's entries of :meth:`_plan` (without the batch axis).
+        """
+        cfg, p, cid = self.cfg, self.p, self._cid
+        T = len(plan["pos"])
+        self.reset(posture)
+        start_pos = p.getBasePositionAndOrientation(self.toy, physicsClientId=cid)[0]
+        start = (start_pos[0], start_pos[1])
+        if math.hypot(start[0] - self.cfg.toy_xy[0], start[1] - self.cfg.toy_xy[1]) < 1e-4:
+            start = tuple(self.cfg.toy_xy)  # settled at its start (gaps to it are already known)
+        top = cfg.table_top + cfg.toy_size
+        rest_z = cfg.table_top + cfg.toy_size / 2
+        fired = [False] * 6
+        first: str | None = None
+        blew_up = False
+        watched_i = None if watched is None else EVENTS.index(watched)
+        if start == tuple(self.cfg.toy_xy) and "gaps0" in plan:
+            gaps = plan["gaps0"].copy()
+        else:
+            gaps = self._gaps(plan["pts"], start, plan["sweep"])
+        margin = cfg.filter_margin
+        pos_l, orn_l = plan["pos"].tolist(), plan["orn"].tolist()
+        lin_l, ang_l = plan["lin"].tolist(), plan["ang"].tolist()
+        rake, toy = self.rake, self.toy
+        reset_pose, reset_vel, step_sim = p.resetBasePositionAndOrientation, p.resetBaseVelocity, p.stepSimulation
+        get_pose, get_vel, contacts = p.getBasePositionAndOrientation, p.getBaseVelocity, p.getContactPoints
+        mt, rx, v_rest = cfg.move_threshold, cfg.retrieve_x, cfg.rest_speed
+        resting = True  # the toy is still (so steps far from it cannot change anything)
+        last = 0
+        t = 1
+        n_sim = 0
+        while t < T:
+            if resting and cfg.skip_far_steps:
+                ahead = np.flatnonzero(gaps[t:] < margin)
+                if len(ahead) == 0:
+                    last = T - 1
+                    break
+                t += int(ahead[0])
+            reset_pose(rake, pos_l[t - 1], orn_l[t - 1], physicsClientId=cid)
+            reset_vel(rake, lin_l[t], ang_l[t], physicsClientId=cid)
+            for _ in range(self.substeps):
+                step_sim(physicsClientId=cid)
+            n_sim += 1
+            last = t
+            pos = get_pose(toy, physicsClientId=cid)[0]
+            vel, avel = get_vel(toy, physicsClientId=cid)
+            speed = math.sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2])
+            if not (math.isfinite(pos[0]) and math.isfinite(pos[1]) and math.isfinite(pos[2])) or (
+                speed > cfg.max_toy_speed or abs(pos[2] - rest_z) > cfg.max_toy_height
+            ):
+                blew_up = True
+                break
+            dx, dy = pos[0] - start[0], pos[1] - start[1]
+            now = (pos[0] < rx, False, -dx > mt, dx > mt, dy > mt, -dy > mt)
+            if not fired[1]:
+                for cp in contacts(rake, toy, physicsClientId=cid):
+                    on_toy, normal = cp[6], cp[7]  # position on B (the toy), normal from B to A
+                    if on_toy[2] >= top - cfg.touch_tolerance and abs(normal[2]) >= cfg.touch_normal_z:
+                        now = (now[0], True) + now[2:]
+                        break
+            for i, f in enumerate(now):
+                if f and not fired[i]:
+                    fired[i] = True
+                    if first is None:
+                        first = EVENTS[i]
+            if watched_i is not None and fired[watched_i]:
+                break
+            was_resting = resting
+            resting = speed < v_rest and math.sqrt(avel[0] ** 2 + avel[1] ** 2 + avel[2] ** 2) < 20 * v_rest
+            if resting and not was_resting:
+                gaps[t + 1:] = self._gaps(plan["pts"][t:], (pos[0], pos[1]), plan["sweep"][t:])[1:]
+            t += 1
+        else:
+            last = T - 1
+        self.steps_simulated += n_sim
+        self.steps_total += T
+        final = get_pose(toy, physicsClientId=cid)[0]
+        if blew_up:
+            return Outcome((False,) * 6, None, (0.0, 0.0), last, (float(start[0]), float(start[1])), True)
+        disp = (final[0] - float(start[0]), final[1] - float(start[1]))
+        return Outcome(tuple(fired), first, disp, last, (float(final[0]), float(final[1])), False)
+
+    # ---------------------------------------------------------------- constraint drive (reference)
+    def _simulate_constraint(self, poses: np.ndarray, posture: int, q0: torch.Tensor, watched: str | None) -> Outcome:
+        """Every control step simulated, the rake dragged to its pose by a constraint."""
         cfg, c = self.cfg, self.client
         self.reset(posture)
         start = np.array(self.toy_xy())
@@ -387,6 +613,45 @@ class ToolWorld:
         toy, rake = colour_masks(image)
         self.timing["render_s"] += time.perf_counter() - t0
         return {"image": image, "toy": toy, "rake": rake}
+
+
+def _quat_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Quaternions (..., 4) in pybullet's (x, y, z, w) order from rotation matrices (..., 3, 3)."""
+    m = R
+    t = np.stack([
+        1 + m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2],
+        1 + m[..., 0, 0] - m[..., 1, 1] - m[..., 2, 2],
+        1 - m[..., 0, 0] + m[..., 1, 1] - m[..., 2, 2],
+        1 - m[..., 0, 0] - m[..., 1, 1] + m[..., 2, 2],
+    ], axis=-1)
+    k = t.argmax(axis=-1)  # the numerically safest of the four branches
+    s = np.sqrt(np.maximum(np.take_along_axis(t, k[..., None], -1)[..., 0], 1e-12)) * 2  # 4 * |component|
+    qw = np.stack([(m[..., 2, 1] - m[..., 1, 2]) / s, (m[..., 0, 2] - m[..., 2, 0]) / s,
+                   (m[..., 1, 0] - m[..., 0, 1]) / s, s / 4], -1)
+    qx = np.stack([s / 4, (m[..., 0, 1] + m[..., 1, 0]) / s, (m[..., 0, 2] + m[..., 2, 0]) / s,
+                   (m[..., 2, 1] - m[..., 1, 2]) / s], -1)
+    qy = np.stack([(m[..., 0, 1] + m[..., 1, 0]) / s, s / 4, (m[..., 1, 2] + m[..., 2, 1]) / s,
+                   (m[..., 0, 2] - m[..., 2, 0]) / s], -1)
+    qz = np.stack([(m[..., 0, 2] + m[..., 2, 0]) / s, (m[..., 1, 2] + m[..., 2, 1]) / s, s / 4,
+                   (m[..., 1, 0] - m[..., 0, 1]) / s], -1)
+    q = np.select([k[..., None] == 0, k[..., None] == 1, k[..., None] == 2], [qw, qx, qy], qz)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def _rotvec_between(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+    """World-frame rotation vectors (..., 3) of the rotations taking q0 to q1 (q1 = r * q0)."""
+    x0, y0, z0, w0 = -q0[..., 0], -q0[..., 1], -q0[..., 2], q0[..., 3]  # conjugate of q0
+    x1, y1, z1, w1 = q1[..., 0], q1[..., 1], q1[..., 2], q1[..., 3]
+    w = w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0
+    v = np.stack([w1 * x0 + x1 * w0 + y1 * z0 - z1 * y0,
+                  w1 * y0 - x1 * z0 + y1 * w0 + z1 * x0,
+                  w1 * z0 + x1 * y0 - y1 * x0 + z1 * w0], -1)
+    sign = np.where(w < 0, -1.0, 1.0)[..., None]  # shortest way round
+    v, w = v * sign, np.abs(w)
+    n = np.linalg.norm(v, axis=-1)
+    angle = 2 * np.arctan2(n, w)
+    scale = np.where(n > 1e-12, angle / np.maximum(n, 1e-12), 2.0)
+    return v * scale[..., None]
 
 
 def colour_masks(image: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
