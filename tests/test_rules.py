@@ -140,3 +140,16 @@ def test_two_rules_add_independently_of_order():
     a.learn(x, y)
     b.learn(x, y)
     assert torch.allclose(a.weight, b.weight, atol=1e-7)
+
+
+@pytest.mark.parametrize("rule,kind", [(lambda: Hebbian(0.3), "h"), (lambda: Hebbian(0.3, "instar", "mean"), "h"),
+                                       (lambda: Delta(0.2), "d")])
+def test_in_place_update_equals_computed_change(rule, kind):
+    x, y, t = torch.rand(2, 5, 6), torch.rand(2, 5, 4), torch.rand(2, 5, 4)
+    a = AllToAll(6, 4, participants=2, seed=3, rules=rule())
+    b = AllToAll(6, 4, participants=2, seed=3, rules=rule())
+    kw = {"target": t} if kind == "d" else {}
+    assert a.learn(x, y, **kw) is None  # fast in-place path
+    d = b.learn(x, y, return_delta=True, **kw)
+    assert d is not None and d.abs().sum() > 0
+    assert torch.allclose(a.weight, b.weight, atol=1e-6)

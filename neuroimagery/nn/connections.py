@@ -59,8 +59,13 @@ class Connection(nn.Module):
         return self.F(self.net(x))
 
     @torch.no_grad()
-    def learn(self, pre: torch.Tensor, post: torch.Tensor | None = None, **kw) -> torch.Tensor | None:
-        """Apply every rule's change in place (only in ``train()`` mode). Returns the total change."""
+    def learn(self, pre: torch.Tensor, post: torch.Tensor | None = None, return_delta: bool = False,
+              **kw) -> torch.Tensor | None:
+        """Apply every rule's change in place (only in ``train()`` mode).
+
+        With a single rule that can update in place (Hebbian, Delta) the change is never formed
+        and ``None`` is returned, unless ``return_delta`` asks for it.
+        """
         if not self.training or len(self.rules) == 0:
             return None
         pre_b, _ = as_batched(pre, self.n_in, "pre")
@@ -69,6 +74,10 @@ class Connection(nn.Module):
         for key in ("target",):
             if key in kw and kw[key] is not None:
                 kw[key], _ = as_batched(kw[key], self.n_out, key)
+        if len(self.rules) == 1 and hasattr(self.rules[0], "apply_") and not return_delta:
+            # one rule: let it update the weights in place (same numbers, fewer passes over memory)
+            self.rules[0].apply_(self.weight, pre=pre_b, post=post, **kw)  # inputs were checked finite
+            return None
         total = sum(rule.delta(self.weight, pre=pre_b, post=post, **kw) for rule in self.rules)
         if not torch.isfinite(total).all():
             raise FloatingPointError(f"connection {self.name!r}: learning produced non-finite weights")

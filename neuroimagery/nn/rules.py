@@ -56,12 +56,21 @@ class Hebbian(Rule):
         self.reduction = _check_reduction(reduction)
 
     def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, **_) -> torch.Tensor:
-        corr = torch.einsum("pbj,pbi->pji", post, pre)  # sum_b y_j x_i
+        scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta
         if self.form == "outstar":
-            decay = weight * pre.sum(1).unsqueeze(1)  # w_ji * sum_b x_i
+            d = weight * (-scale * pre.sum(1).unsqueeze(1))  # -eta w_ji sum_b x_i
         else:
-            decay = weight * post.sum(1).unsqueeze(2)  # w_ji * sum_b y_j
-        return self.eta * _reduce(corr - decay, self.reduction, pre.shape[1])
+            d = weight * (-scale * post.sum(1).unsqueeze(2))  # -eta w_ji sum_b y_j
+        return d.baddbmm_(post.transpose(1, 2), pre, alpha=scale)  # + eta sum_b y_j x_i, fused
+
+    def apply_(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, **_) -> None:
+        """``weight += delta(...)`` without forming the change: two passes over the weights."""
+        scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta
+        if self.form == "outstar":
+            weight.mul_(1.0 - scale * pre.sum(1).unsqueeze(1))
+        else:
+            weight.mul_(1.0 - scale * post.sum(1).unsqueeze(2))
+        weight.baddbmm_(post.transpose(1, 2), pre, alpha=scale)
 
     def extra_repr(self) -> str:
         return f"eta={self.eta}, form={self.form!r}"
@@ -79,8 +88,13 @@ class Delta(Rule):
         self.reduction = _check_reduction(reduction)
 
     def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, target: torch.Tensor, **_) -> torch.Tensor:
-        err = target - post
-        return self.eta * _reduce(torch.einsum("pbj,pbi->pji", err, pre), self.reduction, pre.shape[1])
+        scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta
+        return torch.bmm((target - post).transpose(1, 2), pre).mul_(scale)
+
+    def apply_(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, target: torch.Tensor, **_) -> None:
+        """``weight += delta(...)`` accumulated straight into the weights."""
+        scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta
+        weight.baddbmm_((target - post).transpose(1, 2), pre, alpha=scale)
 
     def extra_repr(self) -> str:
         return f"eta={self.eta}"

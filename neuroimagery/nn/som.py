@@ -197,7 +197,8 @@ class SOM(nn.Module):
     def _fit_factored(self, X, order, labels, it) -> torch.Tensor:
         """Exact online training without touching the weights (see the module docstring).
 
-        Invariants, per participant and unit ``k`` (``W0`` the initial weights, ``x_n`` the patterns):
+        Invariants, per participant and unit ``k`` (``W0`` the initial weights, ``x_n`` the patterns;
+        ``Q`` and ``R`` are stored pattern-major):
         ``w_k = c_k (W0_k + sum_m R_km x_m)`` and ``w_k . x_n = c_k Q_kn`` with
         ``Q_kn = W0_k . x_n + sum_m R_km G_mn``, ``G = X X^T``. A step with rate ``a_k`` toward
         ``x_s`` sets ``c_k <- (1 - a_k) c_k``, ``R_ks += a_k / c_k``, ``Q_k += (a_k / c_k) G_s``: only the
@@ -207,34 +208,35 @@ class SOM(nn.Module):
         P, N, _ = X.shape
         p = torch.arange(P)
         dt = torch.float64  # the recurrences are exact in real arithmetic; float64 keeps them so
-        W0 = self.weight.to(dt).clone()
-        Xd = X.to(dt)
-        G = torch.bmm(Xd, Xd.transpose(1, 2))  # (P, N, N)
-        Q = torch.bmm(W0, Xd.transpose(1, 2))  # (P, U, N)
-        nrm = (W0 * W0).sum(-1)  # (P, U)
+        W0 = self.weight
+        # pattern-major layouts, so that the column of pattern s is one contiguous row
+        G = torch.bmm(X, X.transpose(1, 2)).to(dt)  # (P, N, N)
+        Q = torch.bmm(X, W0.transpose(1, 2)).to(dt)  # (P, N, U)   Q[n, k] = W0_k . x_n (+ sum_m R_km G_mn)
+        R = torch.zeros(P, N, self.units, dtype=dt)  # R[n, k] = R_kn
+        nrm = (W0 * W0).sum(-1).to(dt)  # (P, U)
         c = torch.ones(P, self.units, dtype=dt)
-        R = torch.zeros(P, self.units, N, dtype=dt)
-        rowsum = W0.sum(-1)
-        xsum = Xd.sum(-1)  # (P, N)
+        rowsum = W0.sum(-1).to(dt)
+        xsum = X.sum(-1).to(dt)  # (P, N)
+        grid = self.grid.to(dt)
         normalise = isinstance(self.rule, SupervisedKohonen) and self.rule.normalise
         winners = torch.empty_like(order)
         t0 = int(self.steps)
         for t in it:
             s = order[:, t]
             Gs = G[p, s]  # (P, N)
-            Ds = c * Q[p, :, s]  # (P, U)  w_k . x_s
+            Ds = c * Q[p, s]  # (P, U)  w_k . x_s
             win = (nrm - 2 * Ds).argmin(-1) if labels is None else labels[p, s]
             winners[:, t] = win
             eta, sigma = self.rule.schedule(t0 + t)
-            a = (eta * self.rule.neighbourhood(self.grid, win, sigma)).to(dt)  # (P, U)
+            a = float(eta) * self.rule.neighbourhood(grid, win, sigma.to(dt))  # (P, U)
             b = 1 - a
             nrm = b * b * nrm + 2 * a * b * Ds + a * a * Gs[p, s].unsqueeze(-1)
             c = b * c
             on = (a > 0).any(0).nonzero()  # units inside any participant's neighbourhood
-            lo, hi = int(on[0]), int(on[-1]) + 1  # a contiguous span of rows: updated in place as a view
+            lo, hi = int(on[0]), int(on[-1]) + 1  # a contiguous span of units: updated in place as a view
             u = a[:, lo:hi] / c[:, lo:hi]  # (P, k), zero outside the neighbourhoods
-            Q[:, lo:hi].baddbmm_(u.unsqueeze(-1), Gs.unsqueeze(1))
-            R[p.unsqueeze(1), torch.arange(lo, hi).unsqueeze(0), s.unsqueeze(1)] += u
+            Q[:, :, lo:hi].baddbmm_(Gs.unsqueeze(-1), u.unsqueeze(1))
+            R[p, s, lo:hi] += u
             if normalise:
                 rowsum = b * rowsum + a * xsum[p, s].unsqueeze(-1)
                 k = 1.0 / rowsum.clamp_min(1e-300)
@@ -244,11 +246,15 @@ class SOM(nn.Module):
             small = c < 1e-12  # fold tiny scales back in before they cost precision
             if bool(small.any()):
                 pi, ki = small.nonzero(as_tuple=True)
-                Q[pi, ki] *= c[pi, ki].unsqueeze(-1)
-                R[pi, ki] *= c[pi, ki].unsqueeze(-1)
-                W0[pi, ki] *= c[pi, ki].unsqueeze(-1)
+                Q[pi, :, ki] *= c[pi, ki].unsqueeze(-1)
+                R[pi, :, ki] *= c[pi, ki].unsqueeze(-1)
+                c_fold = torch.ones_like(c)
+                c_fold[pi, ki] = c[pi, ki]
+                W0 = W0 * c_fold.unsqueeze(-1).to(W0.dtype)
                 c[pi, ki] = 1.0
-        self.weight.copy_((c.unsqueeze(-1) * (W0 + torch.bmm(R, Xd))).to(self.weight.dtype))
+        # w_k = c_k W0_k + sum_n (c_k R_kn) x_n, formed once (the scaled coefficients are O(1))
+        cR = (R * c.unsqueeze(1)).to(X.dtype)  # (P, N, U)
+        self.weight.copy_(c.unsqueeze(-1).to(W0.dtype) * W0 + torch.bmm(cR.transpose(1, 2), X))
         self.steps += order.shape[1]
         return winners
 
