@@ -153,3 +153,17 @@ def test_in_place_update_equals_computed_change(rule, kind):
     d = b.learn(x, y, return_delta=True, **kw)
     assert d is not None and d.abs().sum() > 0
     assert torch.allclose(a.weight, b.weight, atol=1e-6)
+
+
+def test_subclass_overriding_delta_is_not_bypassed():
+    class Doubled(Hebbian):
+        def delta(self, weight, **kw):
+            return 2 * super().delta(weight, **kw)
+
+    x, y = torch.rand(1, 2, 3), torch.rand(1, 2, 2)
+    a = AllToAll(3, 2, seed=0, rules=Doubled(0.1))
+    b = AllToAll(3, 2, seed=0, rules=Hebbian(0.1))
+    w0 = a.weight.clone()
+    a.learn(x, y)
+    b.learn(x, y)
+    assert torch.allclose(a.weight - w0, 2 * (b.weight - w0), atol=1e-6)

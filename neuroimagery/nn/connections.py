@@ -22,6 +22,15 @@ from .functional import as_batched, check_tensor, gain_field, transfer
 from .rules import Rule
 
 
+def _applies_in_place(rule: Rule) -> bool:
+    """True if the most derived class defining ``delta`` or ``apply_`` defines ``apply_``
+    (a subclass that overrides only ``delta`` keeps the general path)."""
+    for klass in type(rule).__mro__:
+        if "delta" in vars(klass) or "apply_" in vars(klass):
+            return "apply_" in vars(klass)
+    return False
+
+
 class Connection(nn.Module):
     """Base class: a weight buffer ``(P, out, in)``, a transfer function, and learning rules."""
 
@@ -74,7 +83,7 @@ class Connection(nn.Module):
         for key in ("target",):
             if key in kw and kw[key] is not None:
                 kw[key], _ = as_batched(kw[key], self.n_out, key)
-        if len(self.rules) == 1 and hasattr(self.rules[0], "apply_") and not return_delta:
+        if len(self.rules) == 1 and _applies_in_place(self.rules[0]) and not return_delta:
             # one rule: let it update the weights in place (same numbers, fewer passes over memory)
             self.rules[0].apply_(self.weight, pre=pre_b, post=post, **kw)  # inputs were checked finite
             return None
