@@ -112,3 +112,65 @@ def test_full_protocol(tmp_path):
     assert st["correct"]["rate_a"] < st["correct"]["rate_b"]
     # RT is about 10 accumulator cycles per rotation step
     assert all(10 * int(n) <= v <= 10 * int(n) + 10 for n, v in s["rt_by_rotation_steps"].items() if int(n) <= 3)
+    # congruent proprioception: no gain without noise (ceiling) ...
+    st = s["statistics"]["recog:match-vs-none"]
+    assert st["rt"]["p"] > 0.05
+    # ... noise slows the model down, and under noise a congruent wrist shortens RT at large disparities
+    st = s["statistics"]["recog:noise-none-vs-none:disparity>=75"]
+    assert st["rt"]["mean_a"] > st["rt"]["mean_b"] and st["rt"]["p"] < 0.05
+    st = s["statistics"]["recog:noise-match-vs-noise-none:disparity>=75"]
+    assert st["rt"]["mean_a"] < st["rt"]["mean_b"] and st["rt"]["p"] < 0.05
+    band = s["statistics_by_disparity"]["recog:noise-match-vs-noise-none"]["150"]
+    assert band["rt_a"] < band["rt_b"] and band["rt_p"] < 0.05
+
+
+def _tiny_model(**over):
+    from neuroimagery.models.rotation_embodied import RotationEmbodied
+    from neuroimagery.nn import seeding
+
+    e = exp4.Exp4Config(map_size=8, dot_inner=4, **over)
+    return RotationEmbodied(e, seeding.participant_generators(0, [0], stream=0))
+
+
+@pytest.mark.parametrize("stage", ["separate", "visual"])
+def test_congruent_wrist_signal_against_noise(stage):
+    """Under PPCp noise, a congruent wrist signal added after the clip keeps the aligned posture
+    unit above every noisy unit, so "stay" wins at alignment; added before the clip it saturates."""
+    from neuroimagery.nn.functional import gain_field, softmax_probabilities
+
+    m = _tiny_model(proprio_stage=stage)
+    nu, R = 6, 4000
+    g = torch.Generator().manual_seed(0)
+    j = torch.full((R,), 2)
+    u = torch.rand(R, nu, generator=g)
+    ppct = m.ppc.encode(j.float())
+
+    def p_stay(prop):
+        ppcp = m.ppcp_code(j, prop, u)
+        am = m.c20(gain_field(ppct, ppcp).reshape(R, nu * nu))
+        return float(softmax_probabilities(am, 0.1)[:, 1].mean()), ppcp
+
+    none, pn = p_stay("none")
+    match, pm = p_stay("match")
+    assert pn.max() <= 1.0 and pn.min() >= 0.0  # noise is clipped to [0, 1]
+    assert 0.4 < none < 0.9  # the noise alone makes the model leave an aligned posture often
+    if stage == "separate":
+        assert bool((pm[:, 2:3] > pm[:, [0, 1, 3, 4, 5]]).all())
+        assert match > 0.95
+    else:
+        assert match < none + 0.1  # the congruent signal is lost in the [0, 1] ceiling
+
+
+def test_posture_winner_is_uncertain_only_for_flat_potentials():
+    m0, m1 = _tiny_model(), _tiny_model(posture_tau=0.1)
+    sharp = torch.tensor([[0.2, 0.3, 1.0, 0.4, 0.3, 0.2]]).expand(2000, -1)
+    flat = torch.tensor([[0.95, 0.97, 1.0, 0.96, 0.98, 0.94]]).expand(2000, -1)
+    u = torch.rand(2000, generator=torch.Generator().manual_seed(1))
+    assert torch.equal(m0.posture_winner(flat, u), torch.full((2000,), 2))  # eq. 6.14: arg-max
+    assert float((m1.posture_winner(sharp, u) == 2).float().mean()) > 0.99
+    assert float((m1.posture_winner(flat, u) == 2).float().mean()) < 0.4
+
+
+def test_config_rejects_bad_proprio_stage():
+    with pytest.raises(ValueError, match="proprio_stage"):
+        exp4.Exp4Config(proprio_stage="late")

@@ -50,6 +50,10 @@ class Exp4Config:
     eta_posture_final: float = 0.002  # the rate decays exponentially to this, so each prototype ends as an average of its images (not given)
     posture_sigma: float = 0.3  # neighbourhood radius of the forced winner, in units (not given)
     posture_iterations: int = 1440  # supervised Kohonen steps (40 passes over the 36 set-A images; not given)
+    # PPCp winner of the mental image (eq. 6.14): 0 = arg-max of the C16 potentials; > 0 = drawn from a
+    # softmax of the max-normalised potentials at this temperature (uncertain for unfamiliar shapes,
+    # whose potentials are nearly flat). 0.1 = the PMCm temperature, not fitted. PPCt stays arg-max.
+    posture_tau: float = 0.0
     ppc_sigma: float = 0.5  # width (units) of the Gaussian bump PPCp/PPCt put around the winner (eq. 6.14; not given)
     # --- action selection (eq. 6.10-6.11) ---------------------------------------------------
     softmax_tau: float = 0.1  # PMCm softmax temperature (thesis 0.1)
@@ -63,6 +67,11 @@ class Exp4Config:
     max_steps: int = 20  # rotation steps before a random answer (thesis 20)
     # --- embodiment -----------------------------------------------------------------------
     proprio_gain: float = 1.0  # strength of the wrist signal added to PPCp (scaled encoder signal; not given)
+    # where the wrist signal joins PPCp (not given): 'separate' = added after the noisy image-derived
+    # bump is clipped to [0, 1] (the encoder is an input of its own, untouched by the noise that stands
+    # for an unreliable image-to-posture mapping); 'visual' = summed with the bump before noise and clip,
+    # so on the congruent unit it saturates at 1 and cannot outweigh the noise on the other units
+    proprio_stage: str = "separate"
     noise_amplitude: float = 0.5  # noise variant: U[-a, a] added to each PPCp unit per step (thesis 0.5)
     noise_tests: List[str] = field(default_factory=lambda: ["recog", "gen1"])  # tests repeated with noise
     # --- protocol size ----------------------------------------------------------------------
@@ -77,7 +86,7 @@ class Exp4Config:
         for k in ("step_deg", "init_high", "eta_fm", "eta_posture", "eta_posture_final", "posture_sigma", "ppc_sigma", "softmax_tau",
                   "lca_threshold", "lca_dt", "lca_input_gain"):
             pos(k)
-        for k in ("lca_k", "lca_w", "proprio_gain", "noise_amplitude"):
+        for k in ("lca_k", "lca_w", "proprio_gain", "noise_amplitude", "posture_tau"):
             pos(k, strict=False)
         for k in ("map_size", "fm_images", "fm_batch", "posture_iterations", "lca_cycles", "max_steps",
                   "quick_objects", "quick_fm_images"):
@@ -91,6 +100,8 @@ class Exp4Config:
             raise ValueError(f"experiment.lca_dt must be <= 1, got {self.lca_dt}")
         if len(self.ppc_angles) < 2 or list(self.ppc_angles) != sorted(self.ppc_angles):
             raise ValueError(f"experiment.ppc_angles must be >= 2 increasing angles, got {list(self.ppc_angles)}")
+        if self.proprio_stage not in ("separate", "visual"):
+            raise ValueError(f"experiment.proprio_stage must be 'separate' or 'visual', got {self.proprio_stage!r}")
         bad = [t for t in self.noise_tests if t not in TESTS]
         if bad:
             raise ValueError(f"experiment.noise_tests: unknown tests {bad}; choose from {list(TESTS)}")
@@ -220,6 +231,26 @@ def _stats(df: pd.DataFrame) -> dict:
     return out
 
 
+def _stats_by_disparity(df: pd.DataFrame) -> dict:
+    """Welch t-tests on RT and chi-square tests on correct answers, per disparity, for the
+    proprioception comparisons of each test (``{"<test>:<a>-vs-<b>": {"<disparity>": {...}}}``)."""
+    out = {}
+    for test in df["test"].unique():
+        d = df[df["test"] == test]
+        conds = set(d["condition"].unique())
+        for a, b in (("match", "none"), ("mismatch", "none"), ("noise-match", "noise-none"), ("noise-mismatch", "noise-none")):
+            if a not in conds or b not in conds:
+                continue
+            rows = {}
+            for disp, g in d.groupby("disparity"):
+                ga, gb = g[g["condition"] == a], g[g["condition"] == b]
+                rt, cr = compare_rt(ga["rt"], gb["rt"]), compare_rates(ga["correct"], gb["correct"])
+                rows[str(int(disp))] = {"rt_a": rt["mean_a"], "rt_b": rt["mean_b"], "rt_p": rt["p"],
+                                        "correct_a": cr["rate_a"], "correct_b": cr["rate_b"], "correct_p": cr["p"]}
+            out[f"{test}:{a}-vs-{b}"] = rows
+    return out
+
+
 def _rt_vs_steps(df: pd.DataFrame) -> dict:
     d = df[(df["condition"] == "none") & df["decided"]]
     g = d.groupby("rotation_steps")["rt"].mean()
@@ -234,7 +265,8 @@ def evaluate(cfg, run, trained) -> dict:
     tests = summarise_trials(df)
     summary = {"experiment": "exp4", "participants": int(cfg.participants), "tests": tests,
                "targets": {k: {"correct_rate": v} for k, v in THESIS.items()},
-               "statistics": _stats(df), "rt_by_rotation_steps": _rt_vs_steps(df)}
+               "statistics": _stats(df), "statistics_by_disparity": _stats_by_disparity(df),
+               "rt_by_rotation_steps": _rt_vs_steps(df)}
     # generalisation of the three-dot forward models to the test shapes
     iou = {}
     for test, bank in banks.items():
@@ -309,6 +341,12 @@ def report(cfg, run, summary) -> None:
             [[k, v["rt"]["mean_a"], v["rt"]["mean_b"], f"{v['rt']['p']:.3g}" if v["rt"]["p"] is not None else "-",
               v["correct"]["rate_a"], v["correct"]["rate_b"], f"{v['correct']['p']:.3g}"]
              for k, v in summary["statistics"].items()])
+    r.h("Proprioception by disparity (RT: Welch t-test; correct: chi-square)")
+    fmt = lambda v: "-" if v is None else f"{v:.3g}"
+    r.table(["comparison", "disparity", "RT a", "RT b", "RT p", "correct a", "correct b", "correct p"],
+            [[k, dsp, v["rt_a"], v["rt_b"], fmt(v["rt_p"]), v["correct_a"], v["correct_b"], fmt(v["correct_p"])]
+             for k, rows in summary.get("statistics_by_disparity", {}).items() if "noise" in k or "mismatch" in k
+             for dsp, v in rows.items()])
     r.h("Forward models trained on three dots, applied to the test shapes")
     r.table(["set", "IoU after 1 step", "2 steps", "3 steps"],
             [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])

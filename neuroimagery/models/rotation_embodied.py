@@ -91,6 +91,41 @@ class RotationEmbodied(nn.Module):
         """Winning wrist-posture unit of an image (eq. 6.14: argmax of ``W x``) -> long ``(P, B)``."""
         return torch.bmm(x, som.weight.transpose(1, 2)).argmax(-1)
 
+    def ppcp_code(self, j: torch.Tensor, proprioception: str = "none", uniforms: torch.Tensor | None = None) -> torch.Tensor:
+        """PPCp ``(R, units)`` for winners ``j`` ``(R,)``: the eq. 6.14 bump, plus noise
+        ``a * (2u - 1)`` for ``uniforms`` u ``(R, units)`` in [0, 1), clipped to [0, 1], plus the wrist
+        signal (on unit ``j`` for ``match``, on ``units-1-j`` for ``mismatch``).
+
+        ``proprio_stage='separate'``: the wrist signal is added after the clip, so on the congruent
+        unit it lifts the activation above anything the noise can give another unit;
+        ``'visual'``: it is added before noise and clip and saturates at 1 with the bump.
+        """
+        p, nu = self.p, len(self.p.ppc_angles)
+        ppcp = self.ppc.encode(j.float())
+        wrist = None
+        if proprioception != "none":
+            wrist = p.proprio_gain * self.ppc.encode((j if proprioception == "match" else (nu - 1 - j)).float())
+        if wrist is not None and p.proprio_stage == "visual":
+            ppcp, wrist = ppcp + wrist, None  # one signal, noised and clipped together
+        if uniforms is not None:
+            ppcp = ppcp + (2 * uniforms - 1) * p.noise_amplitude
+        ppcp = ppcp.clamp(0.0, 1.0)  # the image-derived posture signal lies in [0, 1]
+        return ppcp if wrist is None else ppcp + wrist
+
+    def posture_winner(self, score: torch.Tensor, uniforms: torch.Tensor | None) -> torch.Tensor:
+        """Winning PPCp unit of the C16 activation potentials ``score`` ``(R, units)`` (eq. 6.14).
+
+        ``posture_tau == 0``: the arg-max, as eq. 6.14 states. ``posture_tau > 0``: the winner is drawn
+        from a softmax of the max-normalised potentials at that temperature (the same stochastic
+        winner-take-all abstraction as PMCm, eq. 6.11), so an image whose potentials are nearly
+        equal (an unfamiliar shape, a "flat" posture code) gives an uncertain winner instead of a
+        confident arbitrary one, while a clear orientation still gives the same winner almost always.
+        """
+        if self.p.posture_tau <= 0 or uniforms is None:
+            return score.argmax(-1)
+        norm = score / score.max(-1, keepdim=True).values.clamp_min(1e-12)
+        return softmax_select(norm, self.p.posture_tau, uniforms=uniforms)
+
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
         """POCi -> POCp: the forward model chosen by ``move`` ``(P, B)`` (0 Ml, 1 Ms, 2 Mr).
 
@@ -123,7 +158,10 @@ class RotationEmbodied(nn.Module):
 
         ``proprioception``: ``none``, ``match`` (wrist signal on the PPCp unit of the mental
         rotation) or ``mismatch`` (on the opposite unit, ``units-1-j``). ``noise`` adds
-        U[-a, a] per PPCp unit and step (clipped to [0, 1]). Randomness (softmax selection, noise,
+        U[-a, a] per PPCp unit and step to the image-derived posture bump, clipped to [0, 1]; with
+        ``proprio_stage='separate'`` the wrist signal is added after that clip (the encoder is a
+        second input that the noise of the image-to-posture mapping does not touch), with
+        ``'visual'`` before it (both signals share the noise and the [0, 1] ceiling). Randomness (softmax selection, noise,
         time-out answers) comes from ``generators``, one per participant, drawn in a fixed order.
         ``record``: number of leading trials of participant 0 whose maps are returned per step.
         """
@@ -181,7 +219,7 @@ class RotationEmbodied(nn.Module):
         pocp0 = (binary_matmul_rows(fm_table, part * 3 + 1, rotated.reshape(Q, n)) + 1.0 > 1.5).float()
         ev0, tm0, fm0 = evidence(torch.arange(Q), pocp0)
         dec = self.pmcd(ev0, p.lca_cycles, state=self.pmcd.initial_state((Q,)))
-        j0 = binary_matmul_rows(c16_table, part, pocp0).argmax(-1)
+        score0 = binary_matmul_rows(c16_table, part, pocp0)  # C16 activation potentials PPCpA (eq. 6.14)
         steps += 1
         rt += dec.cycles
         winner[:] = torch.where(dec.decided, dec.winner, winner[0])
@@ -194,27 +232,22 @@ class RotationEmbodied(nn.Module):
         live_q = (~dec.decided).nonzero().squeeze(-1)
         cond = torch.arange(C).repeat_interleave(live_q.numel())
         q = live_q.repeat(C)
-        poci, j, y = pocp0[q], j0[q], dec.state[q]
+        poci, score, y = pocp0[q], score0[q], dec.state[q]
         for s in range(p.max_steps - 1):
             if q.numel() == 0:
                 break
             # next movement from the wrist postures (eq. 6.9-6.11), per condition
             move = torch.empty_like(q)
-            ppcp_all = self.ppc.encode(j.float())
             for c, (prop, noisy, gens) in enumerate(conditions):
                 sel = cond == c
                 draws_noise = [torch.rand(B, nu, generator=g) for g in gens] if noisy else None
                 draws_sel = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q)
+                draws_win = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q) if p.posture_tau > 0 else None
                 if not bool(sel.any()):
                     continue
-                qc, jc = q[sel], j[sel]
-                ppcp = ppcp_all[sel]
-                if prop != "none":
-                    wrist = jc if prop == "match" else (nu - 1 - jc)
-                    ppcp = ppcp + p.proprio_gain * self.ppc.encode(wrist.float())
-                if noisy:
-                    ppcp = ppcp + (2 * torch.stack(draws_noise).reshape(Q, nu)[qc] - 1) * p.noise_amplitude
-                ppcp = ppcp.clamp(0.0, 1.0)
+                qc = q[sel]
+                jc = self.posture_winner(score[sel], None if draws_win is None else draws_win[qc])
+                ppcp = self.ppcp_code(jc, prop, torch.stack(draws_noise).reshape(Q, nu)[qc] if noisy else None)
                 ppcc = gain_field(ppct[qc], ppcp)  # rows PPCt, columns PPCp
                 am = self.c20(ppcc.reshape(-1, nu * nu))
                 move[sel] = softmax_select(am, p.softmax_tau, uniforms=draws_sel[qc])
@@ -238,7 +271,7 @@ class RotationEmbodied(nn.Module):
                             histories[c][k].append(self._snapshot(pfct[qq], pfcft[qq], poci[i], pocp[i], ppct[qq], None,
                                                                   move[i], tm[i], fm[i], dec.state[i]))
             keep = ~dec.decided
-            j = binary_matmul_rows(c16_table, part[q[keep]], pocp[keep]).argmax(-1)
+            score = binary_matmul_rows(c16_table, part[q[keep]], pocp[keep])
             q, cond, poci, y = q[keep], cond[keep], pocp[keep], dec.state[keep]
         outs = []
         for c, (_, _, gens) in enumerate(conditions):
