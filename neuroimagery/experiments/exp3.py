@@ -20,7 +20,6 @@ from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import summarise_trials
 from ..nn import seeding
-from ..run import load_checkpoint
 from . import protocol_ch6 as pc
 from .exp4 import _bar
 
@@ -113,18 +112,12 @@ def train_model(cfg, ids, eye=None):
 def train(cfg, run):
     ids = list(range(cfg.participants))
     model = train_model(cfg, ids)
-    run.save_checkpoint("exp3", {"state_dict": model.state_dict(), "participants": ids})
+    pc.save_model(run, "exp3", model, ids)
     return model
 
 
 def load(cfg, checkpoint_dir):
-    ck = load_checkpoint(checkpoint_dir, "exp3")
-    model = _model(cfg, ck["participants"])
-    model.load_state_dict(ck["state_dict"])
-    model.eval()
-    model.freeze()
-    model.participant_ids = list(ck["participants"])
-    return model
+    return pc.load_model(checkpoint_dir, "exp3", lambda ids: _model(cfg, ids))
 
 
 def run_tests(cfg, model, eye=None, record: int = 0):

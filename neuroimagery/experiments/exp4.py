@@ -20,7 +20,6 @@ from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import compare_rates, compare_rt, summarise_trials
 from ..nn import seeding
-from ..run import load_checkpoint
 from . import protocol_ch6 as pc
 
 TESTS = ("recog", "gen1", "gen2")
@@ -157,18 +156,12 @@ def _images_of_move(X, Y, moves, m):
 def train(cfg, run):
     ids = _ids(cfg)
     model = train_model(cfg, ids)
-    run.save_checkpoint("exp4", {"state_dict": model.state_dict(), "participants": ids})
+    pc.save_model(run, "exp4", model, ids)
     return model
 
 
 def load(cfg, checkpoint_dir):
-    ck = load_checkpoint(checkpoint_dir, "exp4")
-    model = _model(cfg, ck["participants"])
-    model.load_state_dict(ck["state_dict"])
-    model.eval()
-    model.freeze()
-    model.participant_ids = list(ck["participants"])
-    return model
+    return pc.load_model(checkpoint_dir, "exp4", lambda ids: _model(cfg, ids))
 
 
 def _test_sets(cfg):

@@ -248,3 +248,21 @@ def binary_matmul_rows(table: torch.Tensor, group: torch.Tensor, x: torch.Tensor
     offsets[1:] = counts.cumsum(0)[:-1]
     flat_idx = group[nz[:, 0]] * I + nz[:, 1]
     return torch.nn.functional.embedding_bag(flat_idx, table.reshape(G * I, O), offsets, mode="sum")
+
+
+def save_model(run, name: str, model, ids) -> None:
+    """Checkpoint ``model`` of participants ``ids`` as ``checkpoints/<name>.pt``."""
+    run.save_checkpoint(name, {"state_dict": model.state_dict(), "participants": list(ids)})
+
+
+def load_model(checkpoint_dir, name: str, build):
+    """Rebuild a model with ``build(participant_ids)`` from a training run and freeze it for testing."""
+    from ..run import load_checkpoint
+
+    ck = load_checkpoint(checkpoint_dir, name)
+    model = build(ck["participants"])
+    model.load_state_dict(ck["state_dict"])
+    model.eval()
+    model.freeze()
+    model.participant_ids = list(ck["participants"])
+    return model

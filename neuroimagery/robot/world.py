@@ -37,7 +37,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,6 +46,7 @@ import torch
 from neuroimagery.errors import UserInputError
 from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.kinematics import ArmKinematics
+from neuroimagery.native import quiet_native_output
 
 EVENTS = ("retrieve", "touch", "south", "north", "west", "east")
 
@@ -87,26 +87,6 @@ class Outcome:
         return self.events[event_index(name)]
 
 
-@contextlib.contextmanager
-def _quiet():
-    """Silence pybullet's C-level prints (URDF loading chatter) on stdout/stderr."""
-    try:
-        fds = [os.dup(1), os.dup(2)]
-    except OSError:  # no real file descriptors (e.g. captured by a notebook)
-        yield
-        return
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 1)
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        os.dup2(fds[0], 1)
-        os.dup2(fds[1], 2)
-        for fd in (*fds, devnull):
-            os.close(fd)
-
-
 class ToolWorld:
     """pybullet scene of rake, toy and table driven by iCub arm trajectories.
 
@@ -134,13 +114,13 @@ class ToolWorld:
             )
         self.substeps = int(round(sub))
         self.p = pybullet
-        with _quiet():
+        with quiet_native_output():
             self.client = bullet_client.BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         c = self.client
         c.setGravity(0, 0, -9.81)
         c.setTimeStep(cfg.physics_dt)
         urdf = Path(cfg.urdf_dir)
-        with _quiet():
+        with quiet_native_output():
             self.table = c.loadURDF(str(urdf / "table.urdf"), [0.55, 0.0, cfg.table_top], useFixedBase=True)
             self.toy = c.loadURDF(str(urdf / "toy.urdf"), self._toy_start())
             self.rake = c.loadURDF(str(urdf / "rake.urdf"), [0, 0, 2])

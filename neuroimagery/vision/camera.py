@@ -19,10 +19,8 @@ noise are applied afterwards by the eye (see :mod:`neuroimagery.vision.eye`).
 """
 from __future__ import annotations
 
-import contextlib
 import os
 import re
-import sys
 import tempfile
 import xml.etree.ElementTree as ET
 from functools import lru_cache
@@ -32,6 +30,7 @@ import numpy as np
 import torch
 
 from neuroimagery.vision.shapes import BACKGROUND_BGR
+from neuroimagery.native import quiet_native_output
 
 __all__ = ["icub_urdf_with_eyes", "head_eye_urdf", "eye_chain", "CameraScene"]
 
@@ -137,24 +136,6 @@ def eye_chain(robot_model: str = "iCubGazeboV2_5"):
     return chain.to(dtype=torch.float64)
 
 
-@contextlib.contextmanager
-def _quiet_native_output():
-    """Silence pybullet's C-level printing (URDF import and link-merge logs) for a moment."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = [os.dup(1), os.dup(2)]
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 1)
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        os.dup2(saved[0], 1)
-        os.dup2(saved[1], 2)
-        for fd in saved + [devnull]:
-            os.close(fd)
-
-
 def _fk(chain, q: torch.Tensor, link: str) -> np.ndarray:
     """4x4 pose (numpy) of ``link`` in the root frame at joint values ``q``."""
     frames = chain.forward_kinematics(q.reshape(1, -1).to(torch.float64))
@@ -191,7 +172,7 @@ class CameraScene:
         with open(urdf_path, "w", encoding="utf-8") as fh:
             fh.write(icub_urdf_with_eyes(cfg.robot_model))
         # merging the many fixed sensor/skin frames keeps pybullet's link state queries working
-        with _quiet_native_output():
+        with quiet_native_output():
             self.robot = p.loadURDF(urdf_path, useFixedBase=True,
                                     flags=p.URDF_MERGE_FIXED_LINKS, physicsClientId=cid)
         self.joint_index = {}
