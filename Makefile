@@ -22,7 +22,6 @@ install: $(STAMP)
 
 run: $(STAMP)
 	$(PY) evaluate.py experiment=exp4 hydra.run.dir=outputs/exp4/latest
-	@echo "report: outputs/exp4/latest/report.md"
 
 test: $(STAMP)
 	$(PY) -m pytest -q
