@@ -210,3 +210,85 @@ def test_batched_c1_and_c3_updates_equal_repeated_single_steps():
     c.c3.fit(A, B, labels=torch.tensor([[13]]), iterations=9, order=torch.zeros(1, 9, dtype=torch.long))
     assert torch.allclose(c.c3.som.weight, d.c3.som.weight, atol=1e-4)
     assert not torch.equal(c.c3.som.weight, ToolUseBrain((6, 8), c3_eta=0.2).c3.som.weight)
+
+
+def test_direct_brain_updates_equal_the_generic_connections():
+    """The brain's row-wise C1/C2/C4 updates and C3 read-out give the generic modules' numbers."""
+    from types import SimpleNamespace
+
+    from neuroimagery.models.tool_use import GatedHebbian
+    from neuroimagery.nn.connections import AllToAll
+    from neuroimagery.nn.rules import QLearning
+
+    g = torch.Generator().manual_seed(1)
+    x = (torch.rand(2, 6, 8, generator=g) < 0.3).float()
+    x1 = (torch.rand(2, 6, 8, generator=g) < 0.3).float()
+    # C1: outstar on the trained row only (GatedHebbian through AllToAll.learn)
+    b = ToolUseBrain((6, 8), c1_eta=0.2)
+    b.c1.weight.uniform_(0, 1, generator=g)
+    ref = AllToAll(b.n_pc, b.n_dmps, init="zeros", rules=GatedHebbian(0.2))
+    ref.weight.copy_(b.c1.weight)
+    b.train_c1(x, unit=4, signal=0.3, times=5)
+    y, gate = torch.zeros(1, b.n_dmps), torch.zeros(1, b.n_dmps)
+    y[0, 4], gate[0, 4] = 0.3, 1.0
+    ref.learn(pre=b.flat(x), post=y, gate=gate, repeats=5)
+    assert torch.allclose(b.c1.weight, ref.weight, atol=1e-6)
+    assert torch.allclose(b.affordance(x), ref(b.flat(x))[0] / x.sum(), atol=1e-6)
+    # C4: eq. 7.1 through nn.rules.QLearning, both signs, with and without bootstrap
+    for form in ("standard", "printed"):
+        for done in (False, True):
+            q = ToolUseBrain((6, 8), q_eta=0.05, q_form=form)
+            q.c4.weight.uniform_(-0.1, 0.1, generator=g)
+            refq = AllToAll(q.n_pc, q.n_dmps, init="zeros", rules=QLearning(0.05, 0.8, form))
+            refq.weight.copy_(q.c4.weight)
+            q.train()
+            q.q_update(x, unit=3, reward=1.0, x1=x1, done=done)
+            refq.learn(pre=q.flat(x).unsqueeze(0), action=torch.tensor([[3]]), reward=torch.tensor([[1.0]]),
+                       next_pre=q.flat(x1).unsqueeze(0), done=torch.tensor([[done]]))
+            assert torch.allclose(q.c4.weight, refq.weight, atol=1e-6)
+            assert torch.allclose(q.q_values(x1), refq(q.flat(x1))[0], atol=1e-5)
+    # C3: the mental image equals the SOM block's own backward pass
+    c = ToolUseBrain((6, 8), c3_eta=0.5)
+    c.train()
+    c.train_c3(x, unit=2, posture=3, outcome=x1, times=20, generator=g)
+    via_som = c.c3.backward(c._c3_b(x, 2)).reshape(2, 6, 8).clamp(0, 1)
+    assert torch.allclose(c.imagine(x, 2), via_som, atol=1e-6)
+    # relative goals: the same parameters give the same goal displacement from any start
+    from neuroimagery.models.tool_use import ToolWorldEnvironment
+
+    theta = torch.randn(2, 35, generator=g)
+    rel = SimpleNamespace(goal_frame="relative")
+    q0a, q0b = torch.zeros(7), torch.linspace(-0.5, 0.5, 7)
+    ja = ToolWorldEnvironment.joint_params(rel, theta, q0a)
+    jb = ToolWorldEnvironment.joint_params(rel, theta, q0b)
+    assert torch.allclose(ja[:, :7] - q0a, jb[:, :7] - q0b, atol=1e-6) and torch.equal(ja[:, 7:], jb[:, 7:])
+    assert torch.equal(ToolWorldEnvironment.joint_params(SimpleNamespace(goal_frame="absolute"), theta, q0b), theta)
+
+
+# ---------------------------------------------------------------------------------- the thesis's claims
+@pytest.mark.slow
+def test_full_run_shows_the_thesis_claims(tmp_path):
+    """The must-show claims of section 7.1.3 on a full run (30 repetitions x 2 situations per group).
+
+    Set ``EXP5_FULL_RUN`` to a finished (or interrupted) full run's directory to check it without
+    recomputing (finished tasks are read back); otherwise the whole reproduction runs here.
+    """
+    import os
+
+    import neuroimagery.run as R
+
+    out = Path(os.environ.get("EXP5_FULL_RUN", tmp_path))
+    cfg = compose("logger=none", "progress=false")
+    s = R.evaluate(cfg, out_dir=out)
+    rate = {(g["hypothesis"], g["level"], g["situation"], g["strategy"]): g["success_rate"] for g in s["groups"]}
+    for strat in ("reactive", "planning"):
+        behind = [rate[("hp1", k, "behind", strat)] for k in (2, 3, 4, 5, 6)]
+        far = [rate[("hp1", k, "far", strat)] for k in (2, 3, 4, 5, 6)]
+        assert min(behind) >= 0.75, f"HP1 tool-behind success high at every age ({strat}): {behind}"
+        assert far[0] <= 0.15, f"HP1 tool-far near zero at 14 months ({strat}): {far}"
+        assert max(far[:2]) < min(behind), f"HP1 tool-far low before 18 months ({strat})"
+        assert s["checks"][f"hp1_far_spearman_{strat}"] >= 0.8, f"HP1 tool-far rises with skills ({strat}): {far}"
+        for sit in ("behind", "far"):
+            hp2 = [rate[("hp2", t, sit, strat)] for t in (0, 2, 4, 6, 8, 10)]
+            assert max(hp2[1:]) > hp2[0], f"HP2 {sit} improves with training ({strat}): {hp2}"
+    assert s["checks"]["reactive_planning_max_abs_diff"] <= 0.25, "reactive and planning children alike"

@@ -23,7 +23,6 @@ and reports.
 """
 from __future__ import annotations
 
-import copy
 import importlib
 import json
 import time
@@ -98,6 +97,10 @@ class Exp5Config:
     explore_weight_sigma: float = 300.0  # shape-weight noise of an exploratory movement
     search_goal_sigma: float = 0.05  # rad, PI^BB exploration std of the goals
     search_weight_sigma: float = 30.0  # PI^BB exploration std of the shape weights
+    # what a primitive's 7 goal numbers are: 'relative' = joint displacement from the start (the
+    # same movement shape from every situation, so its effect depends on where the rake starts) |
+    # 'absolute' = joint angles (every start ends in the same arm posture). See docs/exp5.md.
+    goal_frame: str = "absolute"
     # --- engine
     environment: str = "robot"  # 'robot' (pybullet ToolWorld) or 'module:Class' of another Environment
     share_library_across_situations: bool = False  # one library per repetition for both situations
@@ -151,6 +154,8 @@ class Exp5Config:
             bad("hp1_levels", f"must lie in [{len(self.base_detectors)}, {len(EVENTS)}]")
         if not self.situations or any(s not in SITUATIONS for s in self.situations) or len(set(self.situations)) != len(self.situations):
             bad("situations", f"must be distinct names of {sorted(SITUATIONS)}")
+        if self.goal_frame not in ("relative", "absolute"):
+            bad("goal_frame", "must be 'relative' or 'absolute'")
         if self.environment != "robot" and ":" not in self.environment:
             bad("environment", "must be 'robot' or 'module:Class'")
 
@@ -177,6 +182,29 @@ def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
                              explore_batch=e.explore_batch, explore_max_rollouts=e.explore_max_rollouts)
 
 
+_ENV_KEYS = ("environment", "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
+             "search_weight_sigma", "goal_frame")
+_WORKER_ENV: dict[tuple, object] = {}  # one world per worker process, reused by its tasks
+
+
+def _task_environment(e: Exp5Config):
+    """This process's world for ``e`` (built once: loading the robot takes seconds), emptied of
+    the previous task's image cache and timings so each task's numbers are its own."""
+    key = tuple(getattr(e, k) for k in _ENV_KEYS)
+    env = _WORKER_ENV.get(key)
+    if env is None:
+        for old in _WORKER_ENV.values():
+            if hasattr(old, "close"):
+                old.close()
+        _WORKER_ENV.clear()
+        env = _WORKER_ENV[key] = make_environment(e)
+    if hasattr(env, "_images"):
+        env._images.clear()
+    if hasattr(env, "timing"):
+        env.timing = {k: type(v)(0) for k, v in env.timing.items()}
+    return env
+
+
 def make_environment(e: Exp5Config):
     """The world the robots live in: the pybullet ToolWorld, or ``module:Class`` (tests' stand-ins)."""
     if e.environment == "robot":
@@ -184,7 +212,8 @@ def make_environment(e: Exp5Config):
 
         return ToolWorldEnvironment(duration_s=e.duration_s, explore_goal_sigma=e.explore_goal_sigma,
                                     explore_weight_sigma=e.explore_weight_sigma,
-                                    search_goal_sigma=e.search_goal_sigma, search_weight_sigma=e.search_weight_sigma)
+                                    search_goal_sigma=e.search_goal_sigma, search_weight_sigma=e.search_weight_sigma,
+                                    goal_frame=e.goal_frame)
     mod, _, cls = e.environment.partition(":")
     try:
         return getattr(importlib.import_module(mod), cls)()
@@ -237,8 +266,8 @@ def _pack(img: torch.Tensor) -> torch.Tensor:
 def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> dict:
     """Acquire one library, then simulate every individual built on it (all groups, strategies)."""
     torch.set_num_threads(1)
-    t0 = time.perf_counter()
-    env = make_environment(e)
+    t0, c0 = time.perf_counter(), time.process_time()
+    env = _task_environment(e)
     acq = acquisition_config(e)
     r = task["repetition"]
     sit_ids = [list(SITUATIONS).index(s) for s in task["situations"]]
@@ -262,7 +291,9 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
                 built[key] = build_brain(env, sub, acq, ToolUseBrain(env.image_shape, seed=seed, **brain_kw),
                                          _gen(seed, 3, r), env.perceive)
             for strategy in STRATEGIES:
-                brain = copy.deepcopy(built[key])
+                # only C4 learns in Fig. 7.6: every individual starts from the built brain with a fresh C4
+                brain = built[key]
+                brain.reset_c4()
                 train_ok = []
                 for _ in range(grp["trials"]):
                     rec = sequence_trial(brain, outcomes, sub.skills, posture, strategy, True, e.attempts,
@@ -284,11 +315,9 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
                     train_success_rate=float(np.mean(train_ok)) if train_ok else float("nan"),
                     success=int(test.success), imagined_success=int(test.imagined_success),
                     test_actions=">".join(test.actions), test_attempts=len(test.actions)))
-    timing = dict(task_s=time.perf_counter() - t0, acquisition_s=t_acq,
+    timing = dict(task_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0, acquisition_s=t_acq,
                   explore_rollouts=lib.explore_rollouts, learn_rollouts=lib.learn_rollouts)
     timing.update({k: v for k, v in getattr(env, "timing", {}).items()})
-    if hasattr(env, "close"):
-        env.close()
     out = dict(task=task, rows=rows, library=lib.to_state(), film=film, timing=timing, config=asdict(e), seed=seed)
     if path is not None:
         tmp = Path(str(path) + ".tmp")
@@ -415,9 +444,12 @@ def evaluate(cfg, run, trained) -> dict:
         },
         "checks": checks,
         "repetitions": repetitions(cfg),
-        "individuals": int(df[["library", "situation"]].drop_duplicates().shape[0]),
+        # one individual = one robot of one group (repetition x situation), tested as both strategies
+        "individuals": int(len(df) // len(STRATEGIES)),
         "environment": e.environment,
         "cost": {"tasks": len(results), "task_s_total": round(sum(t["task_s"] for t in timing), 2),
+                 "task_cpu_s_total": (round(sum(t["cpu_s"] for t in timing), 2)
+                                      if all("cpu_s" in t for t in timing) else None),
                  "acquisition_s_total": round(sum(t["acquisition_s"] for t in timing), 2),
                  "explore_rollouts": int(sum(t["explore_rollouts"] for t in timing)),
                  "learn_rollouts": int(sum(t["learn_rollouts"] for t in timing)),

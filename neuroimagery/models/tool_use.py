@@ -145,25 +145,30 @@ class ToolUseBrain(nn.Module):
                                    sigma=c3_sigma, iterations=1, name="C3")
         self.register_buffer("acquired", torch.zeros(n_dmps, dtype=torch.bool))  # M1 units holding a skill
         self.register_buffer("c3_trained", torch.zeros(N_POSTURES * n_dmps, dtype=torch.bool))
+        self._b_norms: torch.Tensor | None = None  # cache of C3's input-side prototype norms
 
     # --- read-outs
     @staticmethod
     def flat(image: torch.Tensor) -> torch.Tensor:
         return image.reshape(1, -1).float()
 
+    # The read-outs and updates below work on the weight rows directly (``weight[0]`` is the one
+    # participant's matrix): the same numbers as going through ``AllToAll`` / ``BidirectionalSOM``
+    # (the tests compare them), without the generic shape and finiteness checks over the
+    # 153 600-unit PC map that dominated the cost of a run.
     def affordance(self, image: torch.Tensor) -> torch.Tensor:
         """C1: mean weight over the active PC units -> (n_dmps,) in [0, 1]."""
-        x = self.flat(image)
-        return self.c1(x)[0] / x.sum().clamp_min(1.0)
+        x = self.flat(image)[0]
+        return (self.c1.weight[0] @ x) / x.sum().clamp_min(1.0)
 
     def distal_goals(self, image: torch.Tensor) -> torch.Tensor:
         """C2 -> HIP activity (6,) in [0, 1]: which goals this situation is known to afford."""
-        x = self.flat(image)
-        return self.c2(x)[0] / x.sum().clamp_min(1.0)
+        x = self.flat(image)[0]
+        return (self.c2.weight[0] @ x) / x.sum().clamp_min(1.0)
 
     def q_values(self, image: torch.Tensor) -> torch.Tensor:
         """C4 -> (n_dmps,) action values."""
-        return self.c4(self.flat(image))[0]
+        return self.c4.weight[0] @ self.flat(image)[0]
 
     def pmc(self, image: torch.Tensor) -> torch.Tensor:
         """PMC activity: affordance (C1) plus learnt action value (C4), Fig. 7.6."""
@@ -174,29 +179,57 @@ class ToolUseBrain(nn.Module):
         code[0, unit] = self.c3_action_gain
         return torch.cat([self.flat(image), code], dim=1)
 
+    def _c3_b_norms(self) -> torch.Tensor:
+        """Squared norms of C3's input-side prototypes (cached until C3 learns again)."""
+        if getattr(self, "_b_norms", None) is None:
+            w = self.c3.som.weight[0, :, self.n_pc:]
+            self._b_norms = (w * w).sum(-1)
+        return self._b_norms
+
     def imagine(self, image: torch.Tensor, unit: int) -> torch.Tensor:
-        """C3 run backwards: the mental image of doing primitive ``unit`` in situation ``image``."""
-        b = self._c3_b(image, unit)
-        winner = int(self.c3._match(b, self.n_pc, 2 * self.n_pc + self.n_dmps)[0, 0])
-        if not bool(self.c3_trained[winner]):  # nothing learnt about this primitive: no change imagined
+        """C3 run backwards: the mental image of doing primitive ``unit`` in situation ``image``.
+
+        The best-matching unit on the input side (situation + intended primitive) gives its
+        outcome prototype; a unit never trained means nothing was learnt: no change is imagined.
+        """
+        b = self._c3_b(image, unit)[0]
+        w = self.c3.som.weight[0]
+        d = self._c3_b_norms() - 2.0 * (w[:, self.n_pc:] @ b)
+        winner = int(d.argmin())
+        if not bool(self.c3_trained[winner]):
             return image.reshape(2, *self.image_shape).float().clone()
-        a = self.c3.backward(b)  # (1, 1, n_pc)
-        return a.reshape(2, *self.image_shape).clamp(0.0, 1.0)
+        return w[winner, : self.n_pc].reshape(2, *self.image_shape).clamp(0.0, 1.0)
+
+    def reset_c4(self) -> None:
+        """Forget all action values (C4 back to its zero start): a fresh individual's C4."""
+        self.c4.weight.zero_()
 
     # --- learning (Fig. 7.5 and 7.6)
+    @staticmethod
+    def _outstar_row(row: torch.Tensor, x: torch.Tensor, target: float, eta: float, times: int) -> None:
+        """``times`` outstar steps (eq. 4.2-4.3) on one output unit's row: w += eta x (y - w).
+
+        Binary input (the PC map): closed form, ``w <- y + (1 - eta)^times (w - y)`` where x = 1."""
+        if times < 1:
+            return
+        if bool(((x == 0) | (x == 1)).all()):
+            on = x > 0
+            row[on] = target + (1.0 - eta) ** times * (row[on] - target)
+        else:
+            for _ in range(times):
+                row.add_(eta * x * (target - row))
+
     @torch.no_grad()
     def train_c1(self, image: torch.Tensor, unit: int, signal: float, times: int) -> None:
-        x, y, gate = self.flat(image), torch.zeros(1, self.n_dmps), torch.zeros(1, self.n_dmps)
-        y[0, unit], gate[0, unit] = float(signal), 1.0
-        if times > 0:
-            self.c1.learn(pre=x, post=y, gate=gate, repeats=times)
+        """C1 trained for primitive ``unit`` only (the other rows keep what they learnt)."""
+        if self.c1.training:
+            self._outstar_row(self.c1.weight[0, unit], self.flat(image)[0], float(signal), self.c1.rules[0].eta, times)
 
     @torch.no_grad()
     def train_c2(self, image: torch.Tensor, goal: int, times: int) -> None:
-        x, y, gate = self.flat(image), torch.zeros(1, self.n_goals), torch.zeros(1, self.n_goals)
-        y[0, goal], gate[0, goal] = 1.0, 1.0
-        if times > 0:
-            self.c2.learn(pre=x, post=y, gate=gate, repeats=times)
+        """C2 trained toward distal goal ``goal`` with teaching signal 1."""
+        if self.c2.training:
+            self._outstar_row(self.c2.weight[0, goal], self.flat(image)[0], 1.0, self.c2.rules[0].eta, times)
 
     @torch.no_grad()
     def train_c3(self, image: torch.Tensor, unit: int, posture: int, outcome: torch.Tensor, times: int,
@@ -215,17 +248,26 @@ class ToolUseBrain(nn.Module):
             x = torch.cat([a, b], dim=-1)[0, 0]
             w.copy_(x + (1.0 - float(eta)) ** times * (w - x))
             self.c3.som.steps += times
+            self._b_norms = None
         else:
             self.c3.fit(a, b, labels=torch.tensor([[label]]), iterations=times,
                         order=torch.zeros(1, times, dtype=torch.long))
+            self._b_norms = None
         self.c3_trained[label] = True
 
     @torch.no_grad()
     def q_update(self, x0: torch.Tensor, unit: int, reward: float, x1: torch.Tensor, done: bool) -> None:
-        """Eq. 7.1 on C4 for the transition ``x0 --unit--> x1``."""
-        self.c4.learn(pre=self.flat(x0).unsqueeze(0), action=torch.tensor([[unit]]),
-                      reward=torch.tensor([[float(reward)]]), next_pre=self.flat(x1).unsqueeze(0),
-                      done=torch.tensor([[bool(done)]]))
+        """Eq. 7.1 on C4 for the transition ``x0 --unit--> x1``: only the row of ``unit`` changes,
+        ``w += eta (r +- gamma qMax(x1) - q_unit(x0)) x0`` (``nn.rules.QLearning`` for one sample)."""
+        if not self.c4.training:
+            return
+        rule = self.c4.rules[0]
+        a, b = self.flat(x0)[0], self.flat(x1)[0]
+        w = self.c4.weight[0]
+        q_max = 0.0 if done else float((w @ b).max())
+        sign = 1.0 if rule.form == "standard" else -1.0
+        err = float(reward) + sign * rule.gamma * q_max - float(w[unit] @ a)
+        w[unit].add_(a, alpha=rule.eta * err)
 
     def reset_state(self) -> None:
         """The brain keeps no activity between trials."""
@@ -546,11 +588,25 @@ class ToolWorldEnvironment:
     Primitives are DMPs (``motor.dmp.DMP``, 7 goals + 28 shape weights) rolled out from the
     arm's current joints. A scene after earlier moves (arm elsewhere, toy displaced) is restored
     through ``ToolWorld.reset(q=..., toy_xy=...)`` before the next rollout.
+
+    ``goal_frame`` says what the 7 goal numbers of a primitive mean:
+
+    * ``"relative"``: the joint displacement from wherever the arm starts (goal = start + offset).
+      The primitive is then one movement *shape*, translated in joint space: since the DMP's
+      forcing term scales with ``g - y0`` (eq. 7.3), the same parameters give the same joint
+      trajectory relative to the start from every posture, and what it does to the toy depends on
+      where the rake starts (the situation).
+    * ``"absolute"``: joint angles; every rollout of a primitive ends in the same arm posture
+      whatever the start, and its shape is rescaled by ``g - y0``.
+
+    Exploration draws goals as the start posture plus noise (clipped to the joint limits) in both
+    frames, so a discovered movement is the same either way; the frames differ only in how a
+    learnt primitive is replayed from another posture or after earlier moves.
     """
 
     def __init__(self, world_config=None, duration_s: float = 1.5, explore_goal_sigma: float = 0.35,
                  explore_weight_sigma: float = 300.0, search_goal_sigma: float = 0.05,
-                 search_weight_sigma: float = 30.0) -> None:
+                 search_weight_sigma: float = 30.0, goal_frame: str = "relative") -> None:
         from ..motor.dmp import DMP
         from ..robot.world import ToolWorld
 
@@ -564,6 +620,9 @@ class ToolWorldEnvironment:
                     q, toy_xy = self.start_state
                 super().reset(posture, q=q, toy_xy=toy_xy)
 
+        if goal_frame not in ("relative", "absolute"):
+            raise ValueError(f"goal_frame must be 'relative' or 'absolute', got {goal_frame!r}")
+        self.goal_frame = goal_frame
         self.world = _World(world_config)
         self.dmp = DMP()
         self.n_params = self.dmp.n_params
@@ -590,8 +649,19 @@ class ToolWorldEnvironment:
         q0 = self.world.initial_posture(posture)
         gs, ws = self.explore
         goals = self.world.kin.clamp(q0 + gs * torch.randn(n, 7, generator=generator))
+        if self.goal_frame == "relative":
+            goals = goals - q0
         weights = ws * torch.randn(n, 7, self.dmp.n_basis, generator=generator)
         return self.dmp.pack(goals, weights)
+
+    def joint_params(self, params: torch.Tensor, q0: torch.Tensor) -> torch.Tensor:
+        """Parameters with absolute joint goals for a rollout starting at ``q0``."""
+        params = params.float()
+        if self.goal_frame == "absolute":
+            return params
+        out = params.clone()
+        out[:, :7] = params[:, :7] + q0.float()
+        return out
 
     def search_sigma(self) -> torch.Tensor:
         return self._sigma.clone()
@@ -601,7 +671,7 @@ class ToolWorldEnvironment:
 
         t0 = time.perf_counter()
         q0 = self._q(state)
-        traj = self.world.kin.clamp(self.dmp.rollout(params.float(), q0, self.duration_s, self.dt))
+        traj = self.world.kin.clamp(self.dmp.rollout(self.joint_params(params, q0), q0, self.duration_s, self.dt))
         fresh = state.q is None and state.toy_xy is None
         self.world.start_state = None if fresh else (q0, state.toy_xy)
         try:
