@@ -9,7 +9,7 @@ from neuroimagery.motor.dmp import DMP
 
 
 def test_parameter_layout():
-    dmp = DMP()
+    dmp = DMP(max_goal_offset=None)
     assert dmp.n_params == 35
     g = torch.arange(7.0).unsqueeze(0)
     w = torch.arange(28.0).reshape(1, 7, 4) + 100
@@ -22,7 +22,7 @@ def test_parameter_layout():
 
 @pytest.mark.parametrize("beta", [6.25, 3.0, 20.0])  # critical, over- and under-damped
 def test_zero_forcing_matches_analytical_solution(beta):
-    dmp = DMP(alpha_v=25.0, beta_v=beta)
+    dmp = DMP(alpha_v=25.0, beta_v=beta, max_goal_offset=None)
     gen = torch.Generator().manual_seed(0)
     y0 = torch.randn(5, 7, generator=gen, dtype=torch.float64)
     g = torch.randn(5, 7, generator=gen, dtype=torch.float64)
@@ -36,7 +36,7 @@ def test_zero_forcing_matches_analytical_solution(beta):
 
 
 def test_zero_forcing_when_goal_equals_start():
-    dmp = DMP()
+    dmp = DMP(max_goal_offset=None)
     y0 = torch.rand(2, 7)
     theta = dmp.pack(y0.clone(), 500 * torch.randn(2, 7, 4))  # forcing scales with (g - y0) = 0
     out = dmp.rollout(theta, y0, 1.0, 0.01)
@@ -59,7 +59,7 @@ def _scalar_dmp(dmp, g, w, y0, tau, dt):
 
 
 def test_batched_equals_per_rollout_loop_and_scalar_reference():
-    dmp = DMP()
+    dmp = DMP(max_goal_offset=None)
     gen = torch.Generator().manual_seed(2)
     theta = torch.cat([torch.randn(6, 7, generator=gen), 200 * torch.randn(6, 28, generator=gen)], 1).double()
     y0 = torch.randn(6, 7, generator=gen).double()
@@ -86,3 +86,21 @@ def test_bad_parameters_raise():
         dmp.rollout(torch.zeros(2, 34), torch.zeros(7))
     with pytest.raises(ValueError, match="dt"):
         dmp.rollout(torch.zeros(1, 35), torch.zeros(7), duration_s=1.0, dt=0.0)
+
+
+def test_goal_offset_bound_limits_the_movement_to_the_start_neighbourhood():
+    from neuroimagery.motor.dmp import MAX_GOAL_OFFSET_RAD
+
+    bounded, free = DMP(), DMP(max_goal_offset=None)
+    assert bounded.max_goal_offset == MAX_GOAL_OFFSET_RAD
+    y0 = torch.tensor([0.1, -0.2, 0.0, 0.5, 0.0, 0.3, -0.1], dtype=torch.float64)
+    far = y0 + torch.tensor([1.0, -1.0, 0.05, 0.4, -0.3, 0.0, 0.2], dtype=torch.float64)
+    theta = bounded.pack(far[None], torch.zeros(1, 7, 4, dtype=torch.float64))
+    end = bounded.rollout(theta, y0, 1.5, 0.01)[0, -1]
+    expected = y0 + (far - y0).clamp(-MAX_GOAL_OFFSET_RAD, MAX_GOAL_OFFSET_RAD)
+    assert torch.allclose(end, expected, atol=5e-3)  # converges to the bounded goal
+    # the same parameters with the goal already inside the bound: identical to the unbounded DMP
+    near = bounded.pack(expected[None], 50 * torch.randn(1, 7, 4, dtype=torch.float64))
+    assert torch.allclose(bounded.rollout(near, y0, 1.5, 0.01), free.rollout(near, y0, 1.5, 0.01))
+    with pytest.raises(ValueError, match="max_goal_offset"):
+        DMP(max_goal_offset=0.0)

@@ -13,7 +13,11 @@ Parameter layout (one flat vector per rollout, ``theta`` of shape (N, n_joints *
 With the thesis's 7 joints and 4 basis functions: 7 goals then 28 shape weights = 35 numbers.
 
 Goals are absolute joint angles, so one DMP rolled out from different initial postures ends in the
-same arm configuration by different paths.  Integration is semi-implicit Euler on the whole batch
+same arm configuration by different paths, as long as that configuration lies within the DMP's
+reach: a movement starts from the arm's current posture and its goal is bounded to
+``y0 +- max_goal_offset`` per joint (``MAX_GOAL_OFFSET_RAD`` by default; ``None`` removes the
+bound).  Since the forcing term scales with ``g - y0`` (eq. 7.3), the bound limits the whole
+movement, shape included, to a neighbourhood of its start.  Integration is semi-implicit Euler on the whole batch
 at once; the phase ``x`` is evaluated in closed form.
 """
 from __future__ import annotations
@@ -21,6 +25,10 @@ from __future__ import annotations
 import math
 
 import torch
+
+# Largest joint displacement (rad) of a movement's goal from its start posture: a skill is a
+# movement from where the arm is, not a jump to anywhere in the joint range (docs/robot.md).
+MAX_GOAL_OFFSET_RAD = 0.15
 
 
 class DMP(torch.nn.Module):
@@ -30,6 +38,8 @@ class DMP(torch.nn.Module):
     alpha_x: decay of the canonical system, eq. 7.5 (``x(tau) = exp(-alpha_x)``).
     The basis centres ``c_i`` are spread evenly in time (so ``c_i = exp(-alpha_x * i / (n-1))``)
     and the widths ``h_i`` make neighbouring Gaussians cross at about half height.
+    max_goal_offset: goals farther than this (rad, per joint) from the start ``y0`` are moved to
+    ``y0 +- max_goal_offset`` before integrating; ``None`` leaves them unbounded.
     """
 
     def __init__(
@@ -39,6 +49,7 @@ class DMP(torch.nn.Module):
         alpha_v: float = 25.0,
         beta_v: float = 6.25,
         alpha_x: float = 4.0,
+        max_goal_offset: float | None = MAX_GOAL_OFFSET_RAD,
     ) -> None:
         super().__init__()
         if n_joints < 1 or n_basis < 1:
@@ -46,6 +57,9 @@ class DMP(torch.nn.Module):
         for name, v in (("alpha_v", alpha_v), ("beta_v", beta_v), ("alpha_x", alpha_x)):
             if not v > 0:
                 raise ValueError(f"DMP {name} must be > 0, got {v}")
+        if max_goal_offset is not None and not (math.isfinite(max_goal_offset) and max_goal_offset > 0):
+            raise ValueError(f"DMP max_goal_offset must be > 0 or None, got {max_goal_offset}")
+        self.max_goal_offset = None if max_goal_offset is None else float(max_goal_offset)
         self.n_joints, self.n_basis = n_joints, n_basis
         self.alpha_v, self.beta_v, self.alpha_x = float(alpha_v), float(beta_v), float(alpha_x)
         t = torch.linspace(0.0, 1.0, n_basis, dtype=torch.float64)
@@ -100,15 +114,24 @@ class DMP(torch.nn.Module):
         shape = (weights * psi).sum(-1) / psi.sum()
         return shape * x * (g - y0)
 
+    def bounded_goals(self, g: torch.Tensor, y0: torch.Tensor) -> torch.Tensor:
+        """Goals moved into ``y0 +- max_goal_offset`` (unchanged when the bound is ``None``)."""
+        if self.max_goal_offset is None:
+            return g
+        b = self.max_goal_offset
+        return y0 + (g - y0).clamp(-b, b)
+
     def rollout(
         self, theta: torch.Tensor, y0: torch.Tensor, duration_s: float = 2.0, dt: float = 0.01
     ) -> torch.Tensor:
         """Integrate eq. 7.2 for every row of ``theta``: joint trajectories (N, T, J).
 
-        ``T = round(duration_s / dt) + 1``; row 0 is ``y0`` (start at rest).
+        ``T = round(duration_s / dt) + 1``; row 0 is ``y0`` (start at rest).  Goals are first
+        bounded to ``y0 +- max_goal_offset`` (:meth:`bounded_goals`).
         """
         theta, y0 = self._check(theta, y0, duration_s, dt)
         g, w = self.split(theta)
+        g = self.bounded_goals(g, y0)
         tau = float(duration_s)
         steps = int(round(duration_s / dt))
         y, v = y0.clone(), torch.zeros_like(y0)  # v = dy/dt

@@ -2,8 +2,8 @@
 
     python -m neuroimagery.robot.babble --rollouts N --out DIR [--seed S]
 
-From every posture, ``N`` random DMPs are rolled out (goals = the posture plus Gaussian noise,
-random shape weights; the Fig. 7.5 exploration step) with no event watched, so every event that
+From every posture, ``N`` random DMPs are rolled out (goals = the posture plus Gaussian noise
+bounded to ``WorldConfig.max_goal_offset_rad``, random shape weights; the Fig. 7.5 exploration step) with no event watched, so every event that
 happens is recorded.  An event counts as reachable from a posture when at least one rollout fired
 it.  Writes ``DIR/table_7_1.json`` ({"posture-1": {"events": [0/1 x 6], "rates": [...],
 "rollouts": N}, ...} in ``EVENTS`` order) and ``DIR/table_7_1.md`` next to the thesis's table.
@@ -56,16 +56,34 @@ class BabbleConfig:
 def random_thetas(
     world: ToolWorld, dmp: DMP, posture: int, n: int, cfg: BabbleConfig, generator: torch.Generator
 ) -> torch.Tensor:
-    """``n`` random DMP parameter vectors around ``posture`` (goals clipped to the joint limits)."""
+    """``n`` random DMP parameter vectors around ``posture``.
+
+    Goals: the posture plus N(0, goal_sigma) noise, bounded to the movement's reach
+    (``WorldConfig.max_goal_offset_rad``) and clipped to the joint limits.
+    """
     q0 = world.initial_posture(posture)
-    goals = world.kin.clamp(q0 + cfg.goal_sigma * torch.randn(n, 7, generator=generator))
+    b = world.cfg.max_goal_offset_rad
+    noise = (cfg.goal_sigma * torch.randn(n, 7, generator=generator)).clamp(-b, b)
+    goals = world.kin.clamp(q0 + noise)
     weights = cfg.weight_sigma * torch.randn(n, 7, dmp.n_basis, generator=generator)
     return dmp.pack(goals, weights)
 
 
+def world_dmp(world: ToolWorld) -> DMP:
+    """The DMP of this world's movements: goals bounded to ``WorldConfig.max_goal_offset_rad``."""
+    return DMP(max_goal_offset=world.cfg.max_goal_offset_rad)
+
+
 def trajectories(world: ToolWorld, dmp: DMP, theta: torch.Tensor, posture: int, cfg: BabbleConfig) -> torch.Tensor:
-    """DMP rollouts from ``posture`` clipped to the URDF joint limits: (N, T, 7)."""
+    """DMP rollouts from ``posture`` clipped to the URDF joint limits: (N, T, 7).
+
+    The goals are bounded to the world's ``max_goal_offset_rad`` around the posture whatever
+    ``dmp``'s own bound.
+    """
     q0 = world.initial_posture(posture)
+    g, w = dmp.split(theta if theta.dim() == 2 else theta[None])
+    b = world.cfg.max_goal_offset_rad
+    theta = dmp.pack(q0 + (g - q0).clamp(-b, b), w)
     return world.kin.clamp(dmp.rollout(theta, q0, cfg.duration_s, cfg.dt))
 
 
@@ -76,7 +94,7 @@ def measure(n_rollouts: int, seed: int = 0, cfg: BabbleConfig | None = None, wor
     cfg = cfg or BabbleConfig()
     own = world is None
     world = world or ToolWorld()
-    dmp = DMP()
+    dmp = world_dmp(world)
     gen = torch.Generator().manual_seed(seed)
     table: dict = {}
     try:
@@ -106,7 +124,7 @@ def markdown(table: dict) -> str:
     for key, row in table.items():
         thesis = THESIS_EVENTS[key]
         cells = [
-            f"{m}{'' if m == t else '*'} ({r:.0%})" for m, t, r in zip(row["events"], thesis, row["rates"])
+            f"{m}{'' if m == t else '*'} ({r:.1%})" for m, t, r in zip(row["events"], thesis, row["rates"])
         ]
         agree = sum(m == t for m, t in zip(row["events"], thesis))
         rows.append(f"| {key} | " + " | ".join(cells) + f" | {agree}/6 |\n")

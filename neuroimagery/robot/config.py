@@ -8,20 +8,23 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+from neuroimagery.motor.dmp import MAX_GOAL_OFFSET_RAD
+
 URDF_DIR = Path(__file__).resolve().parents[2] / "urdf"
 
 # Four initial arm postures (rad, joint order of kinematics.ARM_JOINTS).  Found once by a small
-# inverse-kinematics fit of the rake head's centre to a point on the table (see docs/robot.md):
-#   1 head behind the toy (north of it)        -> pulling south brings it in
-#   2 head beside the toy, on its right (east)
-#   3 head level with the toy, on its right, a hand's width away
-#   4 head farther from the toy, on its right and beyond it (arm stretched; postures 3 and 4 keep
-#     the shoulder, elbow and wrist away from their limits so exploration can move every way)
+# inverse-kinematics fit of the rake head's centre to a point on the table, the head plate upright
+# and spanning left-right and every joint at least 12 % of its range from a limit (docs/robot.md).
+# Rake head centre (x, y) with the toy at (0.56, -0.10); the plate is 16 cm wide (+-8 cm in y):
+#   1 (0.62, -0.10)  just beyond the toy (north of it): a pull toward the robot brings it in
+#   2 (0.56, -0.245) level with the toy, on its right (east); the plate's end 4 cm from the toy
+#   3 (0.64, -0.30)  beyond the toy and to its right; the plate's end 10 cm from the toy
+#   4 (0.60, -0.38)  far to the toy's right; the plate's end 17 cm from the toy
 DEFAULT_POSTURES: tuple[tuple[float, ...], ...] = (
-    (-0.620, 0.390, 0.065, 1.066, -0.215, 0.031, -0.197),
-    (-0.538, 0.602, -0.116, 1.331, -0.332, -0.025, 0.242),
-    (-1.013, 0.554, 0.211, 0.627, -0.245, -0.096, -0.128),
-    (-1.110, 0.537, 0.149, 0.391, -0.100, -0.163, -0.300),
+    (-0.464, 0.561, 0.119, 1.191, -0.456, 0.067, -0.188),
+    (-0.047, 0.546, -0.394, 1.594, -0.468, 0.075, 0.017),
+    (-0.850, 0.499, 0.047, 0.732, -0.129, -0.263, -0.239),
+    (-0.599, 0.543, -0.165, 0.971, -0.125, -0.260, -0.202),
 )
 
 # Hand (r_hand) -> rake transform of the fixed grasp: at the reference posture
@@ -45,6 +48,9 @@ class WorldConfig:
     root_height: float = 0.80  # height of the iCub's waist (root_link) above the floor
     postures: tuple[tuple[float, ...], ...] = DEFAULT_POSTURES  # the four initial arm postures
     grasp: tuple[tuple[float, ...], ...] = DEFAULT_GRASP  # fixed hand -> rake transform (4x4)
+    # reach of one movement: a DMP's goal lies within this many rad of its start posture in every
+    # joint (the bound ``motor.dmp.DMP`` applies by default; babbling and PI^BB use this key)
+    max_goal_offset_rad: float = MAX_GOAL_OFFSET_RAD
     rake_length: float = 0.40  # grip -> end of the handle, where the head is fixed (urdf/rake.urdf)
     # centre of the rake head's plate in the rake (grip) frame: the handle meets the plate 2 cm
     # above its centre, so the handle clears a toy the head is placed behind (urdf/rake.urdf)
@@ -93,7 +99,7 @@ class WorldConfig:
         positive = (
             "root_height", "rake_length", "table_top", "toy_size", "toy_mass", "rake_mass",
             "rake_max_force", "physics_dt", "control_dt", "move_threshold", "touch_tolerance",
-            "filter_margin", "max_toy_speed", "max_toy_height", "camera_fov",
+            "filter_margin", "max_toy_speed", "max_toy_height", "camera_fov", "max_goal_offset_rad",
         )
         for key in positive:
             if not float(getattr(self, key)) > 0:

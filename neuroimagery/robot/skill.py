@@ -1,7 +1,8 @@
 """Learning one skill with PI^BB on the tool-use world (the B. Learning loop of thesis Fig. 7.5).
 
 One update = one epoch of Fig. 7.5: from each of the 4 postures, K samples of the DMP's
-parameters are rolled out while the skill's event is watched, the cost of every rollout is read
+parameters are rolled out (their goals bounded to ``WorldConfig.max_goal_offset_rad`` around that
+posture, as in babbling) while the skill's event is watched, the cost of every rollout is read
 from its outcome (``motor.pibb.event_costs``), and one PI^BB update uses all 4K samples.
 """
 from __future__ import annotations
@@ -10,9 +11,8 @@ from dataclasses import dataclass
 
 import torch
 
-from neuroimagery.motor.dmp import DMP
 from neuroimagery.motor.pibb import PIBB, event_costs, graded_costs
-from neuroimagery.robot.babble import BabbleConfig, random_thetas, trajectories
+from neuroimagery.robot.babble import BabbleConfig, random_thetas, trajectories, world_dmp
 from neuroimagery.robot.world import ToolWorld, event_index
 
 
@@ -27,7 +27,7 @@ def discover(world: ToolWorld, event: str, posture: int, generator: torch.Genera
              cfg: BabbleConfig | None = None) -> torch.Tensor:
     """Babble from ``posture`` until a random DMP fires ``event``; return its parameters (35,)."""
     event_index(event)
-    cfg, dmp = cfg or BabbleConfig(), DMP()
+    cfg, dmp = cfg or BabbleConfig(), world_dmp(world)
     for _ in range(0, max_tries, 20):
         theta = random_thetas(world, dmp, posture, 20, cfg, generator)
         outs = world.rollout(trajectories(world, dmp, theta, posture, cfg), posture, event)
@@ -38,7 +38,7 @@ def discover(world: ToolWorld, event: str, posture: int, generator: torch.Genera
 
 
 def mean_success(world: ToolWorld, theta: torch.Tensor, event: str, cfg: BabbleConfig) -> float:
-    dmp = DMP()
+    dmp = world_dmp(world)
     hits = [world.rollout(trajectories(world, dmp, theta[None], k, cfg), k, event)[0] for k in range(1, 5)]
     return float(sum(o.fired(event) and not o.blew_up for o in hits)) / 4
 
@@ -54,7 +54,7 @@ def learn(world: ToolWorld, theta0: torch.Tensor, event: str, n_updates: int = 1
     """
     if cost not in ("binary", "graded"):
         raise ValueError(f"cost must be 'binary' or 'graded', got {cost!r}")
-    cfg, dmp = cfg or BabbleConfig(), DMP()
+    cfg, dmp = cfg or BabbleConfig(), world_dmp(world)
     sigma = torch.cat([torch.full((7,), goal_sigma), torch.full((28,), weight_sigma)])
     dist = PIBB.from_sigma(theta0, sigma, n_samples=10, temperature=temperature, decay=decay)
     sample_curve, mean_curve = [], [mean_success(world, dist.mean, event, cfg)]
