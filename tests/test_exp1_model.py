@@ -64,3 +64,32 @@ def test_exp1_quick_run_writes_outputs_and_rotates(tmp_path):
                                             f"checkpoint={tmp_path / 'tr'}", "logger=none"])
     s2 = evaluate(cfg2, out_dir=tmp_path / "ev2")
     assert s2["tests"]["recognition/none"]["rt_by_disparity"] == rec["rt_by_disparity"]
+
+
+# ------------------------------------------------------------------ the full protocol (thesis 5.1.2)
+@pytest.fixture(scope="module")
+def full_run(tmp_path_factory):
+    """``EXP1_RUN=DIR`` reuses a finished ``evaluate.py experiment=exp1`` run; otherwise one is made."""
+    import os
+    from pathlib import Path
+
+    d = os.environ.get("EXP1_RUN")
+    if d and (Path(d) / "summary.json").exists():
+        return json.loads((Path(d) / "summary.json").read_text())
+    from hydra import compose, initialize_config_dir
+
+    from neuroimagery.config import register_configs
+    from neuroimagery.run import evaluate
+
+    register_configs()
+    with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
+        cfg = compose("config", overrides=["experiment=exp1", "progress=false", "logger=none"])
+    return evaluate(cfg, out_dir=tmp_path_factory.mktemp("exp1_full"))
+
+
+@pytest.mark.slow
+def test_full_run_rotates_and_rt_rises_with_disparity(full_run):
+    rec, gen = full_run["tests"]["recognition/none"], full_run["tests"]["generalisation/none"]
+    assert full_run["participants"] == 10 and rec["n_trials"] == 10 * 52 and gen["n_trials"] == 10 * 96
+    assert rec["rotation_success_rate"] >= 0.9 and gen["rotation_success_rate"] >= 0.9
+    assert rec["rt_r"] >= 0.9

@@ -1,12 +1,33 @@
-"""Experiment 2: config checks, babbling, and a reduced end-to-end run."""
+"""Experiment 2: config checks, babbling, SOM equivalence, the SS competition, quick and full runs."""
+import json
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
 import pytest
 import torch
 
 from neuroimagery.experiments.exp2 import Exp2Config
-from neuroimagery.models.rotation_motor import MotorRotationModel
+from neuroimagery.experiments.protocol_ch5 import som_fit_windowed
+from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
+from neuroimagery.nn import SOM, participant_generators
+
+CONF = str(Path(__file__).resolve().parents[1] / "conf")
 
 
-@pytest.mark.parametrize("key,value", [("proprio_gain", 1.5), ("som_iterations", 0), ("som_method", "x")])
+def _cfg(*overrides):
+    from hydra import compose, initialize_config_dir
+
+    from neuroimagery.config import register_configs
+
+    register_configs()
+    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
+        return compose("config", overrides=["experiment=exp2", "progress=false", *overrides])
+
+
+@pytest.mark.parametrize("key,value", [("proprio_gain", 1.5), ("som_iterations", 0), ("som_method", "x"),
+                                       ("som_cutoff", 1.0), ("som_threads", 0)])
 def test_config_rejects_bad_values(key, value):
     with pytest.raises(ValueError, match=key):
         Exp2Config(**{key: value})
@@ -21,18 +42,113 @@ def test_babbling_moves_toward_the_desired_posture():
     assert torch.equal(b["act"], torch.sign(b["des"] - b["cur"]))
 
 
-@pytest.mark.slow
-def test_exp2_quick_run_writes_outputs(tmp_path):
-    from hydra import compose, initialize_config_dir
+def test_m11_som_methods_agree_on_a_shortened_schedule():
+    """M1_1 on its 98 (object, current, desired) patterns, 2 participants, 10 steps of the
+    configured schedule compressed: windowed, factored and online give the same winners, the
+    same quantisation and topographic errors, and the same weights up to float rounding."""
+    e = Exp2Config(som_iterations=10)
+    m = MotorRotationModel(e, 2, 0)
+    ang = torch.tensor(ANGLES)
+    o, c, d = (t.reshape(-1) for t in torch.meshgrid(torch.arange(2), torch.arange(7), torch.arange(7), indexing="ij"))
+    X = torch.cat([m.ss_code(o, ang[c]), m.pmc1_code(ang[d])], -1)
+    order = m.babble(10)
+    order = order["obj"] * 49 + order["cur"] * 7 + order["des"]
+    res = {}
+    for method in ("online", "factored", "windowed"):
+        som = SOM((64, 64), 6200, generators=participant_generators(0, 2, stream=6), init=(0.0, e.init_high),
+                  eta=e.som_eta, eta_final=e.som_eta_final, sigma=e.som_sigma, sigma_final=e.som_sigma_final,
+                  iterations=10)
+        som.rule.cutoff = e.som_cutoff
+        som.train()
+        win = som_fit_windowed(som, X, order) if method == "windowed" else som.fit(X, order=order, method=method)
+        res[method] = (win, som.weight.clone(), som.quantization_error(X), som.topographic_error(X))
+    ref = res["online"]
+    for method in ("factored", "windowed"):
+        win, w, qe, te = res[method]
+        assert torch.equal(win, ref[0]), method
+        assert (w - ref[1]).abs().max() < 1e-5, method
+        assert torch.allclose(qe, ref[2], atol=1e-4) and torch.equal(te, ref[3]), method
 
-    from neuroimagery.config import register_configs
+
+def test_proprioception_preshapes_the_ss_competition():
+    """The weaker felt posture alone is far slower to win SS than the forward model's cluster; on
+    the predicted cluster it speeds the competition, elsewhere it slows it without taking the win."""
+    e = Exp2Config()
+    m = MotorRotationModel(e, 1, 0)
+    obj = torch.tensor([0])
+
+    def prof(angle, gain=1.0):
+        return gain * m.ss_code(obj, torch.tensor([angle])).reshape(1, 31, 100).amax(-2)
+
+    def run(felt):
+        s, u0 = prof(0.0), None
+        if felt is not None:
+            p = prof(felt, e.proprio_gain)
+            s, u0 = s + p, e.field_h + e.field_gain * p
+        return m.ss_field(e.field_gain * s, max_cycles=e.field_max_cycles, u0=u0)
+
+    alone = m.ss_field(e.field_gain * prof(60.0, e.proprio_gain), max_cycles=e.field_max_cycles)
+    none, match, mis = run(None), run(0.0), run(60.0)
+    assert int(alone.cycles) > 2 * int(none.cycles)
+    assert int(match.cycles) < int(none.cycles) < int(mis.cycles)
+    assert int(mis.winner) == int(none.winner) == int(match.winner)
+
+
+def _draw_l(path, mirror):
+    img = np.full((120, 120, 3), 255, np.uint8)
+    cv2.rectangle(img, (40, 20), (60, 100), (0, 0, 0), -1)
+    cv2.rectangle(img, (40, 20), (90, 40), (0, 0, 0), -1)
+    cv2.imwrite(str(path), img[:, ::-1] if mirror else img)
+
+
+@pytest.mark.slow
+def test_exp2_quick_run_with_a_user_folder_adds_custom_results(tmp_path):
     from neuroimagery.run import evaluate
 
-    register_configs()
-    with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
-        cfg = compose("config", overrides=["experiment=exp2", "participants=1", "preset=quick", "progress=false"])
-    s = evaluate(cfg, out_dir=tmp_path)
+    folder = tmp_path / "shapes"
+    folder.mkdir()
+    _draw_l(folder / "a.png", False)
+    _draw_l(folder / "b.png", True)
+    cfg = _cfg("participants=1", "preset=quick", "logger=none", "stimuli=folder", f"stimuli.path={folder}")
+    s = evaluate(cfg, out_dir=tmp_path / "run")
     for f in ("trials.csv", "summary.json", "report.md"):
-        assert (tmp_path / f).exists()
-    assert set(s["tests"]) >= {"all/none", "all/match", "all/mismatch"}
-    assert s["tests"]["all/none"]["n_trials"] == 196
+        assert (tmp_path / "run" / f).exists()
+    assert set(s["tests"]) >= {"all/none", "all/match", "all/mismatch", "custom/none"}
+    assert s["tests"]["custom/none"]["n_trials"] == 196
+    assert "User stimuli" in (tmp_path / "run" / "report.md").read_text()
+
+
+# ------------------------------------------------------------------ the full protocol (thesis 5.2.2)
+@pytest.fixture(scope="module")
+def full_run(tmp_path_factory):
+    """``EXP2_RUN=DIR`` reuses a finished ``evaluate.py experiment=exp2`` run; otherwise one is made."""
+    d = os.environ.get("EXP2_RUN")
+    if d and (Path(d) / "summary.json").exists():
+        return json.loads((Path(d) / "summary.json").read_text())
+    from neuroimagery.run import evaluate
+
+    return evaluate(_cfg("logger=none"), out_dir=tmp_path_factory.mktemp("exp2_full"))
+
+
+@pytest.mark.slow
+def test_full_run_rotates_and_answers(full_run):
+    n = full_run["tests"]["all/none"]
+    assert full_run["participants"] == 10 and n["n_trials"] == 10 * 196
+    assert n["rotation_success_rate"] >= 0.90
+    assert n["correct_rate"] >= 0.75
+    assert n["rt_r"] >= 0.9
+
+
+@pytest.mark.slow
+def test_full_run_mismatch_slows_without_costing_accuracy(full_run):
+    pr = full_run["proprioception"]
+    m = pr["rt_mismatch_vs_none_paired"]
+    assert m["mean_a"] > m["mean_b"] and m["p"] < 0.05
+    assert pr["rt_match_vs_none_paired"]["mean_a"] < m["mean_b"]
+    acc = pr["correct_mismatch_vs_none"]
+    assert abs(acc["rate_a"] - acc["rate_b"]) <= 0.03
+
+
+@pytest.mark.slow
+def test_full_run_object_type_has_no_effect(full_run):
+    assert full_run["object_type_anova"]["p"] > 0.05

@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+import torch
 
 from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
@@ -30,9 +31,11 @@ class Exp2Config:
     som_iterations: int = 10000  # training steps of the SOMs M1_1 and PFC_2 (Table 5.1: 10,000)
     som_eta: float = 0.1  # SOM initial rate (eq. 4.5)
     som_eta_final: float = 0.01  # SOM final rate
-    som_sigma: float = 8.0  # SOM initial neighbourhood radius (grid units; not given)
+    som_sigma: float = 8.0  # SOM initial neighbourhood radius (grid units; not given): see docs/exp2.md
     som_sigma_final: float = 0.5  # SOM final radius
-    som_method: str = "factored"  # SOM.fit method: 'factored' (exact reformulation) or 'online'
+    som_cutoff: float = 0.01  # the Gaussian neighbourhood is cut to 0 below this fraction of the winner's update
+    som_method: str = "windowed"  # exact online Kohonen by 'windowed' (batched, per-participant window), 'factored' or 'online'
+    som_threads: int = 1  # intra-op threads while a SOM trains (each step is small: threads only add hand-offs)
     cluster_sigma: float = 1.0  # width of a SOM's winning cluster passed on to C5, C9, C10
     posture_sigma_deg: float = 6.0  # width of SS / PMC_1 posture clusters (deg)
     object_band_deg: float = 22.5  # SS row offset of object A (-) and B (+)
@@ -45,7 +48,7 @@ class Exp2Config:
     field_h: float = -0.2  # resting level
     field_a_exc: float = 0.5  # local excitation
     field_sigma_exc: float = 2.0  # local excitation width (units)
-    field_a_inh: float = 0.05  # global inhibition
+    field_a_inh: float = 0.2  # global inhibition (strong enough that the weaker proprioceptive cluster alone cannot win)
     field_threshold: float = 0.9  # activity that ends a competition
     field_gain: float = 1.0  # input gain into a field
     field_max_cycles: int = 500  # cycles before a competition is cut off
@@ -58,7 +61,7 @@ class Exp2Config:
             if not getattr(self, k) > 0:
                 raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
         for k in ("max_cycles", "c1_epochs", "hebb_steps", "c5_epochs", "som_iterations", "field_max_cycles",
-                  "quick_som_iterations"):
+                  "quick_som_iterations", "som_threads"):
             if getattr(self, k) < 1:
                 raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
         for k in ("proprio_gain", "field_a_exc", "field_a_inh", "object_band_deg"):
@@ -68,8 +71,10 @@ class Exp2Config:
             raise ValueError(f"experiment.proprio_gain must be < 1 (weaker than the forward model), got {self.proprio_gain!r}")
         if self.hebb_eta > 1 or self.som_eta > 1 or self.image_threshold >= 1:
             raise ValueError("experiment.hebb_eta, som_eta must be <= 1 and experiment.image_threshold < 1")
-        if self.som_method not in ("factored", "online"):
-            raise ValueError(f"experiment.som_method must be 'factored' or 'online', got {self.som_method!r}")
+        if self.som_method not in ("windowed", "factored", "online"):
+            raise ValueError(f"experiment.som_method must be 'windowed', 'factored' or 'online', got {self.som_method!r}")
+        if not 0 <= self.som_cutoff < 1:
+            raise ValueError(f"experiment.som_cutoff must be in [0, 1), got {self.som_cutoff!r}")
 
 
 CONFIG = Exp2Config
@@ -115,7 +120,8 @@ def run_test(cfg, model, sset, test, condition, record=0):
     P = model.c1.participants
     rot = maps[[idx[r] for r, _ in pairs]].expand(P, -1, -1)
     tgt = maps[[idx[t] for _, t in pairs]].expand(P, -1, -1)
-    out = model.trial(rot, tgt, condition, record=record)
+    tgt_angle = torch.tensor([t[1] for _, t in pairs], dtype=torch.float32).expand(P, -1)
+    out = model.trial(rot, tgt, condition, record=record, target_angle=tgt_angle)
     app = sset.appearances[0]
     rows = []
     for p in range(P):
@@ -154,16 +160,23 @@ def evaluate(cfg, run, trained) -> dict:
     tests["all/none"]["rotation_failures"] = base[~base["rotated_ok"]].groupby("participant").size().to_dict()
     from scipy import stats
 
-    groups = [g.groupby("disparity")["rt"].mean().values for _, g in base.groupby("pair_type")]
+    def paired(a, b):
+        """Paired t-test over the same (participant, pair) trials in two conditions."""
+        t = stats.ttest_rel(a["rt"].values, b["rt"].values)
+        return {"mean_a": round(float(a["rt"].mean()), 3), "mean_b": round(float(b["rt"].mean()), 3),
+                "diff": round(float(a["rt"].mean() - b["rt"].mean()), 3), "t": round(float(t.statistic), 4),
+                "p": float(t.pvalue), "n_pairs": int(len(a))}
+
     f = stats.f_oneway(*[g["rt"].values for _, g in base.groupby("pair_type")])
     summary = {"experiment": "exp2", "participants": cfg.participants, "tests": tests,
-               "proprioception": {"rt_mismatch_vs_none": compare_rt(mis["rt"], base["rt"]),
+               "proprioception": {"rt_mismatch_vs_none_paired": paired(mis, base),
+                                  "rt_match_vs_none_paired": paired(mat, base),
+                                  "rt_mismatch_vs_none": compare_rt(mis["rt"], base["rt"]),
                                   "rt_match_vs_none": compare_rt(mat["rt"], base["rt"]),
                                   "correct_mismatch_vs_none": compare_rates(mis["correct"], base["correct"])},
                "object_type_anova": {"F": round(float(f.statistic), 4) if np.isfinite(f.statistic) else None,
                                      "p": float(f.pvalue) if np.isfinite(f.pvalue) else None},
                "targets": TARGETS}
-    del groups
     shown = {}
     b0 = base[base["participant"] == 0].reset_index(drop=True)
     succ = b0.index[b0["rotated_ok"] & (b0["rotation_steps"] >= 3)]
@@ -205,11 +218,12 @@ def report(cfg, run, summary) -> None:
                ("correct answers (none)", n["correct_rate"], 168 / 196, True),
                ("r(disparity, mean RT) (none)", n["rt_r"], None, False),
                ("correct answers (mismatch)", T["all/mismatch"]["correct_rate"], 168 / 196, True)])
-    m = pr["rt_mismatch_vs_none"]
+    m, w = pr["rt_mismatch_vs_none_paired"], pr["rt_mismatch_vs_none"]
+    mp = pr["rt_match_vs_none_paired"]
     r.p(f"Mismatched proprioception: mean RT {m['mean_a']} vs {m['mean_b']} with none "
-        f"(Welch t = {m['t']}, p = {m['p']:.3g}); correct answers {pr['correct_mismatch_vs_none']['rate_a']} vs "
-        f"{pr['correct_mismatch_vs_none']['rate_b']} (p = {pr['correct_mismatch_vs_none']['p']:.3g}). "
-        f"Matched: mean RT {pr['rt_match_vs_none']['mean_a']}.")
+        f"(paired t over the {m['n_pairs']} same trials: t = {m['t']}, p = {m['p']:.3g}; Welch t = {w['t']}, "
+        f"p = {w['p']:.3g}). Matched: mean RT {mp['mean_a']} (paired t = {mp['t']}, p = {mp['p']:.3g}). Correct answers {pr['correct_mismatch_vs_none']['rate_a']} vs "
+        f"{pr['correct_mismatch_vs_none']['rate_b']} (p = {pr['correct_mismatch_vs_none']['p']:.3g}).")
     a = summary["object_type_anova"]
     r.p(f"Object type (AA, AB, BA, BB) mean RT: {n['rt_by_pair_type']}; one-way ANOVA F = {a['F']}, p = {a['p']}.")
     r.h("Why the numbers differ")
@@ -219,6 +233,10 @@ def report(cfg, run, summary) -> None:
         "The current wrist posture at the start of a trial is read from the image through C2 run backwards "
         "(the thesis does not say how SS is first set).",
         "The SS competition runs along the wrist-angle axis (100 units); the object row is read at the winner.",
+        "Proprioception pre-activates SS (the field starts at rest + the felt cluster, which stays on at "
+        f"{_e(cfg).proprio_gain} of the forward model's strength). In the match condition the felt posture is the "
+        "actual wrist, which executes every M1_2 command; in the mismatch condition it is a random posture cluster.",
+        "Rotation success is scored against the target's true orientation.",
     ])
     if "custom/none" in T:
         c = T["custom/none"]

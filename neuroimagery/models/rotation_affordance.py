@@ -28,8 +28,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
-from ..experiments.protocol_ch5 import hebbian_shared
+from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators, seeding
+from ..experiments.protocol_ch5 import hebbian_shared, som_fit_windowed
 
 
 class AffordanceRotationModel(nn.Module):
@@ -112,7 +112,16 @@ class AffordanceRotationModel(nn.Module):
         X = torch.stack([torch.cat([up[i], up[j]]) for i, j in pairs])  # (4, 2048)
         P = self.c1.participants
         self.pfc2.train()
-        self.pfc2.fit(X, generators=participant_generators(self.seed, P, stream=4), method=e.som_method)
+        order = seeding.randint(participant_generators(self.seed, P, stream=4), X.shape[0], (e.som_iterations,))
+        threads = torch.get_num_threads()
+        torch.set_num_threads(min(threads, e.som_threads))  # each SOM step is small: extra threads only add hand-offs
+        try:
+            if e.som_method == "windowed":
+                som_fit_windowed(self.pfc2, X, order)
+            else:
+                self.pfc2.fit(X, order=order, method=e.som_method)
+        finally:
+            torch.set_num_threads(threads)
         act, _ = self.pfc2_activity(X[:, :1024].expand(P, -1, -1), X[:, 1024:].expand(P, -1, -1))
         yes = torch.tensor([i == j for i, j in pairs])
         target = self.answer_code(yes)  # (4, 200)

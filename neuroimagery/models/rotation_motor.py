@@ -12,8 +12,10 @@ Connections: C1 PP->PMC_1 (pre-activates the 7 postures at 0.2), C6 PFC_1->PMC_1
 predicted posture), C3/C4 -> PFC_2 (SOM), C5 PFC_2->PMC_2; every Hebbian one is outstar Oja
 (eq. 4.2-4.3), initial weights U[0, 0.1]. Training cycles follow Table 5.1.
 
-The competition inside SS (forward prediction + weaker proprioception) and inside PMC_2 is a
-dynamic field run to threshold; the SS field runs along the wrist-angle axis (100 units). RT =
+The competition inside SS (forward prediction + weaker proprioception, which also pre-activates
+the field) and inside PMC_2 is a dynamic field run to threshold; the SS field runs along the
+wrist-angle axis (100 units). The SOMs train by the batched windowed form of the online rule
+(``protocol_ch5.som_fit_windowed``) unless ``som_method`` says otherwise. RT =
 SS competition cycles over the rotation steps + PMC_2 cycles (1 cycle = 1 ms).
 """
 from __future__ import annotations
@@ -21,8 +23,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ..experiments.protocol_ch5 import hebbian_indexed, hebbian_shared
-from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
+from ..experiments.protocol_ch5 import hebbian_indexed, hebbian_shared, som_fit_windowed
+from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 
 ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]
 
@@ -52,6 +54,8 @@ class MotorRotationModel(nn.Module):
                    sigma_final=e.som_sigma_final, iterations=e.som_iterations)
         self.m11 = SOM((64, 64), 6200, generators=g(6), name="M1_1", **som)
         self.pfc2 = SOM((64, 64), 2048, generators=g(7), name="PFC_2", **som)
+        for s_ in (self.m11, self.pfc2):
+            s_.rule.cutoff = e.som_cutoff  # truncation of the Gaussian neighbourhood (same for every method)
         fk = dict(tau=e.field_tau, h=e.field_h, a_exc=e.field_a_exc, sigma_exc=e.field_sigma_exc,
                   a_inh=e.field_a_inh, threshold=e.field_threshold)
         self.ss_field = DynamicField((100,), name="SS", **fk)
@@ -69,14 +73,59 @@ class MotorRotationModel(nn.Module):
     def cluster(self, shape_grid: torch.Tensor, centre_col: torch.Tensor) -> torch.Tensor:
         return self.m12.flat(self.m12.encode(torch.stack([torch.full_like(centre_col, 4.5), centre_col], -1)))
 
-    def som_bump(self, som: SOM, x: torch.Tensor) -> torch.Tensor:
-        """The winning cluster of a SOM: a truncated Gaussian around the best-matching unit."""
-        bmu = som.bmu(x)
+    def som_bump(self, som: SOM, x: torch.Tensor | None = None, bmu: torch.Tensor | None = None) -> torch.Tensor:
+        """The winning cluster of a SOM: a truncated Gaussian around the best-matching unit of ``x``
+        (or around the given ``bmu``)."""
+        bmu = som.bmu(x) if bmu is None else bmu
         d2 = ((som.grid[bmu].unsqueeze(-2) - som.grid) ** 2).sum(-1)
         b = torch.exp(-d2 / (2 * self.e.cluster_sigma ** 2))
         return torch.where(b < 1e-3, torch.zeros_like(b), b)
 
+    @torch.no_grad()
+    def m11_table(self, obj: torch.Tensor, angle: torch.Tensor):
+        """M1_1's best-matching unit for (SS code, PMC_1 code) pairs, by a table.
+
+        Its input is always an SS code from the finite set ``(obj, angle)`` given here and one of
+        the 7 desired-posture codes, so ``|w|^2 - 2 w.x + |x|^2`` splits into per-half dot products
+        computed once (``K + 7`` codes instead of one 6,200-input product per query). Returns
+        ``bmu(ss_index, des_index)`` -> ``(P, ...)``, the same units as ``SOM.bmu`` on the
+        concatenated input (up to float rounding).
+        """
+        ss = self.ss_code(obj, angle)  # (K, 3100)
+        pm = self.pmc1_code(torch.tensor(ANGLES))  # (7, 3100)
+        w = self.m11.weight
+        A = torch.einsum("pui,ki->pku", w[..., :3100], ss)  # (P, K, U)
+        Bm = torch.einsum("pui,ki->pku", w[..., 3100:], pm)  # (P, 7, U)
+        nrm = (w * w).sum(-1).unsqueeze(1)  # (P, 1, U)
+        ns, npm = (ss * ss).sum(-1), (pm * pm).sum(-1)
+        P = w.shape[0]
+        pi = torch.arange(P)
+
+        def bmu(si: torch.Tensor, di: torch.Tensor) -> torch.Tensor:
+            shp = si.shape
+            si, di = si.reshape(P, -1), di.reshape(P, -1)
+            d = nrm - 2 * (A[pi[:, None], si] + Bm[pi[:, None], di]) + (ns[si] + npm[di]).unsqueeze(-1)
+            return d.argmin(-1).reshape(shp)
+
+        return bmu
+
     # ------------------------------------------------------------------ training
+    @torch.no_grad()
+    def fit_som(self, som: SOM, X: torch.Tensor, order: torch.Tensor) -> torch.Tensor:
+        """Online Kohonen training of ``som`` on ``X`` in the order ``(P, T)``, by ``e.som_method``.
+
+        All three methods run the same online rule and return the same winners; they differ in
+        cost only. The per-step work is small, so it runs on ``e.som_threads`` intra-op threads.
+        """
+        threads = torch.get_num_threads()
+        torch.set_num_threads(min(threads, self.e.som_threads))
+        try:
+            if self.e.som_method == "windowed":
+                return som_fit_windowed(som, X, order)
+            return som.fit(X, order=order, method=self.e.som_method)
+        finally:
+            torch.set_num_threads(threads)
+
     @torch.no_grad()
     def babble(self, steps: int) -> dict:
         """Motor babbling (a)-(g) of 5.2.1 D, per participant -> patterns ``(P, steps)`` of indices.
@@ -129,9 +178,11 @@ class MotorRotationModel(nn.Module):
         objs, curs, dess = objs.reshape(-1), curs.reshape(-1), dess.reshape(-1)
         X = torch.cat([self.ss_code(objs, ang[curs]), self.pmc1_code(ang[dess])], -1)  # (98, 6200)
         self.m11.train()
-        self.m11.fit(X, order=pat[:, : e.som_iterations], method=e.som_method)
+        self.fit_som(self.m11, X, pat[:, : e.som_iterations])
         Th = e.hebb_steps
-        m_act = self.som_bump(self.m11, X.expand(P, -1, -1))  # (P, 98, 4096)
+        table = self.m11_table(torch.arange(2).repeat_interleave(7), ang.repeat(2))  # SS codes of the 14 postures
+        ids = torch.arange(98)
+        m_act = self.som_bump(self.m11, bmu=table((ids // 7).expand(P, -1), (ids % 7).expand(P, -1)))  # (P, 98, 4096)
         pre = torch.stack([m_act[p, pat[p, :Th]] for p in range(P)])  # (P, Th, 4096)
         acts = self.m12.flat(self.m12.encode(torch.stack([torch.full((3,), 4.5), torch.tensor([4.5, 14.5, 24.5])], -1)))
         self.c9.weight.copy_(hebbian_indexed(self.c9.weight, pre, b["act"][:, :Th] + 1, acts, e.hebb_eta))
@@ -144,7 +195,7 @@ class MotorRotationModel(nn.Module):
         Y = torch.stack([torch.cat([img[i], img[j]]) for i, j in pairs])
         gens = participant_generators(self.seed, P, stream=9)
         self.pfc2.train()
-        self.pfc2.fit(Y, generators=gens, method=e.som_method)
+        self.fit_som(self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som_iterations,)))
         same = torch.tensor([items[i][0] == items[j][0] for i, j in pairs])
         order = torch.stack([torch.cat([torch.randperm(196, generator=g_) for _ in range(e.c5_epochs)]) for g_ in gens])
         p_act = self.som_bump(self.pfc2, Y.expand(P, -1, -1))
@@ -156,11 +207,16 @@ class MotorRotationModel(nn.Module):
 
     # ------------------------------------------------------------------ a trial
     @torch.no_grad()
-    def trial(self, pp0, pfc1, condition: str = "none", record: int = 0) -> dict:
+    def trial(self, pp0, pfc1, condition: str = "none", record: int = 0, target_angle=None) -> dict:
         """Rotate ``pp0`` ``(P, B, 1024)`` toward the target ``pfc1`` and answer.
 
-        condition: ``none`` (no proprioceptive input to SS), ``match`` (the felt posture equals the
-        predicted one) or ``mismatch`` (a random posture every step, from the participant's generator).
+        condition: ``none`` (no proprioceptive input to SS), ``match`` (SS feels the actual wrist,
+        which starts at the seen object's posture and executes every M1_2 command) or ``mismatch``
+        (a random one of the 7 posture clusters every step, from the participant's generator).
+        The felt posture pre-activates SS (the field starts at rest + proprioceptive input) and
+        stays on during the competition, at ``proprio_gain`` of the forward model's strength.
+        ``target_angle`` ``(P, B)`` (the target's true orientation) scores the rotation; default:
+        the desired posture the model itself selected.
         """
         e = self.e
         P, B, _ = pp0.shape
@@ -171,7 +227,6 @@ class MotorRotationModel(nn.Module):
         pm = self.c1.net(pp0) + self.c6.net(pfc1)
         desired = col_angle[pm.reshape(P, B, 31, 100).amax(-2).argmax(-1)]
         desired = ang[(desired.unsqueeze(-1) - ang).abs().argmin(-1)]
-        pmc1 = self.pmc1_code(desired)
         # current posture of the seen object: C2 read backwards (image -> posture)
         s0 = torch.bmm(pp0, self.c2.weight).reshape(P, B, 31, 100)
         col = s0.amax(-2).argmax(-1)
@@ -179,6 +234,12 @@ class MotorRotationModel(nn.Module):
         obj = (row >= 15).long()
         cur = ang[(col_angle[col].unsqueeze(-1) - ang).abs().argmin(-1)]
         ss = self.ss_code(obj, cur)
+        # SS is always one of: the 14 trained postures (start) or an (object, column) field winner
+        table = self.m11_table(torch.cat([torch.arange(2).repeat_interleave(7), torch.arange(2).repeat_interleave(100)]),
+                               torch.cat([ang.repeat(2), col_angle.repeat(2)]))
+        des_i = (desired.unsqueeze(-1) - ang).abs().argmin(-1)
+        ss_i = obj * 7 + (cur.unsqueeze(-1) - ang).abs().argmin(-1)
+        wrist = (cur.unsqueeze(-1) - ang).abs().argmin(-1)  # the actual wrist starts at the seen posture
         pp = pp0.clone()
         steps = torch.zeros(P, B, dtype=torch.long)
         rt = torch.zeros(P, B, dtype=torch.long)
@@ -186,7 +247,7 @@ class MotorRotationModel(nn.Module):
         stopped = torch.zeros(P, B, dtype=torch.bool)
         frames = [[] for _ in range(record)]
         for cycle in range(e.max_cycles):
-            m = self.som_bump(self.m11, torch.cat([ss, pmc1], -1))  # (P, B, 4096)
+            m = self.som_bump(self.m11, bmu=table(ss_i, des_i))  # (P, B, 4096)
             a = self.c9.net(m).reshape(P, B, 10, 3, 10).sum((-3, -1)).argmax(-1)  # 0 N1, 1 N2, 2 N3
             stopped |= live & (a == 1)
             live = live & (a != 1)
@@ -196,13 +257,17 @@ class MotorRotationModel(nn.Module):
             pred = pred / pred.amax(-1, keepdim=True).clamp_min(1e-9)
             grid = pred.reshape(P, B, 31, 100)
             prof = grid.amax(-2)
+            u0 = None
             if condition != "none":
-                if condition == "match":
-                    felt = col_angle[prof.argmax(-1)]
+                if condition == "match":  # the wrist executes the M1_2 command (N1 -1, N2 0, N3 +1 posture)
+                    wrist = torch.where(live, (wrist + a - 1).clamp(0, 6), wrist)
+                    felt = ang[wrist]
                 else:
                     felt = ang[torch.stack([torch.randint(7, (B,), generator=g_) for g_ in gens])]
-                prof = prof + e.proprio_gain * self.ss_code(obj, felt).reshape(P, B, 31, 100).amax(-2)
-            d = self.ss_field(e.field_gain * prof, max_cycles=e.field_max_cycles)
+                pro = e.proprio_gain * self.ss_code(obj, felt).reshape(P, B, 31, 100).amax(-2)
+                prof = prof + pro
+                u0 = e.field_h + e.field_gain * pro  # proprioception pre-activates SS
+            d = self.ss_field(e.field_gain * prof, max_cycles=e.field_max_cycles, u0=u0)
             col = torch.where(d.decided, d.winner, prof.argmax(-1))
             row = grid.gather(-1, col[..., None, None].expand(P, B, 31, 1)).squeeze(-1).argmax(-1)
             new_obj = (row >= 15).long()
@@ -211,6 +276,7 @@ class MotorRotationModel(nn.Module):
             img = (img / img.amax(-1, keepdim=True).clamp_min(1e-9) >= e.image_threshold).float()
             rt += torch.where(live, d.cycles, torch.zeros_like(d.cycles))
             ss = torch.where(live.unsqueeze(-1), new_ss, ss)
+            ss_i = torch.where(live, 14 + new_obj * 100 + col, ss_i)
             obj = torch.where(live, new_obj, obj)
             pp = torch.where(live.unsqueeze(-1), img, pp)
             steps += live.long()
@@ -218,7 +284,7 @@ class MotorRotationModel(nn.Module):
                 frames[k].append({"PP": pp[0, k].reshape(32, 32).clone(), "SS": ss[0, k].reshape(31, 100).clone(),
                                   "M1_1": m[0, k].reshape(64, 64).clone()})
         final = col_angle[ss.reshape(P, B, 31, 100).amax(-2).argmax(-1)]
-        target_angle = desired
+        target_angle = desired if target_angle is None else target_angle
         ok = stopped & ((final - target_angle).abs() < 15.0)
         act = self.som_bump(self.pfc2, torch.cat([pp, pfc1], -1))
         s = self.c5.net(act)
