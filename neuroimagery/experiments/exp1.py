@@ -19,8 +19,8 @@ from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import summarise_trials
 from ..models.rotation_affordance import AffordanceRotationModel
-from ..run import load_checkpoint
-from .protocol_ch5 import edge_maps, objects_of, pearson, stimulus_set, to_np, trials_frame
+from .protocol_ch5 import (edge_maps, load_model, objects_of, pearson, stimulus_set, to_np, train_and_save,
+                           trials_frame)
 
 
 @dataclass
@@ -99,29 +99,16 @@ def _e(cfg) -> Exp1Config:
     return e
 
 
-def _training_images(cfg, sset) -> dict:
-    objs = objects_of(sset)
-    angles = [float(a) for a in range(-90, 91, int(cfg.experiment.step_deg))]
-    items = [(o, a) for o in objs for a in angles]
-    maps = edge_maps(cfg, sset, items).reshape(len(items), -1)
-    return {(objs.index(o), a): maps[i] for i, (o, a) in enumerate(items)}
+def _angles(cfg) -> list[float]:
+    return [float(a) for a in range(-90, 91, int(cfg.experiment.step_deg))]
 
 
 def train(cfg, run):
-    from ..vision.stimulus_sets import get_stimulus_set
-
-    model = AffordanceRotationModel(_e(cfg), cfg.participants, cfg.seed)
-    model.fit(_training_images(cfg, get_stimulus_set("L")))
-    run.save_checkpoint("model", {"state_dict": model.state_dict(), "participants": cfg.participants})
-    return model
+    return train_and_save(cfg, run, AffordanceRotationModel, _e(cfg), _angles(cfg))
 
 
 def load(cfg, checkpoint_dir):
-    state = load_checkpoint(checkpoint_dir, "model")
-    model = AffordanceRotationModel(_e(cfg), state["participants"], cfg.seed)
-    model.load_state_dict(state["state_dict"])
-    model.eval()
-    return model
+    return load_model(cfg, checkpoint_dir, AffordanceRotationModel, _e(cfg))
 
 
 def test_pairs(test: str, objs: list[str]) -> list[dict]:

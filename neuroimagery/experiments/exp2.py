@@ -15,8 +15,7 @@ from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import compare_rates, compare_rt, summarise_trials
 from ..models.rotation_motor import ANGLES, MotorRotationModel
-from ..run import load_checkpoint
-from .protocol_ch5 import edge_maps, objects_of, stimulus_set, to_np, trials_frame
+from .protocol_ch5 import edge_maps, load_model, objects_of, stimulus_set, to_np, train_and_save, trials_frame
 
 
 @dataclass
@@ -87,28 +86,12 @@ def _e(cfg) -> Exp2Config:
     return replace(e, som_iterations=min(e.som_iterations, e.quick_som_iterations)) if cfg.preset == "quick" else e
 
 
-def _images(cfg, sset) -> dict:
-    objs = objects_of(sset)
-    items = [(o, a) for o in objs for a in ANGLES]
-    maps = edge_maps(cfg, sset, items).reshape(len(items), -1)
-    return {(objs.index(o), a): maps[i] for i, (o, a) in enumerate(items)}
-
-
 def train(cfg, run):
-    from ..vision.stimulus_sets import get_stimulus_set
-
-    model = MotorRotationModel(_e(cfg), cfg.participants, cfg.seed)
-    model.fit(_images(cfg, get_stimulus_set("L")))
-    run.save_checkpoint("model", {"state_dict": model.state_dict(), "participants": cfg.participants})
-    return model
+    return train_and_save(cfg, run, MotorRotationModel, _e(cfg), ANGLES)
 
 
 def load(cfg, checkpoint_dir):
-    state = load_checkpoint(checkpoint_dir, "model")
-    model = MotorRotationModel(_e(cfg), state["participants"], cfg.seed)
-    model.load_state_dict(state["state_dict"])
-    model.eval()
-    return model
+    return load_model(cfg, checkpoint_dir, MotorRotationModel, _e(cfg))
 
 
 def run_test(cfg, model, sset, test, condition, record=0):

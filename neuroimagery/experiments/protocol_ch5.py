@@ -89,6 +89,35 @@ def hebbian_online(weight0: torch.Tensor, pre: torch.Tensor, post: torch.Tensor,
 
 
 # --------------------------------------------------------------------------------- trials
+def image_table(cfg, sset, angles: Sequence[float]) -> dict:
+    """Edge maps of every (object, angle) of the L set, keyed ``(object index, angle)``, flattened."""
+    objs = objects_of(sset)
+    items = [(o, float(a)) for o in objs for a in angles]
+    maps = edge_maps(cfg, sset, items).reshape(len(items), -1)
+    return {(objs.index(o), a): maps[i] for i, (o, a) in enumerate(items)}
+
+
+def train_and_save(cfg, run, model_cls, e, angles: Sequence[float]):
+    """Train ``model_cls(e, participants, seed)`` on the L set at ``angles`` and checkpoint it."""
+    from ..vision.stimulus_sets import get_stimulus_set
+
+    model = model_cls(e, cfg.participants, cfg.seed)
+    model.fit(image_table(cfg, get_stimulus_set("L"), angles))
+    run.save_checkpoint("model", {"state_dict": model.state_dict(), "participants": cfg.participants})
+    return model
+
+
+def load_model(cfg, checkpoint_dir, model_cls, e):
+    """The model of a training run's ``checkpoints/model.pt``, in eval mode."""
+    from ..run import load_checkpoint
+
+    state = load_checkpoint(checkpoint_dir, "model")
+    model = model_cls(e, state["participants"], cfg.seed)
+    model.load_state_dict(state["state_dict"])
+    model.eval()
+    return model
+
+
 def trials_frame(rows: list[dict]) -> pd.DataFrame:
     """Rows -> the trials table of RESULTS.md (columns in the public order, extras after)."""
     df = pd.DataFrame(rows)
