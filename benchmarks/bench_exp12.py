@@ -30,7 +30,7 @@ def som_equivalence(steps: int) -> None:
     """M1_1 (64x64, 6,200 inputs, 98 patterns), 2 participants, the configured schedule compressed
     to ``steps``: winners, quantisation / topographic errors and weights of each method."""
     from neuroimagery.experiments.exp2 import Exp2Config
-    from neuroimagery.experiments.protocol_ch5 import som_fit_windowed
+    from neuroimagery.nn.som import fit_windowed as som_fit_windowed
     from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
     from neuroimagery.nn import SOM, participant_generators
 

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from neuroimagery.experiments.exp1 import Exp1Config
-from neuroimagery.experiments.protocol_ch5 import hebbian_indexed, hebbian_online, hebbian_shared
+from neuroimagery.nn.hebbian_closed_form import hebbian_indexed, hebbian_online, hebbian_shared
 from neuroimagery.nn import AllToAll, Hebbian
 
 

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from neuroimagery.experiments.exp2 import Exp2Config
-from neuroimagery.experiments.protocol_ch5 import som_fit_windowed
+from neuroimagery.nn.som import fit_windowed as som_fit_windowed
 from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
 from neuroimagery.nn import SOM, participant_generators
 

@@ -72,3 +72,14 @@ def test_som_bad_inputs():
         som.fit(torch.rand(5, 4), generators=participant_generators(0, 1), method="magic")
     with pytest.raises(ValueError, match="supervised"):
         SOM((3,), 4, supervised=True).fit(torch.rand(5, 4), generators=participant_generators(0, 1))
+
+
+def test_windowed_fit_equals_online_rule():
+    X = (torch.rand(25, 300, generator=torch.Generator().manual_seed(3)) > 0.7).float()
+    kw = dict(participants=3, seed=5, eta=0.3, sigma=3.0, eta_final=0.02, sigma_final=0.5, iterations=400)
+    a, b = SOM((9, 9), 300, **kw), SOM((9, 9), 300, **kw)
+    order = seeding.randint(participant_generators(2, 3), 25, (400,))
+    wa = a.fit(X, order=order, method="online")
+    wb = b.fit(X, order=order, method="windowed")
+    assert torch.equal(wa, wb)
+    assert torch.allclose(a.weight, b.weight, atol=1e-5)

@@ -29,7 +29,8 @@ import torch
 from torch import nn
 
 from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators, seeding
-from ..experiments.protocol_ch5 import hebbian_shared, som_fit_windowed
+from ..nn.hebbian_closed_form import hebbian_shared
+from ..nn.som import fit_windowed as som_fit_windowed
 
 
 class AffordanceRotationModel(nn.Module):

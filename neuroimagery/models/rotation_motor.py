@@ -15,7 +15,7 @@ predicted posture), C3/C4 -> PFC_2 (SOM), C5 PFC_2->PMC_2; every Hebbian one is 
 The competition inside SS (forward prediction + weaker proprioception, which also pre-activates
 the field) and inside PMC_2 is a dynamic field run to threshold; the SS field runs along the
 wrist-angle axis (100 units). The SOMs train by the batched windowed form of the online rule
-(``protocol_ch5.som_fit_windowed``) unless ``som_method`` says otherwise. RT =
+(``nn.som.fit_windowed``) unless ``som_method`` says otherwise. RT =
 SS competition cycles over the rotation steps + PMC_2 cycles (1 cycle = 1 ms).
 """
 from __future__ import annotations
@@ -23,7 +23,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ..experiments.protocol_ch5 import hebbian_indexed, hebbian_shared, som_fit_windowed
+from ..nn.hebbian_closed_form import hebbian_indexed, hebbian_shared
+from ..nn.som import fit_windowed as som_fit_windowed
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 
 ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]

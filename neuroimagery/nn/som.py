@@ -14,12 +14,17 @@ participants. Two exact implementations of the same online rule are offered:
   the weights are formed once at the end. Same sequence of winners, same weights up to float
   rounding (see ``tests/test_som.py``).
 
+* ``method='windowed'`` (unsupervised 2-D maps) is the factored form again, but each participant
+  touches only the square of units its own truncated neighbourhood reaches, so batching many
+  participants does not widen the region updated at each step (:func:`fit_windowed`).
+
 ``method='auto'`` picks ``factored`` when there are fewer training patterns than inputs.
 """
 from __future__ import annotations
 
 from typing import Sequence
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -139,8 +144,8 @@ class SOM(nn.Module):
         given ``order`` ``(P, iterations)`` of indices). ``labels`` ``(N,)`` or ``(P, N)`` are the
         forced winners of a supervised map. Returns the winners ``(P, iterations)``.
         """
-        if method not in ("auto", "online", "factored"):
-            raise ValueError(f"method must be 'auto', 'online' or 'factored', got {method!r}")
+        if method not in ("auto", "online", "factored", "windowed"):
+            raise ValueError(f"method must be 'auto', 'online', 'factored' or 'windowed', got {method!r}")
         check_tensor("patterns", patterns, (self.n_in,))
         P = self.participants
         X = patterns.to(self.weight.dtype)
@@ -180,6 +185,10 @@ class SOM(nn.Module):
             from tqdm.auto import tqdm
 
             it = tqdm(it, desc=f"SOM {self.name}", leave=False)
+        if method == "windowed":
+            if labels is not None:
+                raise ValueError("method='windowed' trains unsupervised maps; use 'factored' with labels")
+            return fit_windowed(self, X, order)
         fn = self._fit_factored if method == "factored" else self._fit_online
         return fn(X, order, labels, it)
 
@@ -335,3 +344,104 @@ class BidirectionalSOM(nn.Module):
 
     def reset_state(self) -> None:
         pass
+
+
+@torch.no_grad()
+def fit_windowed(som, patterns: torch.Tensor, order: torch.Tensor) -> torch.Tensor:
+    """Online Kohonen training (eq. 4.5) of every participant of ``som``, touching only each
+    participant's own neighbourhood window.
+
+    The arithmetic is that of ``SOM.fit(method='factored')``: each prototype is kept as
+    ``w_k = c_k (f_k W0_k + sum_n R_kn x_n)`` and its dot products with the ``N`` patterns
+    ``Q_kn = w_k . x_n / c_k`` are updated in closed form. The difference is *which* units are
+    visited: the rule's truncated Gaussian (``theta < rule.cutoff`` -> 0) is non-zero only inside
+    a square of half-width ``sigma sqrt(2 ln(1 / cutoff))`` around the winner, so each step
+    gathers that square per participant (a unit outside it would get ``a_k = 0``, which leaves
+    every quantity unchanged). A step costs ``P x window x N``; batching participants no longer
+    widens the touched region to the union of their neighbourhoods. ``f_k`` carries the scale
+    folded out of ``c_k`` (so ``W0`` is never copied). ``patterns`` ``(N, in)`` or ``(P, N, in)``,
+    ``order`` ``(P, T)``. Returns the winners ``(P, T)``; the tests compare them, and the
+    weights, with ``SOM.fit(method='online')``.
+    """
+    rule = som.rule
+    if som.supervised or len(som.shape) != 2:
+        raise ValueError("som_fit_windowed trains unsupervised 2-D maps")
+    if max(rule.eta0, rule.eta1) >= 1:
+        raise ValueError("som_fit_windowed needs learning rates below 1")
+    P, U = som.participants, som.units
+    rows, cols = som.shape
+    dt = torch.float64
+    X = patterns.to(dt)
+    X = X.unsqueeze(0).expand(P, -1, -1) if X.dim() == 2 else X
+    N = X.shape[1]
+    order = torch.as_tensor(order, dtype=torch.long)
+    pi = torch.arange(P)
+    G = torch.bmm(X, X.transpose(1, 2))  # (P, N, N)
+    W0 = som.weight
+    # one padding unit (index U) absorbs the window cells that fall off the map
+    Q = torch.zeros(P, N, U + 1, dtype=dt)  # Q[p, n, k] = w_k . x_n / c_k (pattern-major: one row per step)
+    nrm = torch.zeros(P, U + 1, dtype=dt)
+    X32 = X.to(W0.dtype)
+    for p in range(P):  # one participant at a time, in the weights' precision (as the online rule)
+        Q[p, :, :U] = (X32[p] @ W0[p].T).to(dt)
+        nrm[p, :U] = (W0[p] * W0[p]).sum(-1).to(dt)
+    c = torch.ones(P, U + 1, dtype=dt)
+    f = torch.ones(P, U + 1, dtype=dt)
+    R = torch.zeros(P, U + 1, N, dtype=dt)
+    grid = som.grid
+    reach = float(np.sqrt(2.0 * np.log(1.0 / rule.cutoff))) if rule.cutoff > 0 else float("inf")
+    o = torch.arange(-(rows - 1), rows).unsqueeze(1), torch.arange(-(cols - 1), cols).unsqueeze(0)
+    offs = torch.stack(torch.broadcast_tensors(*o), -1).reshape(-1, 2)  # every grid offset
+    d2_offs = (offs**2).sum(-1).double()
+    offs, d2_offs = offs[d2_offs.argsort(stable=True)], d2_offs.sort(stable=True).values  # nearest first
+    R_f, nrm_f, c_f = R.view(-1), nrm.view(-1), c.view(-1)
+    base = (pi * (U + 1)).unsqueeze(1)
+    winners = torch.empty_like(order)
+    t0 = int(som.steps)
+    for t in range(order.shape[1]):
+        s = order[:, t]
+        Gs = G[pi, s]  # (P, N)
+        Ds = c * Q[pi, s]  # (P, U + 1): w_k . x_s
+        win = (nrm[:, :U] - 2 * Ds[:, :U]).argmin(-1)
+        winners[:, t] = win
+        eta, sigma = rule.schedule(t0 + t)
+        # grid offsets whose theta can reach the cutoff: d^2 <= 2 sigma^2 ln(1 / cutoff) (+1 for rounding)
+        lim = min(float(sigma) ** 2 * reach**2 + 1.0, float(rows**2 + cols**2))
+        n = int(torch.searchsorted(d2_offs, torch.tensor(lim, dtype=torch.float64), right=True))
+        dr, dq, d2 = offs[:n, 0], offs[:n, 1], d2_offs[:n].float()
+        theta = torch.exp(-d2 / (2.0 * sigma**2))  # the rule's neighbourhood, same float32 arithmetic
+        theta = torch.where(theta < rule.cutoff, torch.zeros_like(theta), theta)
+        r = (win // cols).unsqueeze(1) + dr  # (P, k)
+        q = (win % cols).unsqueeze(1) + dq
+        inside = (r >= 0) & (r < rows) & (q >= 0) & (q < cols)
+        idx = torch.where(inside, r * cols + q, torch.full_like(r, U))
+        a = (eta * theta).to(dt) * inside  # (P, k), zero on the padding unit
+        b = 1 - a
+        flat = (idx + base).reshape(-1)  # rows of the flattened (P (U + 1), ...) buffers
+        nrm_w, Ds_w, c_w = nrm_f[flat].view(P, -1), Ds.reshape(-1)[flat].view(P, -1), c_f[flat].view(P, -1)
+        nrm_f.index_copy_(0, flat, (b * b * nrm_w + 2 * a * b * Ds_w + a * a * Gs[pi, s].unsqueeze(-1)).reshape(-1))
+        c_w = b * c_w
+        c_f.index_copy_(0, flat, c_w.reshape(-1))
+        u = a / c_w  # zero outside the neighbourhood and on the padding unit
+        if idx.shape[1] * 2 > U:  # a wide neighbourhood: one contiguous pass over every unit is cheaper
+            Q.baddbmm_(Gs.unsqueeze(-1), torch.zeros(P, U + 1, dtype=dt).scatter_(1, idx, u).unsqueeze(1))
+        else:
+            at = idx.unsqueeze(1).expand(P, N, idx.shape[1])
+            Q.scatter_(2, at, Q.gather(2, at).baddbmm_(Gs.unsqueeze(-1), u.unsqueeze(1)))
+        R_f.index_add_(0, flat * N + s.repeat_interleave(idx.shape[1]), u.reshape(-1))
+        small = c_w < 1e-12  # fold tiny scales back in before they cost precision
+        if bool(small.any()):
+            pp, kk = small.nonzero(as_tuple=True)
+            uu = idx[pp, kk]
+            ok = uu < U
+            pp, uu = pp[ok], uu[ok]
+            cc = c[pp, uu].unsqueeze(-1)
+            Q[pp, :, uu] *= cc
+            R[pp, uu] *= cc
+            f[pp, uu] *= cc.squeeze(-1)
+            c[pp, uu] = 1.0
+    for p in range(P):  # w_k = c_k f_k W0_k + (c_k R_k) X: coefficients in float64, product in the weights' precision
+        cr = (c[p, :U, None] * R[p, :U]).to(W0.dtype)
+        som.weight[p].mul_((c[p, :U] * f[p, :U]).to(W0.dtype).unsqueeze(-1)).add_(cr @ X32[p])
+    som.steps += order.shape[1]
+    return winners
