@@ -379,11 +379,11 @@ def fit_windowed(som, patterns: torch.Tensor, order: torch.Tensor) -> torch.Tens
     G = torch.bmm(X, X.transpose(1, 2))  # (P, N, N)
     W0 = som.weight
     # one padding unit (index U) absorbs the window cells that fall off the map
-    Q = torch.zeros(P, N, U + 1, dtype=dt)  # Q[p, n, k] = w_k . x_n / c_k (pattern-major: one row per step)
+    Q = torch.zeros(P, U + 1, N, dtype=dt)  # Q[p, k, n] = w_k . x_n / c_k (unit-major: a window is a set of rows)
     nrm = torch.zeros(P, U + 1, dtype=dt)
     X32 = X.to(W0.dtype)
     for p in range(P):  # one participant at a time, in the weights' precision (as the online rule)
-        Q[p, :, :U] = (X32[p] @ W0[p].T).to(dt)
+        Q[p, :U] = (W0[p] @ X32[p].T).to(dt)
         nrm[p, :U] = (W0[p] * W0[p]).sum(-1).to(dt)
     c = torch.ones(P, U + 1, dtype=dt)
     f = torch.ones(P, U + 1, dtype=dt)
@@ -394,14 +394,14 @@ def fit_windowed(som, patterns: torch.Tensor, order: torch.Tensor) -> torch.Tens
     offs = torch.stack(torch.broadcast_tensors(*o), -1).reshape(-1, 2)  # every grid offset
     d2_offs = (offs**2).sum(-1).double()
     offs, d2_offs = offs[d2_offs.argsort(stable=True)], d2_offs.sort(stable=True).values  # nearest first
-    R_f, nrm_f, c_f = R.view(-1), nrm.view(-1), c.view(-1)
+    R_f, nrm_f, c_f, Q_f = R.view(-1), nrm.view(-1), c.view(-1), Q.view(-1, N)
     base = (pi * (U + 1)).unsqueeze(1)
     winners = torch.empty_like(order)
     t0 = int(som.steps)
     for t in range(order.shape[1]):
         s = order[:, t]
         Gs = G[pi, s]  # (P, N)
-        Ds = c * Q[pi, s]  # (P, U + 1): w_k . x_s
+        Ds = c * Q[pi, :, s]  # (P, U + 1): w_k . x_s
         win = (nrm[:, :U] - 2 * Ds[:, :U]).argmin(-1)
         winners[:, t] = win
         eta, sigma = rule.schedule(t0 + t)
@@ -424,10 +424,9 @@ def fit_windowed(som, patterns: torch.Tensor, order: torch.Tensor) -> torch.Tens
         c_f.index_copy_(0, flat, c_w.reshape(-1))
         u = a / c_w  # zero outside the neighbourhood and on the padding unit
         if idx.shape[1] * 2 > U:  # a wide neighbourhood: one contiguous pass over every unit is cheaper
-            Q.baddbmm_(Gs.unsqueeze(-1), torch.zeros(P, U + 1, dtype=dt).scatter_(1, idx, u).unsqueeze(1))
+            Q.baddbmm_(torch.zeros(P, U + 1, dtype=dt).scatter_(1, idx, u).unsqueeze(-1), Gs.unsqueeze(1))
         else:
-            at = idx.unsqueeze(1).expand(P, N, idx.shape[1])
-            Q.scatter_(2, at, Q.gather(2, at).baddbmm_(Gs.unsqueeze(-1), u.unsqueeze(1)))
+            Q_f.index_add_(0, flat, (u.unsqueeze(-1) * Gs.unsqueeze(1)).reshape(-1, N))
         R_f.index_add_(0, flat * N + s.repeat_interleave(idx.shape[1]), u.reshape(-1))
         small = c_w < 1e-12  # fold tiny scales back in before they cost precision
         if bool(small.any()):
@@ -436,7 +435,7 @@ def fit_windowed(som, patterns: torch.Tensor, order: torch.Tensor) -> torch.Tens
             ok = uu < U
             pp, uu = pp[ok], uu[ok]
             cc = c[pp, uu].unsqueeze(-1)
-            Q[pp, :, uu] *= cc
+            Q[pp, uu] *= cc
             R[pp, uu] *= cc
             f[pp, uu] *= cc.squeeze(-1)
             c[pp, uu] = 1.0
