@@ -473,18 +473,9 @@ class ToolWorld:
                 blew_up = True
                 break
             dx, dy = pos[0] - start[0], pos[1] - start[1]
-            now = (pos[0] < rx, False, -dx > mt, dx > mt, dy > mt, -dy > mt)
-            if not fired[1]:
-                for cp in contacts(rake, toy, physicsClientId=cid):
-                    on_toy, normal = cp[6], cp[7]  # position on B (the toy), normal from B to A
-                    if on_toy[2] >= top - cfg.touch_tolerance and abs(normal[2]) >= cfg.touch_normal_z:
-                        now = (now[0], True) + now[2:]
-                        break
-            for i, f in enumerate(now):
-                if f and not fired[i]:
-                    fired[i] = True
-                    if first is None:
-                        first = EVENTS[i]
+            now = [pos[0] < rx, False, -dx > mt, dx > mt, dy > mt, -dy > mt]
+            first = _latch_events(now, fired, first, top, cfg,
+                                  lambda: contacts(rake, toy, physicsClientId=cid))
             if watched_i is not None and fired[watched_i]:
                 break
             was_resting = resting
@@ -538,17 +529,7 @@ class ToolWorld:
                 d[1] > cfg.move_threshold,
                 -d[1] > cfg.move_threshold,
             ]
-            if not fired[1]:
-                for cp in c.getContactPoints(self.rake, self.toy):
-                    on_toy, normal = cp[6], cp[7]  # position on B (the toy), normal from B to A
-                    if on_toy[2] >= top - cfg.touch_tolerance and abs(normal[2]) >= cfg.touch_normal_z:
-                        now[1] = True
-                        break
-            for i, f in enumerate(now):
-                if f and not fired[i]:
-                    fired[i] = True
-                    if first is None:
-                        first = EVENTS[i]
+            first = _latch_events(now, fired, first, top, cfg, lambda: c.getContactPoints(self.rake, self.toy))
             if watched_i is not None and fired[watched_i]:
                 break
         final = self.toy_xy()
@@ -593,6 +574,24 @@ class ToolWorld:
         toy, rake = colour_masks(image)
         self.timing["render_s"] += time.perf_counter() - t0
         return {"image": image, "toy": toy, "rake": rake}
+
+
+def _latch_events(now: list, fired: list, first: str | None, top: float, cfg: WorldConfig,
+                  contact_points) -> str | None:
+    """Add "touch" to this step's events ``now`` from the rake-toy contacts (read only while touch
+    has not fired yet), latch every event that fires into ``fired`` and return the first event."""
+    if not fired[1]:
+        for cp in contact_points():
+            on_toy, normal = cp[6], cp[7]  # position on B (the toy), normal from B to A
+            if on_toy[2] >= top - cfg.touch_tolerance and abs(normal[2]) >= cfg.touch_normal_z:
+                now[1] = True
+                break
+    for i, f in enumerate(now):
+        if f and not fired[i]:
+            fired[i] = True
+            if first is None:
+                first = EVENTS[i]
+    return first
 
 
 def _quat_from_matrix(R: np.ndarray) -> np.ndarray:
