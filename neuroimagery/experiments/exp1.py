@@ -16,11 +16,11 @@ import pandas as pd
 import torch
 
 from ..analysis import figures
-from ..analysis.report import Report, reproducibility_note
+from ..analysis.report import Report
 from ..analysis.summary import summarise_trials
 from ..models.rotation_affordance import AffordanceRotationModel
-from .protocol_ch5 import (edge_maps, load_model, objects_of, pearson, stimulus_set, to_np, train_and_save,
-                           trials_frame)
+from .protocol_ch5 import (edge_maps, finish_report, load_model, objects_of, pearson, stimulus_set, to_np,
+                           train_and_save, trials_frame)
 
 
 @dataclass
@@ -254,15 +254,7 @@ def report(cfg, run, summary) -> None:
         "The competition for PMC_1 runs along the wrist-angle axis of the map (105 units); the object row is "
         "read at the winning column. The thesis runs it in the whole map.",
     ])
-    if "custom/none" in T:
-        c = T["custom/none"]
-        r.h("User stimuli")
-        r.p(f"Rotation success {c['rotation_success_rate']}, correct answers {c['correct_rate']}. This model only "
+    finish_report(r, cfg, run, summary, ("This model only "
             "knows the two objects it was trained on: C1 and C2 associate whole edge maps with postures and "
             "images of those objects, so an unseen shape is mapped to whichever trained image it overlaps most "
-            "and its 'rotation' replays the trained L. These numbers measure that limit, not a skill.")
-    r.h("Figures")
-    for k, v in summary.get("figures", {}).items():
-        r.figure(run.root / v, k.replace("_", " "), root=run.root)
-    r.p(reproducibility_note(cfg.seed))
-    r.write(run.report_path)
+            "and its 'rotation' replays the trained L. These numbers measure that limit, not a skill."))

@@ -12,10 +12,11 @@ import numpy as np
 import torch
 
 from ..analysis import figures
-from ..analysis.report import Report, reproducibility_note
+from ..analysis.report import Report
 from ..analysis.summary import compare_rates, compare_rt, summarise_trials
 from ..models.rotation_motor import ANGLES, MotorRotationModel
-from .protocol_ch5 import edge_maps, load_model, objects_of, stimulus_set, to_np, train_and_save, trials_frame
+from .protocol_ch5 import (edge_maps, finish_report, load_model, objects_of, stimulus_set, to_np, train_and_save,
+                           trials_frame)
 
 
 @dataclass
@@ -221,14 +222,6 @@ def report(cfg, run, summary) -> None:
         "actual wrist, which executes every M1_2 command; in the mismatch condition it is a random posture cluster.",
         "Rotation success is scored against the target's true orientation.",
     ])
-    if "custom/none" in T:
-        c = T["custom/none"]
-        r.h("User stimuli")
-        r.p(f"Rotation success {c['rotation_success_rate']}, correct answers {c['correct_rate']}. The model only knows "
+    finish_report(r, cfg, run, summary, ("The model only knows "
             "the two trained objects: C2 can only imagine those, so a user's shape is replaced by the trained L "
-            "during rotation. These numbers show that limit.")
-    r.h("Figures")
-    for k, v in summary.get("figures", {}).items():
-        r.figure(run.root / v, k.replace("_", " "), root=run.root)
-    r.p(reproducibility_note(cfg.seed))
-    r.write(run.report_path)
+            "during rotation. These numbers show that limit."))

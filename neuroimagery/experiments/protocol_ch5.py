@@ -96,3 +96,20 @@ def pearson(x: Sequence[float], y: Sequence[float]) -> float | None:
 
 def to_np(t: torch.Tensor) -> np.ndarray:
     return t.detach().cpu().float().numpy()
+
+
+def finish_report(r, cfg, run, summary: dict, custom_limit: str) -> None:
+    """Close a chapter-5 report: the user-stimulus section (with ``custom_limit``, why these
+    object-specific models cannot really rotate an unseen shape), the figures, and the
+    reproducibility note; then write ``report.md``."""
+    from ..analysis.report import reproducibility_note
+
+    c = summary["tests"].get("custom/none")
+    if c is not None:
+        r.h("User stimuli")
+        r.p(f"Rotation success {c['rotation_success_rate']}, correct answers {c['correct_rate']}. " + custom_limit)
+    r.h("Figures")
+    for k, v in summary.get("figures", {}).items():
+        r.figure(run.root / v, k.replace("_", " "), root=run.root)
+    r.p(reproducibility_note(cfg.seed))
+    r.write(run.report_path)
