@@ -114,7 +114,7 @@ def test_image_format():
 
 
 def test_more_features_in_set_B_than_A():
-    """Gen1 shapes have longer outlines (more corners) than the training shapes."""
+    """Gen-I / Gen1 shapes have longer outlines (more corners) than the training shapes."""
     def corners(name):
         s = get_stimulus_set(name)
         out = []
@@ -125,6 +125,7 @@ def test_more_features_in_set_B_than_A():
         return np.mean(out)
 
     assert corners("exp4-B") > corners("exp4-A") + 2
+    assert corners("exp3-b") > corners("exp3-a") + 2  # Gen-I shapes "consist of many details"
 
 
 # ---------------------------------------------------------------- user folders

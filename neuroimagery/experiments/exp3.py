@@ -53,6 +53,17 @@ class Exp3Config:
     # than the others'. sigma^2 = 0.82 / 4 puts the other units two "standard" widths down (exp(-2) ~ 0.13),
     # i.e. a clear posture difference gives a clear move and the softmax (tau 0.3) picks it ~90 % of the time.
     m1_sigma: float = 0.45
+    # how eq. 6.2 compares M1_1 with the weights of n1, n2, n3. 'centre' (default): by where the M1_1
+    # activity is centred across the diagonal (mean SS unit - PMC_1 unit, in posture units), so that two
+    # flat posture codes, like two coinciding ones, put it on the diagonal and select n2 (thesis 6.1.3:
+    # objects with no clear orientation make M1_1 activate its central units and stop the rotation early).
+    # 'pattern': the whole 16-unit pattern as a direction (width m1_sigma), where flat codes favour the
+    # 6-unit triangles and keep the rotation going.
+    m1_readout: str = "centre"
+    # width of the Gaussian of the 'centre' readout, in posture units (not given): half the spacing of the
+    # posture units, so that a centre one unit off the diagonal selects a turn (n2 falls to ~0.3, the softmax
+    # picks the turn ~87 % of the time) and a centre on the diagonal selects n2 (the turns fall to ~0.004)
+    m1_centre_sigma: float = 0.5
     # C8 tolerance (not given): a PP_2 unit covers the target units within this many map units (Chebyshev),
     # since edge maps are 1-2 units thick and one 45-deg step shifts resampled edges by up to one unit;
     # 0 = the literal one-to-one subtraction.
@@ -65,13 +76,15 @@ class Exp3Config:
 
     def __post_init__(self) -> None:
         for k in ("step_deg", "init_high", "eta_fm", "fm_threshold", "eta_posture", "eta_posture_final",
-                  "posture_sigma", "posture_code_sigma", "m1_sigma", "softmax_tau"):
+                  "posture_sigma", "posture_code_sigma", "m1_sigma", "m1_centre_sigma", "softmax_tau"):
             if not getattr(self, k) > 0:
                 raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
         for k in ("map_size", "fm_images", "fm_batch", "posture_iterations", "max_steps", "quick_objects",
                   "quick_fm_images"):
             if int(getattr(self, k)) < 1:
                 raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
+        if self.m1_readout not in ("centre", "pattern"):
+            raise ValueError(f"experiment.m1_readout must be 'centre' or 'pattern', got {self.m1_readout!r}")
         if int(self.match_tolerance) < 0:
             raise ValueError(f"experiment.match_tolerance must be >= 0, got {self.match_tolerance!r}")
         if not (0.0 <= self.match_threshold <= 1.0):

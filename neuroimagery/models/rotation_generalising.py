@@ -4,7 +4,8 @@ Fig. 6.2).
 Maps, batched ``(P, B, n)``: V1 (32x32 edge map); PP_1 (three 32x32 maps: clockwise, none,
 counter-clockwise; only the one chosen by M1_2 is active); PP_2 (32x32, predicted image); SS and
 PMC_1 (4 units each, wrist postures of the current and of the target image, eq. 6.5-6.6); M1_1
-(4x4 gain field, eq. 6.1); M1_2 (3 units n1/n2/n3, eq. 6.2, softmax eq. 6.3); PFC_1 (target),
+(4x4 gain field, eq. 6.1); M1_2 (3 units n1/n2/n3, eq. 6.2 on the centre of the M1_1 activity,
+softmax eq. 6.3); PFC_1 (target),
 PFC_2 (PFC_1 - PP_2: +1 one-to-one, -1 from the PP_2 units within ``match_tolerance``) and
 PMC_2 (the sum of the rectified PFC_2).
 
@@ -62,19 +63,40 @@ class RotationGeneralising(nn.Module):
 
     def m1_2(self, m11: torch.Tensor) -> torch.Tensor:
         """M1_2 activity (eq. 6.2): a Gaussian of the distance between M1_1 ``(P, B, 16)`` and the
-        weight vector of each of n1, n2, n3.
+        weights of each of n1, n2, n3, read as set by ``m1_readout``.
 
-        Both vectors are compared as directions (scaled to unit length, as eq. 6.8 rescales
-        trained weights), so the distance says *which* triangle of M1_1 holds the activity and not
-        how much activity there is, and the 4-unit diagonal is not favoured over the 6-unit
-        triangles by its size alone. The Gaussian is centred on the nearest weight vector (its
-        unit is 1), as in the posture code of eq. 6.5-6.6; ``m1_sigma`` sets how far the others
-        fall (see the config).
+        ``'centre'``: M1_1 is a population code (the 2-D Gaussian of eq. 6.1) and is compared with
+        each unit's weights by where its activity is centred across the diagonal: the
+        activity-weighted mean of (column - row), i.e. of (SS unit - PMC_1 unit), against the same
+        mean of each unit's mask (0 for the diagonal of n2, -5/3 and +5/3 for the triangles of n1
+        and n3), with width ``m1_centre_sigma`` posture units. Codes that agree, and codes that are
+        both flat, put the centre on the diagonal and select n2 (thesis 6.1.3).
+
+        ``'pattern'``: both vectors are compared as directions (scaled to unit length, as eq. 6.8
+        rescales trained weights), width ``m1_sigma``. Spread-out activity then favours the
+        6-unit triangles over the 4-unit diagonal, so flat codes keep the rotation going.
+
+        Either way the Gaussian is centred on the nearest unit (its activity is 1), as in the
+        posture code of eq. 6.5-6.6.
         """
-        w = self.m1_masks / self.m1_masks.norm(dim=-1, keepdim=True)
-        m = m11 / m11.norm(dim=-1, keepdim=True).clamp_min(1e-12)
-        d2 = ((m.unsqueeze(-2) - w) ** 2).sum(-1)  # (P, B, 3), in [0, 2]
-        return torch.exp(-(d2 - d2.min(-1, keepdim=True).values) / (2 * self.p.m1_sigma ** 2))
+        if self.p.m1_readout == "centre":
+            d2 = (self.m1_centre(m11).unsqueeze(-1) - self.m1_centre(self.m1_masks)) ** 2  # (P, B, 3)
+            sigma = self.p.m1_centre_sigma
+        else:
+            w = self.m1_masks / self.m1_masks.norm(dim=-1, keepdim=True)
+            m = m11 / m11.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+            d2 = ((m.unsqueeze(-2) - w) ** 2).sum(-1)  # (P, B, 3), in [0, 2]
+            sigma = self.p.m1_sigma
+        return torch.exp(-(d2 - d2.min(-1, keepdim=True).values) / (2 * sigma ** 2))
+
+    def m1_centre(self, m11: torch.Tensor) -> torch.Tensor:
+        """Activity-weighted mean of (column - row) of M1_1 patterns ``(..., nu*nu)``: how far, in
+        posture units, the posture of the current image (SS, columns) lies past the desired one
+        (PMC_1, rows); 0 for activity on the diagonal or spread evenly over the map."""
+        nu = int(round(m11.shape[-1] ** 0.5))
+        k = torch.arange(nu, dtype=m11.dtype)
+        offset = (k.view(1, -1) - k.view(-1, 1)).reshape(-1)  # column - row of each unit
+        return (m11 * offset).sum(-1) / m11.sum(-1).clamp_min(1e-12)
 
     def uncovered(self, pfc1: torch.Tensor, pp2: torch.Tensor) -> torch.Tensor:
         """PFC_2: target units not covered by the imagined image (C7 +1, C8 -1, rectified).

@@ -115,8 +115,9 @@ BUILTIN_GRIDS: dict[str, dict[str, str]] = {
     "L": {"A": "###/#../#../#../#.."},
     # Exp. 3 set a (training, Recog): long bars with one small feature -> clear main axis.
     "exp3-a": {"a1": "##/#./#./#./#.", "a2": "#./##/#./#./#.", "a3": ".#/##/#./#./#."},
-    # Exp. 3 set b (Gen-I): other long bars, two features, still a clear main axis.
-    "exp3-b": {"b1": "#./##/#./#./##", "b2": "##./.#./.#./.##/..#", "b3": "#./#./##/#./#./.#"},
+    # Exp. 3 set b (Gen-I): one-cell-wide bars like set a, but with three one-cell side features each
+    # ("unseen and consist of many details", thesis 6.1.3) -> still a clear main axis.
+    "exp3-b": {"b1": ".#./##./.#./.##/.#./.##", "b2": ".#./.##/##./.#./.#./##.", "b3": "##./.#./.##/.#./##./.#."},
     # Exp. 3 set c (Gen-II): compact irregular outlines, second moments nearly isotropic.
     "exp3-c": {"c1": "##.#/.###/##../..#.", "c2": "####/.#.#/.#.#/.#..", "c3": "###./####/.#../.#.."},
     # Exp. 4 set A (training, Recog): long bars with one feature -> clear main axis.
