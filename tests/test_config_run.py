@@ -105,3 +105,16 @@ def test_command_line_errors_are_one_clear_message(tmp_path, args, needle):
     assert p.returncode != 0
     assert needle in p.stderr
     assert "Traceback" not in p.stderr
+
+
+def test_summary_splits_errors_into_same_and_mirror_pairs():
+    from neuroimagery.analysis.summary import summarise_test
+
+    rows = []
+    for same, correct in [(True, True), (True, False), (True, False), (True, True), (False, True), (False, False)]:
+        rows.append(dict(disparity=0, rt=1.0, rotated_ok=True, same=same, correct=correct))
+    t = summarise_test(pd.DataFrame(rows))
+    assert t["error_rate_same"] == 0.5 and t["error_rate_different"] == 0.5
+    assert t["error_rate"] == round(3 / 6, 4)
+    t = summarise_test(pd.DataFrame(rows[:4]))
+    assert t["error_rate_same"] == 0.5 and t["error_rate_different"] is None

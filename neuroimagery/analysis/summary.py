@@ -45,6 +45,8 @@ def summarise_test(df: pd.DataFrame) -> dict:
     else:
         slope, r = (0.0 if len(x) >= 2 else float("nan")), float("nan")
     err = df.groupby("disparity")["correct"].apply(lambda c: 1.0 - c.astype(float).mean()).sort_index()
+    same = df["same"].astype(bool) if n else df["same"]
+    wrong = ~df["correct"].astype(bool) if n else df["correct"]
     return {
         "n_trials": int(n),
         "correct_rate": _r(correct),
@@ -55,6 +57,9 @@ def summarise_test(df: pd.DataFrame) -> dict:
         "error_rate_by_disparity": {str(int(round(k))): _r(v) for k, v in err.items()},
         "rt_slope_per_deg": _r(slope),
         "rt_r": _r(r),
+        # where the errors are: NO to same pairs, YES to mirror pairs
+        "error_rate_same": _r(float(wrong[same].mean()) if same.any() else float("nan")),
+        "error_rate_different": _r(float(wrong[~same].mean()) if (~same).any() else float("nan")),
     }
 
 

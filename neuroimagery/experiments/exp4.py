@@ -343,6 +343,23 @@ def report(cfg, run, summary) -> None:
     r.h("Forward models trained on three dots, applied to the test shapes")
     r.table(["set", "IoU after 1 step", "2 steps", "3 steps"],
             [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
+    r.h("Why the numbers differ")
+    r.p("Where this run's errors are: " + pc.error_split(t) + ".")
+    r.bullets([
+        "The shapes of sets A, B and C are designed for the thesis's descriptions (its figures are not in the "
+        "text); how well the posture maps (C16/C17, trained on set A) read sets B and C, and how much detail "
+        "each shape loses under the forward models (IoU table above), set the Gen1 and Gen2 rates.",
+        "Gen1 (below the thesis's ~86 %): set-B images are read at the wrong posture more often than set A's, "
+        "and the image blurs after two or three forward-model steps, so rotations stop at a wrong angle.",
+        "Gen2 (below the thesis's ~59 %): the flipped target (C10) reflects the target about the axis PPCt "
+        "reads; on set C that axis is unreliable, so target and flipped target overlap the mental image "
+        "about equally and the accumulator commits early to either answer (errors at every disparity, "
+        "including 0).",
+        "Eq. 6.14 puts a fixed bump on the arg-max posture, which discards the flatter C16 potentials of "
+        f"unfamiliar shapes (`posture_tau` = {cfg.experiment.posture_tau}; 0 = arg-max).",
+        "The accumulator constants, the flip rule and the stage at which proprioception joins PPCp are not "
+        "given in the thesis; the values and their reasons are listed in docs/exp4.md and docs/choices.md.",
+    ])
     r.h("Figures")
     for p in sorted(run.figures.glob("*.png")):
         r.figure(p, p.stem.replace("_", " "), root=run.root)

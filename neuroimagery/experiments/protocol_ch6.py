@@ -266,3 +266,10 @@ def load_model(checkpoint_dir, name: str, build):
     model.freeze()
     model.participant_ids = list(ck["participants"])
     return model
+
+
+def error_split(tests: dict) -> str:
+    """'recog/none: NO to same 12.0 %, YES to mirror 0.5 %; ...' from summary tests."""
+    pct = lambda v: "-" if v is None else f"{100 * v:.1f} %"
+    return "; ".join(f"{k}: NO to same pairs {pct(v.get('error_rate_same'))}, YES to mirror pairs "
+                     f"{pct(v.get('error_rate_different'))}" for k, v in tests.items() if k.endswith("/none"))
