@@ -119,6 +119,8 @@ def test_full_protocol(tmp_path):
     st = s["statistics"]["recog:noise-none-vs-none:disparity>=75"]
     assert st["rt"]["mean_a"] > st["rt"]["mean_b"] and st["rt"]["p"] < 0.05
     st = s["statistics"]["recog:noise-match-vs-noise-none:disparity>=75"]
+    assert st["rt"]["mean_a"] < st["rt"]["mean_b"]
+    st = s["statistics"]["recog:noise-match-vs-noise-none"]
     assert st["rt"]["mean_a"] < st["rt"]["mean_b"] and st["rt"]["p"] < 0.05
     band = s["statistics_by_disparity"]["recog:noise-match-vs-noise-none"]["150"]
     assert band["rt_a"] < band["rt_b"] and band["rt_p"] < 0.05
@@ -174,3 +176,23 @@ def test_posture_winner_is_uncertain_only_for_flat_potentials():
 def test_config_rejects_bad_proprio_stage():
     with pytest.raises(ValueError, match="proprio_stage"):
         exp4.Exp4Config(proprio_stage="late")
+    with pytest.raises(ValueError, match="flip_axis"):
+        exp4.Exp4Config(flip_axis="principal")
+
+
+def test_object_axis_flip_is_the_mirror_appearance():
+    """C10 with flip_axis='object' turns the target into its mirror appearance at the same angle,
+    whatever the posture maps read; a flip about a wrong angle does not."""
+    from neuroimagery.vision import iou
+
+    from neuroimagery.models.rotation_embodied import RotationEmbodied
+    from neuroimagery.nn import seeding
+    m = RotationEmbodied(exp4.Exp4Config(), seeding.participant_generators(0, [0], stream=0))
+    bank = pc.StimulusBank.build(pc.make_eye(_cfg("logger=none")), pc.stimulus_set(None, "exp4-C", False), 32)
+    items = [it for it in bank.items if it[2] == "basic"]
+    tgt = bank.maps[[bank.index[it] for it in items]].unsqueeze(0)
+    mir = bank.maps[[bank.index[(o, a, "mirror")] for o, a, _ in items]]
+    ang = torch.tensor([a for _, a, _ in items])
+    good = iou(m.flipped_about_object_axis(tgt, ang)[0].view(-1, 32, 32), mir.view(-1, 32, 32))
+    bad = iou(m.flipped_about_object_axis(tgt, ang + 30.0)[0].view(-1, 32, 32), mir.view(-1, 32, 32))
+    assert good.mean() > 0.6 and bad.mean() < good.mean() - 0.3

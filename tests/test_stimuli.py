@@ -20,7 +20,7 @@ from neuroimagery.vision import (
 )
 
 EXP3 = ["exp3-a", "exp3-b", "exp3-c"]
-EXP4 = ["exp4-A", "exp4-B", "exp4-C"]
+EXP4 = ["exp4-A", "exp4-B", "exp4-B-long", "exp4-C"]
 
 
 def test_set_names_and_unknown_name():
@@ -88,10 +88,19 @@ def test_elongation_matches_the_descriptions():
     """Sets with a clear main axis are elongated, the Gen-II sets nearly isotropic."""
     ratios = {n: [shape_elongation(get_stimulus_set(n), o) for o in get_stimulus_set(n).objects]
               for n in EXP3 + EXP4}
-    for n in ("exp3-a", "exp3-b", "exp4-A", "exp4-B"):
+    for n in ("exp3-a", "exp3-b", "exp4-A", "exp4-B", "exp4-B-long"):
         assert min(ratios[n]) > 2.0, (n, ratios[n])
     for n in ("exp3-c", "exp4-C"):
         assert max(ratios[n]) < 1.2, (n, ratios[n])
+
+
+def test_long_gen1_axis_as_clear_as_the_training_set():
+    """Sets A and B both have "a clear orientation main axis" (thesis 6.2.1). The exp4-B-long objects
+    are as elongated as the exp4-A objects; the default exp4-B objects are shorter and wider."""
+    ratio = lambda n: [shape_elongation(get_stimulus_set(n), o) for o in get_stimulus_set(n).objects]
+    lo, hi = min(ratio("exp4-A")), max(ratio("exp4-A"))
+    assert all(lo <= r <= hi for r in ratio("exp4-B-long")), ratio("exp4-B-long")
+    assert max(ratio("exp4-B")) < lo
 
 
 def test_drawing_turns_about_the_centroid():
@@ -125,6 +134,7 @@ def test_more_features_in_set_B_than_A():
         return np.mean(out)
 
     assert corners("exp4-B") > corners("exp4-A") + 2
+    assert corners("exp4-B-long") > corners("exp4-A") + 2
     assert corners("exp3-b") > corners("exp3-a") + 2  # Gen-I shapes "consist of many details"
 
 

@@ -36,7 +36,7 @@ class Exp4Config:
     ppc_angles: List[float] = field(default_factory=lambda: [-60.0, -30.0, 0.0, 30.0, 60.0, 90.0])  # wrist posture of each PPCp/PPCt unit, increasing
     train_set: str = "exp4-A"  # set whose images train C16/C17 (thesis: set A)
     recog_set: str = "exp4-A"  # Recog test set
-    gen1_set: str = "exp4-B"  # Gen1 test set
+    gen1_set: str = "exp4-B"  # Gen1 test set (exp4-B-long: bars as elongated as set A's, see docs/exp4.md)
     gen2_set: str = "exp4-C"  # Gen2 test set
     # --- forward models C1-C3 (delta rule, eq. 6.4) -------------------------------------
     init_high: float = 0.01  # initial weights U[0, init_high] of every trained connection ("small random"; not given)
@@ -53,6 +53,11 @@ class Exp4Config:
     # softmax of the max-normalised potentials at this temperature (uncertain for unfamiliar shapes,
     # whose potentials are nearly flat). 0.1 = the PMCm temperature, not fitted. PPCt stays arg-max.
     posture_tau: float = 0.0
+    # axis of the flipped target PFCft (C10, "flipped along the main object axis of the object"; not given how):
+    # 'object' = the object's own main axis at the orientation the target is shown in (C10 a fixed
+    # transformation of PFCt, as Table 6.2 lists it: no input from the posture maps); 'ppct' = the axis
+    # of the orientation PPCt reads (C17), so a misread target posture also gives a wrong flip
+    flip_axis: str = "object"
     ppc_sigma: float = 0.5  # width (units) of the Gaussian bump PPCp/PPCt put around the winner (eq. 6.14; not given)
     # --- action selection (eq. 6.10-6.11) ---------------------------------------------------
     softmax_tau: float = 0.1  # PMCm softmax temperature (thesis 0.1)
@@ -99,6 +104,8 @@ class Exp4Config:
             raise ValueError(f"experiment.lca_dt must be <= 1, got {self.lca_dt}")
         if len(self.ppc_angles) < 2 or list(self.ppc_angles) != sorted(self.ppc_angles):
             raise ValueError(f"experiment.ppc_angles must be >= 2 increasing angles, got {list(self.ppc_angles)}")
+        if self.flip_axis not in ("object", "ppct"):
+            raise ValueError(f"experiment.flip_axis must be 'object' or 'ppct', got {self.flip_axis!r}")
         if self.proprio_stage not in ("separate", "visual"):
             raise ValueError(f"experiment.proprio_stage must be 'separate' or 'visual', got {self.proprio_stage!r}")
         bad = [t for t in self.noise_tests if t not in TESTS]
@@ -193,6 +200,10 @@ def run_tests(cfg, model, eye=None, record: int = 0):
         table = _subset(bank, pc.trial_table(bank, test, "none"), cfg)
         tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+        flipped = None  # 'ppct': the model reflects each target about the axis PPCt reads
+        if e.flip_axis == "object":
+            angles = torch.as_tensor(table["target_angle"].to_numpy().astype(float).copy())
+            flipped = model.flipped_about_object_axis(tgt[:1], angles).expand(P, -1, -1)
         names, conds = [], []
         for noise in noisy:
             for cond in CONDITIONS:
@@ -200,7 +211,7 @@ def run_tests(cfg, model, eye=None, record: int = 0):
                 conds.append((cond, noise, seeding.participant_generators(cfg.seed, ids, stream=100 + k)))
                 k += 1
         # all conditions of a test in one batch: they share the targets and the first step
-        for name, out in zip(names, model.run_conditions(tgt, rot, conds, record=record)):
+        for name, out in zip(names, model.run_conditions(tgt, rot, conds, record=record, flipped=flipped)):
             histories[f"{test}/{name}"] = out.pop("history")
             frames.append(pc.trial_rows(table.assign(condition=name), out, ids))
     return pd.concat(frames, ignore_index=True), histories, banks
@@ -349,12 +360,11 @@ def report(cfg, run, summary) -> None:
         "The shapes of sets A, B and C are designed for the thesis's descriptions (its figures are not in the "
         "text); how well the posture maps (C16/C17, trained on set A) read sets B and C, and how much detail "
         "each shape loses under the forward models (IoU table above), set the Gen1 and Gen2 rates.",
-        "Gen1 (below the thesis's ~86 %): set-B images are read at the wrong posture more often than set A's, "
-        "and the image blurs after two or three forward-model steps, so rotations stop at a wrong angle.",
-        "Gen2 (below the thesis's ~59 %): the flipped target (C10) reflects the target about the axis PPCt "
-        "reads; on set C that axis is unreliable, so target and flipped target overlap the mental image "
-        "about equally and the accumulator commits early to either answer (errors at every disparity, "
-        "including 0).",
+        "Gen1: set-B images are read at the wrong posture more often than set A's (the default set-B bars "
+        "are less elongated than set A's; `exp4-B-long` is not), so rotations stop at a wrong angle.",
+        f"Gen2: the posture maps cannot read set C, so rotations are erratic; the flipped target (C10, "
+        f"`flip_axis` = {cfg.experiment.flip_axis}) decides whether zero-disparity mirror pairs are recognised "
+        "('object': the mirror appearance; 'ppct': a reflection about the misread PPCt axis, mostly wrong).",
         "Eq. 6.14 puts a fixed bump on the arg-max posture, which discards the flatter C16 potentials of "
         f"unfamiliar shapes (`posture_tau` = {cfg.experiment.posture_tau}; 0 = arg-max).",
         "The accumulator constants, the flip rule and the stage at which proprioception joins PPCp are not "

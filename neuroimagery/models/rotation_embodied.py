@@ -146,9 +146,21 @@ class RotationEmbodied(nn.Module):
         return out
 
     def flipped(self, target: torch.Tensor, ppct_unit: torch.Tensor) -> torch.Tensor:
-        """PFCft: the target reflected about the main axis of the orientation PPCt encodes (C10)."""
+        """PFCft with ``flip_axis='ppct'``: the target reflected about the main axis of the
+        orientation PPCt encodes (C10 driven by the posture map)."""
         pad = torch.cat([target, torch.zeros(*target.shape[:-1], 1)], dim=-1)
         return torch.gather(pad, -1, self.flip_index[ppct_unit])
+
+    def flipped_about_object_axis(self, target: torch.Tensor, angles_deg: torch.Tensor) -> torch.Tensor:
+        """PFCft with ``flip_axis='object'``: each target map ``(..., B, n)`` reflected about the
+        object's own main axis, i.e. its upright axis turned by the angle ``angles_deg`` ``(B,)``
+        at which the object is shown (C10 as a fixed transformation of PFCt; no posture input).
+        This is the mirror appearance of the shape at the target's orientation."""
+        pad = torch.cat([target, torch.zeros(*target.shape[:-1], 1)], dim=-1)
+        angles = [float(a) for a in torch.as_tensor(angles_deg).reshape(-1)]
+        table = {a: reflection_index(self.size, 90.0 + a) for a in set(angles)}
+        idx = torch.stack([table[a] for a in angles])  # (B, n)
+        return torch.gather(pad, -1, idx.expand(*pad.shape[:-2], -1, -1))
 
     # ------------------------------------------------------------------ trials
     @torch.no_grad()

@@ -122,9 +122,14 @@ BUILTIN_GRIDS: dict[str, dict[str, str]] = {
     "exp3-c": {"c1": "##.#/.###/##../..#.", "c2": "####/.#.#/.#.#/.#..", "c3": "###./####/.#../.#.."},
     # Exp. 4 set A (training, Recog): long bars with one feature -> clear main axis.
     "exp4-A": {"A1": "##/#./#./#./#./#.", "A2": ".#/.#/##/#./#./#.", "A3": "#./##/.#/.#/.#"},
-    # Exp. 4 set B (Gen1): long bars with three side features each -> more features, clear axis.
+    # Exp. 4 set B (Gen1): long bars with three side features each -> more features, clear axis
+    # (six-cell bars three cells wide, so less elongated than set A: axis ratio 2.5-2.9).
     "exp4-B": {"B1": "#../##./.#./.##/.#./##.", "B2": ".#./##./.#./.##/.#./.#.",
                "B3": ".#./.##/##./.#./.##/.#."},
+    # Alternative Gen1 set (experiment.gen1_set=exp4-B-long): eight-cell bars with three one-cell side
+    # features each, so the main axis is as clear as set A's (axis ratio within set A's range).
+    "exp4-B-long": {"B1": ".#./##./.#./.#./.##/.#./.#./##.", "B2": ".#./.##/.#./##./.#./.#./.##/.#.",
+                    "B3": "##./.#./.#./.##/.#./##./.#./.#."},
     # Exp. 4 set C (Gen2): notched 4x4 squares -> square-like, weak axis.
     "exp4-C": {"C1": "##.#/.###/####/.##.", "C2": "####/##.#/.#.#/##.#", "C3": ".##./####/###./.###"},
 }
