@@ -3,9 +3,15 @@ one; and check that the SOM training methods agree on Experiment 2's M1_1.
 
 Usage::
 
-    python benchmarks/bench_exp12.py [exp1|exp2] [participants] [extra overrides...]
-    python benchmarks/bench_exp12.py som [steps]     # M1_1: windowed / factored vs online
+    python benchmarks/bench_exp12.py [exp1|exp2|both] [participants] [extra overrides...]
+    python benchmarks/bench_exp12.py som [steps]     # M1_1: windowed (by pieces) / factored vs online
+
+Each run is ``evaluate`` (train, then test) in this process; wall and CPU time are printed (the
+machine may be shared: CPU time is the steadier number). One by one = ``participants`` separate
+runs of one participant each, estimated as ``participants`` x one such run (``--solo`` runs them
+all: every participant of a batched run has its own seed streams, so the sum is the real cost).
 """
+import os
 import sys
 import tempfile
 import time
@@ -20,19 +26,19 @@ from neuroimagery.run import evaluate
 def run(exp, overrides):
     with initialize_config_dir(config_dir=__file__.rsplit("/benchmarks", 1)[0] + "/conf", version_base="1.3"):
         cfg = compose("config", overrides=[f"experiment={exp}", "logger=none", "progress=false"] + overrides)
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory() as d:
-        evaluate(cfg, out_dir=d)
-    return time.perf_counter() - t
+        s = evaluate(cfg, out_dir=d)
+    return time.perf_counter() - t, time.process_time() - c, s.get("runtime_s", {})
 
 
 def som_equivalence(steps: int) -> None:
     """M1_1 (64x64, 6,200 inputs, 98 patterns), 2 participants, the configured schedule compressed
     to ``steps``: winners, quantisation / topographic errors and weights of each method."""
     from neuroimagery.experiments.exp2 import Exp2Config
-    from neuroimagery.nn.som import fit_windowed as som_fit_windowed
     from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
     from neuroimagery.nn import SOM, participant_generators
+    from neuroimagery.nn.som import fit_windowed
 
     e = Exp2Config(som_iterations=steps)
     m = MotorRotationModel(e, 2, 0)
@@ -42,18 +48,21 @@ def som_equivalence(steps: int) -> None:
     b = m.babble(steps)
     order = b["obj"] * 49 + b["cur"] * 7 + b["des"]
     res = {}
-    for method in ("online", "factored", "windowed"):
+    for method in ("online", "factored", "windowed", "windowed by pieces"):
         som = SOM((64, 64), 6200, generators=participant_generators(0, 2, stream=6), init=(0.0, e.init_high),
                   eta=e.som_eta, eta_final=e.som_eta_final, sigma=e.som_sigma, sigma_final=e.som_sigma_final,
                   iterations=steps)
         som.rule.cutoff = e.som_cutoff
         som.train()
-        t = time.perf_counter()
-        win = som_fit_windowed(som, X, order) if method == "windowed" else som.fit(X, order=order, method=method)
-        dt = time.perf_counter() - t
+        t = time.process_time()
+        if method.startswith("windowed"):
+            win = fit_windowed(som, X, order, parts=(3100, 3100) if method.endswith("pieces") else None)
+        else:
+            win = som.fit(X, order=order, method=method)
+        dt = time.process_time() - t
         res[method] = (win, som.weight.clone())
-        print(f"{method:9s} {dt:6.1f} s  QE {som.quantization_error(X).tolist()}  TE {som.topographic_error(X).tolist()}")
-    for method in ("factored", "windowed"):
+        print(f"{method:18s} {dt:6.1f} s CPU  QE {som.quantization_error(X).tolist()}  TE {som.topographic_error(X).tolist()}")
+    for method in ("factored", "windowed", "windowed by pieces"):
         same = (res[method][0] == res["online"][0]).float().mean().item()
         dw = (res[method][1] - res["online"][1]).abs().max().item()
         print(f"{method} vs online: winners identical {same:.1%}, max |weight difference| {dw:.2e}")
@@ -61,17 +70,34 @@ def som_equivalence(steps: int) -> None:
 
 def main():
     register_configs()
-    torch.set_num_threads(2)
-    exp = sys.argv[1] if len(sys.argv) > 1 else "exp1"
+    args = [a for a in sys.argv[1:] if a != "--solo"]
+    solo = "--solo" in sys.argv
+    exp = args[0] if args else "both"
     if exp == "som":
-        som_equivalence(int(sys.argv[2]) if len(sys.argv) > 2 else 200)
+        som_equivalence(int(args[1]) if len(args) > 1 else 200)
         return
-    P = int(sys.argv[2]) if len(sys.argv) > 2 else 10
-    extra = sys.argv[3:]
-    batched = run(exp, [f"participants={P}"] + extra)
-    one = run(exp, ["participants=1"] + extra)
-    print(f"{exp}: {P} participants batched {batched:.1f} s; one participant {one:.1f} s; "
-          f"one by one (estimated {P} x) {P * one:.1f} s; ratio {P * one / batched:.2f}")
+    P = int(args[1]) if len(args) > 1 else 10
+    extra = args[2:]
+    print(f"torch threads {torch.get_num_threads()} (OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}); "
+          "the experiments run on experiment.auto_threads unless threads=N is given")
+    total = [0.0, 0.0]
+    for ex in (["exp1", "exp2"] if exp == "both" else [exp]):
+        wall, cpu, parts = run(ex, [f"participants={P}"] + extra)
+        total[0] += wall
+        total[1] += cpu
+        print(f"{ex}: {P} participants batched: {wall:.1f} s wall, {cpu:.1f} s CPU (train {parts.get('train')} s, "
+              f"test {parts.get('evaluate')} s)", flush=True)
+        if solo:
+            one = [run(ex, ["participants=1", f"seed={s}"] + extra)[:2] for s in range(P)]
+            ow, oc = sum(x[0] for x in one), sum(x[1] for x in one)
+            how = f"{P} runs"
+        else:
+            ow, oc = (P * x for x in run(ex, ["participants=1"] + extra)[:2])
+            how = f"estimated {P} x one run"
+        print(f"{ex}: one by one ({how}): {ow:.1f} s wall, {oc:.1f} s CPU; ratio {ow / wall:.2f} (wall), "
+              f"{oc / cpu:.2f} (CPU)", flush=True)
+    if exp == "both":
+        print(f"exp1 + exp2 batched: {total[0]:.1f} s wall, {total[1]:.1f} s CPU")
 
 
 if __name__ == "__main__":

@@ -152,3 +152,48 @@ def test_full_run_mismatch_slows_without_costing_accuracy(full_run):
 @pytest.mark.slow
 def test_full_run_object_type_has_no_effect(full_run):
     assert full_run["object_type_anova"]["p"] > 0.05
+
+
+def test_row_cache_and_distinct_rows_equal_the_direct_products():
+    """Products looked up by key (computed once per distinct key, over at least MIN_ROWS rows)
+    are bit-identical to the product over the whole batch, also when a call brings one new key."""
+    from neuroimagery.models.rotation_motor import RowCache, distinct_rows
+
+    g = torch.Generator().manual_seed(0)
+    P, n_keys, n_in, n_out = 3, 40, 4096, 300  # the sizes of C9 (with one row, MKL rounds differently)
+    codes = torch.rand(n_keys, n_in, generator=g) * (torch.rand(n_keys, n_in, generator=g) < 0.1)
+    W = torch.rand(P, n_out, n_in, generator=g)
+    fn = lambda k: (torch.bmm(codes[k], W.transpose(1, 2)),)  # noqa: E731
+    cache = RowCache(P, n_keys, fn)
+    for keys in (torch.randint(20, (P, 50), generator=g), torch.randint(n_keys, (P, 60), generator=g),
+                 torch.full((P, 30), 3).index_fill_(1, torch.tensor([7]), 39)):  # the last brings one new key
+        (got,) = cache(keys)
+        assert torch.equal(got, fn(keys)[0])
+    x = codes[torch.randint(5, (P, 64), generator=g)]
+    net = lambda v: torch.bmm(v, W.transpose(1, 2))  # noqa: E731
+    assert torch.equal(distinct_rows(net, x), net(x))
+
+
+def test_trial_lookups_equal_direct_computation():
+    """The trial's tables (SS codes, C9 / C10 by M1_1 winner, C2 by SS code) equal the products
+    computed on a whole batch, as the trial did before it looked them up."""
+    m = MotorRotationModel(Exp2Config(), 2, 0)  # the initial (random) weights serve as well as trained ones
+    m.eval()
+    g = torch.Generator().manual_seed(1)
+    ss_set, table, motor, image = m._lookups()
+    ang = torch.tensor(ANGLES)
+    col_angle = m.ss.coords[:100, 1]
+    ss_i = torch.randint(214, (2, 196), generator=g)
+    obj = torch.where(ss_i < 14, ss_i // 7, (ss_i - 14) // 100)
+    angle = torch.where(ss_i < 14, ang[ss_i % 7], col_angle[(ss_i - 14) % 100])
+    assert torch.equal(ss_set[ss_i], m.ss_code(obj, angle))
+    des_i = torch.randint(7, (2, 196), generator=g)
+    bmu = table(ss_i, des_i)
+    assert torch.equal(bmu, m.m11.bmu(torch.cat([m.ss_code(obj, angle), m.pmc1_code(ang[des_i])], -1)))
+    mb = m.som_bump(m.m11, bmu=bmu)
+    a9, a10 = motor(bmu)
+    assert torch.equal(a9, m.c9.net(mb)) and torch.equal(a10, m.c10.net(mb))
+    assert torch.equal(image(ss_i)[0], m.c2.net(m.ss_code(obj, angle)))
+    assert m._lookups()[2] is motor  # built once per set of weights
+    m.c9.weight.add_(0.0)
+    assert m._lookups()[2] is not motor  # rebuilt after the weights change

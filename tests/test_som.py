@@ -83,3 +83,31 @@ def test_windowed_fit_equals_online_rule():
     wb = b.fit(X, order=order, method="windowed")
     assert torch.equal(wa, wb)
     assert torch.allclose(a.weight, b.weight, atol=1e-5)
+
+
+def test_windowed_fit_by_pieces_and_jointly_equals_online_rule():
+    """Patterns made of pieces ([a_i, b_j]: 4 x 3 pieces, 12 patterns): the windowed fit over the
+    distinct pieces (``parts``), and two maps trained together (``fit_windowed_many``), give the
+    online rule's winners; the joint fit gives each map exactly the weights of its own fit."""
+    from neuroimagery.nn.som import fit_windowed, fit_windowed_many
+
+    g = torch.Generator().manual_seed(7)
+    A, B = (torch.rand(4, 120, generator=g) > 0.6).float(), (torch.rand(3, 80, generator=g) > 0.6).float()
+    X = torch.cat([A.repeat_interleave(3, 0), B.repeat(4, 1)], 1)  # (12, 200)
+    Y = (torch.rand(9, 150, generator=g) > 0.5).float()
+    kw = dict(participants=2, eta=0.3, sigma=3.0, eta_final=0.02, sigma_final=0.5, iterations=300)
+    mk = lambda n_in, seed: SOM((9, 9), n_in, seed=seed, **kw)  # noqa: E731
+    ox = seeding.randint(participant_generators(1, 2), 12, (300,))
+    oy = seeding.randint(participant_generators(2, 2), 9, (300,))
+    ref_x, ref_y = mk(200, 3), mk(150, 4)
+    wx, wy = ref_x.fit(X, order=ox, method="online"), ref_y.fit(Y, order=oy, method="online")
+    solo = mk(200, 3)
+    assert torch.equal(fit_windowed(solo, X, ox, parts=(120, 80)), wx)
+    assert torch.allclose(solo.weight, ref_x.weight, atol=1e-5)
+    jx, jy = mk(200, 3), mk(150, 4)
+    vx, vy = fit_windowed_many([(jx, X, ox, (120, 80)), (jy, Y, oy, None)])
+    assert torch.equal(vx, wx) and torch.equal(vy, wy)
+    assert torch.equal(jx.weight, solo.weight)
+    assert torch.allclose(jy.weight, ref_y.weight, atol=1e-5)
+    with pytest.raises(ValueError, match="parts"):
+        fit_windowed(mk(200, 3), X, ox, parts=(100, 80))

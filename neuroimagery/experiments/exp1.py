@@ -19,8 +19,8 @@ from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import summarise_trials
 from ..models.rotation_affordance import AffordanceRotationModel
-from .protocol_ch5 import (edge_maps, finish_report, load_model, objects_of, pearson, stimulus_set, to_np,
-                           train_and_save, trials_frame)
+from .protocol_ch5 import (auto_threads, edge_maps, finish_report, load_model, objects_of, pearson, stimulus_set,
+                           to_np, train_and_save, trials_frame)
 
 
 @dataclass
@@ -45,6 +45,7 @@ class Exp1Config:
     som_sigma_final: float = 0.5  # PFC_2 final radius
     som_method: str = "windowed"  # exact online Kohonen by 'windowed' (batched, per-participant window), 'factored' or 'online'
     som_threads: int = 1  # intra-op threads while the SOM trains (each step is small: threads only add hand-offs)
+    auto_threads: int = 1  # intra-op threads for training and testing when the run's `threads` is 0 (see docs)
     som_filter_sigma: float = 2.0  # the cluster kept around the PFC_2 winner (the "filtering" of 5.2.2)
     field_tau: float = 10.0  # dynamic-field time constant (cycles)
     field_h: float = -0.2  # resting level
@@ -74,8 +75,9 @@ class Exp1Config:
             raise ValueError(f"experiment.feed_order must be 'sequential' or 'shuffled', got {self.feed_order!r}")
         if self.som_method not in ("windowed", "factored", "online"):
             raise ValueError(f"experiment.som_method must be 'windowed', 'factored' or 'online', got {self.som_method!r}")
-        if self.som_threads < 1:
-            raise ValueError(f"experiment.som_threads must be >= 1, got {self.som_threads!r}")
+        for k in ("som_threads", "auto_threads"):
+            if getattr(self, k) < 1:
+                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
         if 90 % self.step_deg != 0:
             raise ValueError(f"experiment.step_deg must divide 90, got {self.step_deg!r}")
 
@@ -103,6 +105,7 @@ def _angles(cfg) -> list[float]:
     return [float(a) for a in range(-90, 91, int(cfg.experiment.step_deg))]
 
 
+@auto_threads
 def train(cfg, run):
     return train_and_save(cfg, run, AffordanceRotationModel, _e(cfg), _angles(cfg))
 
@@ -160,6 +163,7 @@ def _panel_rows(frames: list[dict]) -> list[dict]:
     return [{k: to_np(f[k]) if k in f else np.zeros(shapes[k]) for k in keys} for f in frames]
 
 
+@auto_threads
 def evaluate(cfg, run, trained) -> dict:
     from ..vision.stimulus_sets import get_stimulus_set
 

@@ -15,8 +15,8 @@ from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import compare_rates, compare_rt, summarise_trials
 from ..models.rotation_motor import ANGLES, MotorRotationModel
-from .protocol_ch5 import (edge_maps, finish_report, load_model, objects_of, stimulus_set, to_np, train_and_save,
-                           trials_frame)
+from .protocol_ch5 import (auto_threads, edge_maps, finish_report, load_model, objects_of, stimulus_set, to_np,
+                           train_and_save, trials_frame)
 
 
 @dataclass
@@ -36,6 +36,7 @@ class Exp2Config:
     som_cutoff: float = 0.01  # the Gaussian neighbourhood is cut to 0 below this fraction of the winner's update
     som_method: str = "windowed"  # exact online Kohonen by 'windowed' (batched, per-participant window), 'factored' or 'online'
     som_threads: int = 1  # intra-op threads while a SOM trains (each step is small: threads only add hand-offs)
+    auto_threads: int = 1  # intra-op threads for training and testing when the run's `threads` is 0 (see docs)
     cluster_sigma: float = 1.0  # width of a SOM's winning cluster passed on to C5, C9, C10
     posture_sigma_deg: float = 6.0  # width of SS / PMC_1 posture clusters (deg)
     object_band_deg: float = 22.5  # SS row offset of object A (-) and B (+)
@@ -61,7 +62,7 @@ class Exp2Config:
             if not getattr(self, k) > 0:
                 raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
         for k in ("max_cycles", "c1_epochs", "hebb_steps", "c5_epochs", "som_iterations", "field_max_cycles",
-                  "quick_som_iterations", "som_threads"):
+                  "quick_som_iterations", "som_threads", "auto_threads"):
             if getattr(self, k) < 1:
                 raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
         for k in ("proprio_gain", "field_a_exc", "field_a_inh", "object_band_deg"):
@@ -87,6 +88,7 @@ def _e(cfg) -> Exp2Config:
     return replace(e, som_iterations=min(e.som_iterations, e.quick_som_iterations)) if cfg.preset == "quick" else e
 
 
+@auto_threads
 def train(cfg, run):
     return train_and_save(cfg, run, MotorRotationModel, _e(cfg), ANGLES)
 
@@ -120,6 +122,7 @@ def run_test(cfg, model, sset, test, condition, record=0):
     return rows, out
 
 
+@auto_threads
 def evaluate(cfg, run, trained) -> dict:
     from ..vision.stimulus_sets import get_stimulus_set
 

@@ -6,6 +6,7 @@
 """
 from __future__ import annotations
 
+import functools
 from typing import Sequence
 
 import numpy as np
@@ -46,6 +47,26 @@ def objects_of(sset) -> list[str]:
     if len(objs) < 2:
         raise ValueError(f"stimulus set {sset.name!r} needs two objects (a shape and its mirror), has {objs}")
     return objs[:2]
+
+
+# --------------------------------------------------------------------------------- threads
+def auto_threads(fn):
+    """Run ``fn(cfg, ...)`` on ``cfg.experiment.auto_threads`` intra-op threads when the run leaves
+    ``threads`` at 0 (torch's default, one thread per core). These models run long loops of
+    small products; on two shared cores a second thread mostly waits for the other's share."""
+
+    @functools.wraps(fn)
+    def wrapper(cfg, *args, **kwargs):
+        if getattr(cfg, "threads", 0):
+            return fn(cfg, *args, **kwargs)
+        before = torch.get_num_threads()
+        torch.set_num_threads(cfg.experiment.auto_threads)
+        try:
+            return fn(cfg, *args, **kwargs)
+        finally:
+            torch.set_num_threads(before)
+
+    return wrapper
 
 
 # --------------------------------------------------------------------------------- trials

@@ -15,7 +15,7 @@ predicted posture), C3/C4 -> PFC_2 (SOM), C5 PFC_2->PMC_2; every Hebbian one is 
 The competition inside SS (forward prediction + weaker proprioception, which also pre-activates
 the field) and inside PMC_2 is a dynamic field run to threshold; the SS field runs along the
 wrist-angle axis (100 units). The SOMs train by the batched windowed form of the online rule
-(``nn.som.fit_windowed``) unless ``som_method`` says otherwise. RT =
+(``nn.som.fit_windowed_many``) unless ``som_method`` says otherwise. RT =
 SS competition cycles over the rotation steps + PMC_2 cycles (1 cycle = 1 ms).
 """
 from __future__ import annotations
@@ -23,8 +23,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ..nn.hebbian_closed_form import hebbian_indexed, hebbian_shared
-from ..nn.som import fit_windowed as som_fit_windowed
+from ..nn.hebbian_closed_form import hebbian_indexed_many, hebbian_shared
+from ..nn.som import fit_windowed_many, squared_norms
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 
 ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]
@@ -97,7 +97,7 @@ class MotorRotationModel(nn.Module):
         w = self.m11.weight
         A = torch.einsum("pui,ki->pku", w[..., :3100], ss)  # (P, K, U)
         Bm = torch.einsum("pui,ki->pku", w[..., 3100:], pm)  # (P, 7, U)
-        nrm = (w * w).sum(-1).unsqueeze(1)  # (P, 1, U)
+        nrm = squared_norms(w).unsqueeze(1)  # (P, 1, U)
         ns, npm = (ss * ss).sum(-1), (pm * pm).sum(-1)
         P = w.shape[0]
         pi = torch.arange(P)
@@ -112,18 +112,21 @@ class MotorRotationModel(nn.Module):
 
     # ------------------------------------------------------------------ training
     @torch.no_grad()
-    def fit_som(self, som: SOM, X: torch.Tensor, order: torch.Tensor) -> torch.Tensor:
-        """Online Kohonen training of ``som`` on ``X`` in the order ``(P, T)``, by ``e.som_method``.
+    def fit_soms(self, jobs) -> list[torch.Tensor]:
+        """Online Kohonen training of SOMs, ``jobs`` = ``[(som, X, order (P, T), parts)]``, by
+        ``e.som_method``.
 
         All three methods run the same online rule and return the same winners; they differ in
-        cost only. The per-step work is small, so it runs on ``e.som_threads`` intra-op threads.
+        cost only. ``windowed`` trains the maps together (``nn.som.fit_windowed_many``; ``parts``
+        names the input segments whose distinct pieces it works with). The per-step work is
+        small, so it runs on ``e.som_threads`` intra-op threads.
         """
         threads = torch.get_num_threads()
         torch.set_num_threads(min(threads, self.e.som_threads))
         try:
             if self.e.som_method == "windowed":
-                return som_fit_windowed(som, X, order)
-            return som.fit(X, order=order, method=self.e.som_method)
+                return fit_windowed_many(jobs)
+            return [som.fit(X, order=order, method=self.e.som_method) for som, X, order, _ in jobs]
         finally:
             torch.set_num_threads(threads)
 
@@ -178,31 +181,35 @@ class MotorRotationModel(nn.Module):
         objs, curs, dess = torch.meshgrid(torch.arange(2), torch.arange(7), torch.arange(7), indexing="ij")
         objs, curs, dess = objs.reshape(-1), curs.reshape(-1), dess.reshape(-1)
         X = torch.cat([self.ss_code(objs, ang[curs]), self.pmc1_code(ang[dess])], -1)  # (98, 6200)
+        # matching SOM PFC_2 on the 196 (PP, PFC_1) pairs: independent of M1_1, so both maps train together
+        pairs = [(i, j) for i in range(14) for j in range(14)]
+        Y = torch.stack([torch.cat([img[i], img[j]]) for i, j in pairs])
+        gens = participant_generators(self.seed, P, stream=9)
         self.m11.train()
-        self.fit_som(self.m11, X, pat[:, : e.som_iterations])
+        self.pfc2.train()
+        self.fit_soms([(self.m11, X, pat[:, : e.som_iterations], (3100, 3100)),  # [SS, PMC_1]
+                       (self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som_iterations,)), (1024, 1024))])  # [PP, PFC_1]
         Th = e.hebb_steps
         table = self.m11_table(torch.arange(2).repeat_interleave(7), ang.repeat(2))  # SS codes of the 14 postures
         ids = torch.arange(98)
         m_act = self.som_bump(self.m11, bmu=table((ids // 7).expand(P, -1), (ids % 7).expand(P, -1)))  # (P, 98, 4096)
-        pre = torch.stack([m_act[p, pat[p, :Th]] for p in range(P)])  # (P, Th, 4096)
         acts = self.m12.flat(self.m12.encode(torch.stack([torch.full((3,), 4.5), torch.tensor([4.5, 14.5, 24.5])], -1)))
-        self.c9.weight.copy_(hebbian_indexed(self.c9.weight, pre, b["act"][:, :Th] + 1, acts, e.hebb_eta))
         nxt_idx = b["obj"][:, :Th] * 7 + b["nxt"][:, :Th]
         ss_set = self.ss_code(torch.tensor([o for o, _ in items]), torch.tensor([a for _, a in items]))  # (14, 3100)
-        self.c10.weight.copy_(hebbian_indexed(self.c10.weight, pre, nxt_idx, ss_set, e.hebb_eta))
-        self.c2.weight.copy_(hebbian_indexed(self.c2.weight, ss_set[nxt_idx], nxt_idx, img, e.hebb_eta))
-        # matching SOM on the 196 (PP, PFC_1) pairs; C5 to the answer clusters
-        pairs = [(i, j) for i in range(14) for j in range(14)]
-        Y = torch.stack([torch.cat([img[i], img[j]]) for i, j in pairs])
-        gens = participant_generators(self.seed, P, stream=9)
-        self.pfc2.train()
-        self.fit_som(self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som_iterations,)))
+        # C9 and C10 see the same M1_1 sequence (participant p: m_act[p, pat[p, :Th]], Th x 4096)
+        w9, w10 = hebbian_indexed_many(lambda p: m_act[p, pat[p, :Th]], [(self.c9.weight, b["act"][:, :Th] + 1, acts),
+                                                                         (self.c10.weight, nxt_idx, ss_set)], e.hebb_eta)
+        self.c9.weight.copy_(w9)
+        self.c10.weight.copy_(w10)
+        (w2,) = hebbian_indexed_many(lambda p: ss_set[nxt_idx[p]], [(self.c2.weight, nxt_idx, img)], e.hebb_eta)
+        self.c2.weight.copy_(w2)
+        # C5: PFC_2's cluster to the answer clusters
         same = torch.tensor([items[i][0] == items[j][0] for i, j in pairs])
         order = torch.stack([torch.cat([torch.randperm(196, generator=g_) for _ in range(e.c5_epochs)]) for g_ in gens])
         p_act = self.som_bump(self.pfc2, Y.expand(P, -1, -1))
-        pre5 = torch.stack([p_act[p, order[p]] for p in range(P)])
         ans = self.pmc2.flat(self.pmc2.encode(torch.tensor([[4.5, 4.5], [4.5, 14.5]])))
-        self.c5.weight.copy_(hebbian_indexed(self.c5.weight, pre5, (~same[order]).long(), ans, e.hebb_eta))
+        (w5,) = hebbian_indexed_many(lambda p: p_act[p, order[p]], [(self.c5.weight, (~same[order]).long(), ans)], e.hebb_eta)
+        self.c5.weight.copy_(w5)
         self.eval()
         return {"m11_patterns": X, "pfc2_patterns": Y}
 
@@ -218,6 +225,10 @@ class MotorRotationModel(nn.Module):
         stays on during the competition, at ``proprio_gain`` of the forward model's strength.
         ``target_angle`` ``(P, B)`` (the target's true orientation) scores the rotation; default:
         the desired posture the model itself selected.
+
+        Every large product here has an input drawn from a small finite set (the 14 images, the
+        M1_1 winner, the SS winner), so it is computed once per distinct input and looked up
+        (:class:`RowCache`); the numbers are those of the product over the whole batch.
         """
         e = self.e
         P, B, _ = pp0.shape
@@ -225,21 +236,19 @@ class MotorRotationModel(nn.Module):
         col_angle = self.ss.coords[:100, 1]
         gens = participant_generators(self.seed, P, stream=10)
         # desired posture: C1 pre-activation + C6 bias, strongest column wins
-        pm = self.c1.net(pp0) + self.c6.net(pfc1)
+        pm = distinct_rows(self.c1.net, pp0) + distinct_rows(self.c6.net, pfc1)
         desired = col_angle[pm.reshape(P, B, 31, 100).amax(-2).argmax(-1)]
         desired = ang[(desired.unsqueeze(-1) - ang).abs().argmin(-1)]
         # current posture of the seen object: C2 read backwards (image -> posture)
-        s0 = torch.bmm(pp0, self.c2.weight).reshape(P, B, 31, 100)
+        s0 = distinct_rows(lambda x: torch.bmm(x, self.c2.weight), pp0).reshape(P, B, 31, 100)
         col = s0.amax(-2).argmax(-1)
         row = s0.gather(-1, col[..., None, None].expand(P, B, 31, 1)).squeeze(-1).argmax(-1)
         obj = (row >= 15).long()
         cur = ang[(col_angle[col].unsqueeze(-1) - ang).abs().argmin(-1)]
-        ss = self.ss_code(obj, cur)
-        # SS is always one of: the 14 trained postures (start) or an (object, column) field winner
-        table = self.m11_table(torch.cat([torch.arange(2).repeat_interleave(7), torch.arange(2).repeat_interleave(100)]),
-                               torch.cat([ang.repeat(2), col_angle.repeat(2)]))
+        ss_set, table, motor, image = self._lookups()
         des_i = (desired.unsqueeze(-1) - ang).abs().argmin(-1)
         ss_i = obj * 7 + (cur.unsqueeze(-1) - ang).abs().argmin(-1)
+        ss = ss_set[ss_i]
         wrist = (cur.unsqueeze(-1) - ang).abs().argmin(-1)  # the actual wrist starts at the seen posture
         pp = pp0.clone()
         steps = torch.zeros(P, B, dtype=torch.long)
@@ -248,13 +257,13 @@ class MotorRotationModel(nn.Module):
         stopped = torch.zeros(P, B, dtype=torch.bool)
         frames = [[] for _ in range(record)]
         for cycle in range(e.max_cycles):
-            m = self.som_bump(self.m11, bmu=table(ss_i, des_i))  # (P, B, 4096)
-            a = self.c9.net(m).reshape(P, B, 10, 3, 10).sum((-3, -1)).argmax(-1)  # 0 N1, 1 N2, 2 N3
+            bmu = table(ss_i, des_i)  # (P, B) M1_1 winner
+            a9, pred = motor(bmu)
+            a = a9.reshape(P, B, 10, 3, 10).sum((-3, -1)).argmax(-1)  # 0 N1, 1 N2, 2 N3
             stopped |= live & (a == 1)
             live = live & (a != 1)
             if not live.any():
                 break
-            pred = self.c10.net(m)
             pred = pred / pred.amax(-1, keepdim=True).clamp_min(1e-9)
             grid = pred.reshape(P, B, 31, 100)
             prof = grid.amax(-2)
@@ -265,29 +274,32 @@ class MotorRotationModel(nn.Module):
                     felt = ang[wrist]
                 else:
                     felt = ang[torch.stack([torch.randint(7, (B,), generator=g_) for g_ in gens])]
-                pro = e.proprio_gain * self.ss_code(obj, felt).reshape(P, B, 31, 100).amax(-2)
+                felt_i = obj * 7 + (felt.unsqueeze(-1) - ang).abs().argmin(-1)  # one of the 14 trained postures
+                pro = e.proprio_gain * ss_set[:14].reshape(14, 31, 100).amax(-2)[felt_i]
                 prof = prof + pro
                 u0 = e.field_h + e.field_gain * pro  # proprioception pre-activates SS
             d = self.ss_field(e.field_gain * prof, max_cycles=e.field_max_cycles, u0=u0)
             col = torch.where(d.decided, d.winner, prof.argmax(-1))
             row = grid.gather(-1, col[..., None, None].expand(P, B, 31, 1)).squeeze(-1).argmax(-1)
             new_obj = (row >= 15).long()
-            new_ss = self.ss_code(new_obj, col_angle[col])
-            img = self.c2.net(new_ss)
+            new_i = 14 + new_obj * 100 + col
+            (img,) = image(new_i)
             img = (img / img.amax(-1, keepdim=True).clamp_min(1e-9) >= e.image_threshold).float()
             rt += torch.where(live, d.cycles, torch.zeros_like(d.cycles))
-            ss = torch.where(live.unsqueeze(-1), new_ss, ss)
-            ss_i = torch.where(live, 14 + new_obj * 100 + col, ss_i)
+            ss_i = torch.where(live, new_i, ss_i)
+            ss = ss_set[ss_i]
             obj = torch.where(live, new_obj, obj)
             pp = torch.where(live.unsqueeze(-1), img, pp)
             steps += live.long()
-            for k in range(record):
-                frames[k].append({"PP": pp[0, k].reshape(32, 32).clone(), "SS": ss[0, k].reshape(31, 100).clone(),
-                                  "M1_1": m[0, k].reshape(64, 64).clone()})
+            if record:
+                m = self.som_bump(self.m11, bmu=bmu[:1, :record])
+                for k in range(record):
+                    frames[k].append({"PP": pp[0, k].reshape(32, 32).clone(), "SS": ss[0, k].reshape(31, 100).clone(),
+                                      "M1_1": m[0, k].reshape(64, 64).clone()})
         final = col_angle[ss.reshape(P, B, 31, 100).amax(-2).argmax(-1)]
         target_angle = desired if target_angle is None else target_angle
         ok = stopped & ((final - target_angle).abs() < 15.0)
-        act = self.som_bump(self.pfc2, torch.cat([pp, pfc1], -1))
+        act = self.som_bump(self.pfc2, bmu=distinct_rows(lambda x: self.pfc2.bmu(x), torch.cat([pp, pfc1], -1)))
         s = self.c5.net(act)
         s = s / s.amax(-1, keepdim=True).clamp_min(1e-9)
         d = self.answer_field(e.field_gain * self.pmc2.unflat(s), max_cycles=e.field_max_cycles)
@@ -298,3 +310,86 @@ class MotorRotationModel(nn.Module):
             frames[k].append({"PP": pp[0, k].reshape(32, 32), "PFC_1": pfc1[0, k].reshape(32, 32),
                               "PFC_2": act[0, k].reshape(64, 64), "PMC_2": d.state[0, k].reshape(10, 20)})
         return {"steps": steps, "rotated_ok": ok, "yes": yes, "rt": rt, "frames": frames}
+
+    def _lookups(self):
+        """What a trial looks up, built once per set of trained weights (and reused by every
+        condition): the SS codes (the 14 trained postures, then every (object, column) field
+        winner), the M1_1 winner table of :meth:`m11_table` over them, and :class:`RowCache` s of
+        C9 / C10 by M1_1 winner and of C2 by SS code."""
+        key = tuple((w.data_ptr(), w._version) for w in (self.m11.weight, self.c9.weight, self.c10.weight, self.c2.weight))
+        if getattr(self, "_lookup_cache", (None,))[0] != key:
+            ang = torch.tensor(ANGLES)
+            col_angle = self.ss.coords[:100, 1]
+            P = self.c1.participants
+            ss_obj = torch.cat([torch.arange(2).repeat_interleave(7), torch.arange(2).repeat_interleave(100)])
+            ss_ang = torch.cat([ang.repeat(2), col_angle.repeat(2)])
+            ss_set = self.ss_code(ss_obj, ss_ang)  # (214, 3100)
+            table = self.m11_table(ss_obj, ss_ang)
+            motor = RowCache(P, self.m11.units, self._m11_outputs)  # C9 (action), C10 (forward prediction)
+            image = RowCache(P, ss_set.shape[0], lambda i: (self.c2.net(ss_set[i]),))  # C2: image of an SS code
+            self._lookup_cache = (key, (ss_set, table, motor, image))
+        return self._lookup_cache[1]
+
+    def _m11_outputs(self, bmu: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """C9 and C10 net input of the M1_1 cluster around each winner ``bmu`` ``(P, L)``."""
+        m = self.som_bump(self.m11, bmu=bmu)
+        return self.c9.net(m), self.c10.net(m)
+
+
+MIN_ROWS = 8  # products over fewer rows may take another BLAS path (matrix-vector) with other rounding
+
+
+class RowCache:
+    """Per-participant outputs of ``fn`` for integer keys, each computed once.
+
+    ``fn(keys)`` maps keys ``(P, L)`` to a tuple of ``(P, L, ...)`` tensors, one row per key, and
+    must compute each row independently of the others (a batched matrix product over at least
+    ``MIN_ROWS`` rows does: its rows are bit-identical to those of the product over any larger
+    batch). Calling the cache with keys ``(P, B)`` returns ``fn(keys)`` by evaluating only the keys
+    it has not seen yet.
+    """
+
+    def __init__(self, participants: int, n_keys: int, fn) -> None:
+        self.fn = fn
+        self.slot = torch.full((participants, n_keys), -1, dtype=torch.long)
+        self.values: tuple[torch.Tensor, ...] | None = None
+
+    def __call__(self, keys: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        P = self.slot.shape[0]
+        pi = torch.arange(P).unsqueeze(1)
+        flat = keys.reshape(P, -1)
+        need = torch.zeros_like(self.slot, dtype=torch.bool)
+        need[pi, flat] = True
+        need &= self.slot < 0
+        counts = need.sum(1)
+        if int(counts.max()) > 0:
+            L = max(int(counts.max()), MIN_ROWS)
+            # each participant's new keys first (ascending), padded with its smallest key
+            order = torch.sort((~need).to(torch.int8), dim=1, stable=True).indices[:, :L]
+            pos = torch.arange(L).unsqueeze(0)
+            real = pos < counts.unsqueeze(1)
+            new = torch.where(real, order, torch.where(counts.unsqueeze(1) > 0, order[:, :1], flat[:, :1]))
+            out = self.fn(new)
+            base = 0 if self.values is None else self.values[0].shape[1]
+            self.values = out if self.values is None else tuple(torch.cat([v, o], 1) for v, o in zip(self.values, out))
+            pr, jr = real.nonzero(as_tuple=True)
+            self.slot[pr, new[pr, jr]] = base + jr
+        idx = self.slot[pi, flat]
+        return tuple(v[pi, idx].reshape(*keys.shape, *v.shape[2:]) for v in self.values)
+
+
+def distinct_rows(fn, x: torch.Tensor) -> torch.Tensor:
+    """``fn(x)`` for ``x`` ``(P, B, n)`` computed on the distinct rows of ``x`` only.
+
+    ``fn`` maps ``(P, L, n)`` to ``(P, L, ...)`` row by row (as :class:`RowCache`'s functions);
+    the rows shared by every participant are evaluated once for each and gathered back.
+    """
+    P, B, n = x.shape
+    u, inv = torch.unique(x.reshape(-1, n), dim=0, return_inverse=True)
+    if u.shape[0] >= B:
+        return fn(x)
+    if u.shape[0] < MIN_ROWS:
+        u = torch.cat([u, u[:1].expand(MIN_ROWS - u.shape[0], -1)])
+    out = fn(u.unsqueeze(0).expand(P, -1, -1).contiguous())
+    inv = inv.reshape(P, B)
+    return out[torch.arange(P).unsqueeze(1), inv]

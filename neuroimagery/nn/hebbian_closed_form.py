@@ -35,7 +35,10 @@ def hebbian_shared(weight0: torch.Tensor, pre: torch.Tensor, post: torch.Tensor,
     suffix = torch.cat([torch.flip(rev, [0])[1:], torch.ones_like(keep[:1])], 0)
     a = rev[-1]  # (in,)
     b = post.to(dt).T @ (eta * pre.to(dt) * suffix)  # (out, in)
-    return (weight0.to(dt) * a + b).to(weight0.dtype)
+    out = torch.empty_like(weight0)
+    for p in range(weight0.shape[0]):  # one participant at a time: no (P, out, in) float64 temporaries
+        out[p] = (weight0[p].to(dt) * a + b).to(weight0.dtype)
+    return out
 
 
 def hebbian_online(weight0: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, eta: float) -> torch.Tensor:
@@ -58,13 +61,31 @@ def hebbian_indexed(weight0: torch.Tensor, pre: torch.Tensor, post_index: torch.
     ``(K, out)`` indexed by ``post_index`` ``(P, T)``, so the sum over time is first gathered per
     output pattern (``(P, K, in)``) and then expanded with one small product. ``pre`` ``(P, T, in)``.
     """
-    keep = 1.0 - eta * pre.float()
-    rev = torch.cumprod(torch.flip(keep, [1]), 1)
-    suffix = torch.cat([torch.flip(rev, [1])[:, 1:], torch.ones_like(keep[:, :1])], 1)
-    a = rev[:, -1]  # (P, in)
-    c = eta * pre.float() * suffix  # (P, T, in)
-    P, T, n_in = pre.shape
-    C = torch.zeros(P, post_set.shape[0], n_in)
-    C.scatter_add_(1, post_index.long().unsqueeze(-1).expand(P, T, n_in), c)
-    b = torch.einsum("ko,pki->poi", post_set.float(), C)
-    return weight0 * a.unsqueeze(1) + b
+    return hebbian_indexed_many(lambda p: pre[p], [(weight0, post_index, post_set)], eta)[0]
+
+
+@torch.no_grad()
+def hebbian_indexed_many(pre_of, targets, eta: float) -> list[torch.Tensor]:
+    """:func:`hebbian_indexed` for several connections that see the same presynaptic sequence.
+
+    ``pre_of(p)`` gives participant ``p``'s sequence ``(T, in)``; ``targets`` is a list of
+    ``(weight0 (P, out, in), post_index (P, T), post_set (K, out))``. The time products (the
+    ``(T, in)`` suffix products of ``1 - eta x``) are formed once per participant and shared by
+    every target; working one participant at a time keeps them small. Each participant's
+    arithmetic is element for element that of the batched form, so the weights are identical.
+    """
+    outs = [torch.empty_like(w0) for w0, _, _ in targets]
+    for p in range(targets[0][0].shape[0]):
+        pre = pre_of(p).unsqueeze(0)  # (1, T, in)
+        keep = 1.0 - eta * pre.float()
+        rev = torch.cumprod(torch.flip(keep, [1]), 1)
+        suffix = torch.cat([torch.flip(rev, [1])[:, 1:], torch.ones_like(keep[:, :1])], 1)
+        a = rev[:, -1]  # (1, in)
+        c = eta * pre.float() * suffix  # (1, T, in)
+        _, T, n_in = pre.shape
+        for out, (weight0, post_index, post_set) in zip(outs, targets):
+            C = torch.zeros(1, post_set.shape[0], n_in)
+            C.scatter_add_(1, post_index[p:p + 1].long().unsqueeze(-1).expand(1, T, n_in), c)
+            b = torch.einsum("ko,pki->poi", post_set.float(), C)
+            torch.mul(weight0[p:p + 1], a.unsqueeze(1), out=out[p:p + 1]).add_(b)
+    return outs

@@ -47,7 +47,10 @@ def stacked(generators: Sequence[torch.Generator], draw: Callable[[torch.Generat
 
 def uniform(generators: Sequence[torch.Generator], shape: Sequence[int], low: float = 0.0, high: float = 1.0) -> torch.Tensor:
     """U[low, high) of shape ``(P, *shape)``, one participant per generator."""
-    return stacked(generators, lambda g: torch.rand(tuple(shape), generator=g)) * (high - low) + low
+    out = torch.empty((len(generators), *shape))
+    for o, g in zip(out, generators):  # drawn in place: no per-participant copies to stack
+        torch.rand(tuple(shape), generator=g, out=o)
+    return out.mul_(high - low).add_(low)
 
 
 def randint(generators: Sequence[torch.Generator], high: int, shape: Sequence[int]) -> torch.Tensor:
