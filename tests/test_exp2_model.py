@@ -1,6 +1,7 @@
 """Experiment 2: config checks, babbling, SOM equivalence, the SS competition, quick and full runs."""
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -197,3 +198,40 @@ def test_trial_lookups_equal_direct_computation():
     assert m._lookups()[2] is motor  # built once per set of weights
     m.c9.weight.add_(0.0)
     assert m._lookups()[2] is not motor  # rebuilt after the weights change
+
+
+def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path):
+    """The checkpoint written by training holds the trainer's factors, not the weights; loading
+    forms every weight again by the trainer's own products: every state tensor comes back bit for
+    bit. An unknown format, or factors that do not rebuild the saved weights (other settings),
+    fail with the file named. A full state_dict checkpoint still loads."""
+    from types import SimpleNamespace
+
+    from neuroimagery.errors import UserInputError
+    from neuroimagery.experiments.protocol_ch5 import load_model
+
+    e = Exp2Config(som_iterations=30, hebb_steps=60, c5_epochs=1)
+    g = torch.Generator().manual_seed(3)
+    images = {(o, a): (torch.rand(1024, generator=g) > 0.8).float() for o in (0, 1) for a in ANGLES}
+    m = MotorRotationModel(e, 2, 0)
+    m.fit(images)
+    ref = m.state_dict()
+    path = tmp_path / "checkpoints" / "model.pt"
+    path.parent.mkdir()
+    torch.save(m.compact_state(), path)
+    assert path.stat().st_size < sum(v.numel() * v.element_size() for v in ref.values()) / 5
+    loaded = load_model(SimpleNamespace(seed=0), tmp_path, MotorRotationModel, e).state_dict()
+    assert loaded.keys() == ref.keys()
+    for k, v in ref.items():
+        assert loaded[k].dtype == v.dtype and torch.equal(loaded[k], v), k
+    # other settings draw other initial weights: the rebuilt weights would differ, and loading says so
+    with pytest.raises(UserInputError, match="model.pt.*differ"):
+        load_model(SimpleNamespace(seed=0), tmp_path, MotorRotationModel, replace(e, init_high=0.2))
+    with pytest.raises(ValueError, match="unknown checkpoint format 'x'"):
+        MotorRotationModel(e, 2, 0).load_compact_state({**m.compact_state(), "format": "x"})
+    torch.save({"format": "neuroimagery.exp2.factors/999", "participants": 2}, path)
+    with pytest.raises(UserInputError, match=r"model\.pt: unknown format 'neuroimagery\.exp2\.factors/999'"):
+        load_model(SimpleNamespace(seed=0), tmp_path, MotorRotationModel, e)
+    torch.save({"state_dict": ref, "participants": 2}, path)  # the full form of earlier checkpoints
+    loaded = load_model(SimpleNamespace(seed=0), tmp_path, MotorRotationModel, e).state_dict()
+    assert all(torch.equal(loaded[k], v) for k, v in ref.items())

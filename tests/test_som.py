@@ -111,3 +111,23 @@ def test_windowed_fit_by_pieces_and_jointly_equals_online_rule():
     assert torch.allclose(jy.weight, ref_y.weight, atol=1e-5)
     with pytest.raises(ValueError, match="parts"):
         fit_windowed(mk(200, 3), X, ox, parts=(100, 80))
+
+
+def test_windowed_weights_rebuild_from_their_factors():
+    """The windowed fit keeps what it formed the weights from (scale, coefficients, patterns);
+    those and the initial weights give the trained weights again, bit for bit, at a fraction of
+    their size. A map trained otherwise has no factors."""
+    from neuroimagery.nn.som import fit_windowed, rebuild_windowed, windowed_factors
+
+    X = (torch.rand(12, 400, generator=torch.Generator().manual_seed(4)) > 0.7).float()
+    kw = dict(participants=2, seed=6, eta=0.3, sigma=3.0, eta_final=0.02, sigma_final=0.5, iterations=200)
+    a, fresh = SOM((9, 9), 400, **kw), SOM((9, 9), 400, **kw)
+    fit_windowed(a, X, seeding.randint(participant_generators(2, 2), 12, (200,)))
+    f = windowed_factors(a)
+    assert f["coef"].shape == (2, 81, 12) and f["patterns"].shape == (12, 400)
+    rebuild_windowed(fresh, f)
+    assert torch.equal(fresh.weight, a.weight)
+    with pytest.raises(ValueError, match="do not fit"):
+        rebuild_windowed(SOM((9, 9), 400, participants=3), f)
+    with pytest.raises(ValueError, match="not trained by fit_windowed"):
+        windowed_factors(SOM((9, 9), 400))

@@ -110,6 +110,7 @@ def train(cfg, run):
     return train_and_save(cfg, run, AffordanceRotationModel, _e(cfg), _angles(cfg))
 
 
+@auto_threads  # the weights are formed again on load, on the threads they were trained on
 def load(cfg, checkpoint_dir):
     return load_model(cfg, checkpoint_dir, AffordanceRotationModel, _e(cfg))
 

@@ -93,6 +93,7 @@ def train(cfg, run):
     return train_and_save(cfg, run, MotorRotationModel, _e(cfg), ANGLES)
 
 
+@auto_threads  # the weights are formed again on load, on the threads they were trained on
 def load(cfg, checkpoint_dir):
     return load_model(cfg, checkpoint_dir, MotorRotationModel, _e(cfg))
 

@@ -84,17 +84,41 @@ def train_and_save(cfg, run, model_cls, e, angles: Sequence[float]):
 
     model = model_cls(e, cfg.participants, cfg.seed)
     model.fit(image_table(cfg, get_stimulus_set("L"), angles))
-    run.save_checkpoint("model", {"state_dict": model.state_dict(), "participants": cfg.participants})
+    if hasattr(model, "compact_state"):  # the factors the weights are formed from, not the weights
+        run.save_checkpoint("model", model.compact_state())
+    else:
+        run.save_checkpoint("model", {"state_dict": model.state_dict(), "participants": cfg.participants})
     return model
 
 
 def load_model(cfg, checkpoint_dir, model_cls, e):
-    """The model of a training run's ``checkpoints/model.pt``, in eval mode."""
+    """The model of a training run's ``checkpoints/model.pt``, in eval mode.
+
+    Reads the full form ``{"state_dict", "participants"}`` and, for models that write one, the
+    compact form ``{"format": model_cls.CHECKPOINT_FORMAT, ...}`` (weights formed again from the
+    trainer's factors and the initial weights of the checkpoint's seed)."""
+    from pathlib import Path
+
+    from ..errors import UserInputError
     from ..run import load_checkpoint
 
+    path = Path(checkpoint_dir) / "checkpoints" / "model.pt"
     state = load_checkpoint(checkpoint_dir, "model")
-    model = model_cls(e, state["participants"], cfg.seed)
-    model.load_state_dict(state["state_dict"])
+    compact = getattr(model_cls, "CHECKPOINT_FORMAT", None)
+    if isinstance(state, dict) and "format" not in state and "state_dict" in state:
+        model = model_cls(e, state["participants"], cfg.seed)
+        model.load_state_dict(state["state_dict"])
+    elif isinstance(state, dict) and compact is not None and state.get("format") == compact:
+        model = model_cls(e, state["participants"], state["seed"])  # the initial weights the factors start from
+        try:
+            model.load_compact_state(state)
+        except ValueError as err:
+            raise UserInputError(f"checkpoint {path}: {err}") from err
+        model.seed = cfg.seed  # the test's own random streams follow the run's seed, as with a full checkpoint
+    else:
+        fmt = state.get("format") if isinstance(state, dict) else type(state).__name__
+        known = "a full state_dict checkpoint" + (f" or format {compact!r}" if compact else "")
+        raise UserInputError(f"checkpoint {path}: unknown format {fmt!r} ({model_cls.__name__} reads {known})")
     model.eval()
     return model
 

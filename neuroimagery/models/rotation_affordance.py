@@ -30,14 +30,17 @@ from torch import nn
 
 from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators, seeding
 from ..nn.hebbian_closed_form import hebbian_shared
-from ..nn.som import fit_windowed as som_fit_windowed
+from ..nn.som import fit_windowed as som_fit_windowed, windowed_factors
+from .rotation_motor import FactorCheckpoint
 
 
-class AffordanceRotationModel(nn.Module):
+class AffordanceRotationModel(FactorCheckpoint, nn.Module):
     """Fig. 5.1 for ``participants`` robots with independent initial weights (batched).
 
     ``e`` is an :class:`~neuroimagery.experiments.exp1.Exp1Config`.
     """
+
+    CHECKPOINT_FORMAT = "neuroimagery.exp1.factors/1"  # compact_state (FactorCheckpoint)
 
     def __init__(self, e, participants: int, seed: int) -> None:
         super().__init__()
@@ -107,6 +110,9 @@ class AffordanceRotationModel(nn.Module):
         nxt_img = torch.stack([images[(int(o), float(a))] for o, a in zip(obj, nxt)])
         self.c1.weight.copy_(hebbian_shared(self.c1.weight, x, post, e.hebb_eta))  # affordance
         self.c2.weight.copy_(hebbian_shared(self.c2.weight, post, nxt_img, e.hebb_eta))  # forward model
+        # what the large weights are formed from, for compact_state (C5 learns step by step: saved in full)
+        self._factors = fx = {"c1.weight": {"kind": "hebbian_shared", "pre": x, "post": post, "eta": e.hebb_eta},
+                              "c2.weight": {"kind": "hebbian_shared", "pre": post, "post": nxt_img, "eta": e.hebb_eta}}
         # matching SOM on the 4 combinations of upright images, then the answer association
         up = [images[(0, 0.0)], images[(1, 0.0)]]
         pairs = [(i, j) for i in (0, 1) for j in (0, 1)]
@@ -119,6 +125,7 @@ class AffordanceRotationModel(nn.Module):
         try:
             if e.som_method == "windowed":
                 som_fit_windowed(self.pfc2, X, order)
+                fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
             else:
                 self.pfc2.fit(X, order=order, method=e.som_method)
         finally:

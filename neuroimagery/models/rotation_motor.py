@@ -23,15 +23,79 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ..nn.hebbian_closed_form import hebbian_indexed_many, hebbian_shared
-from ..nn.som import fit_windowed_many, squared_norms
+from ..nn.hebbian_closed_form import hebbian_indexed_many, hebbian_shared, rebuild_indexed
+from ..nn.som import fit_windowed_many, rebuild_windowed, squared_norms, windowed_factors
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 
 ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]
+CHECKPOINT_FORMAT = "neuroimagery.exp2.factors/1"  # the compact checkpoint of MotorRotationModel.compact_state
 
 
-class MotorRotationModel(nn.Module):
+class FactorCheckpoint:
+    """Compact checkpoints of a chapter-5 model whose :meth:`fit` records, in ``self._factors``
+    (key: the ``state_dict`` entry), what each large trained weight was formed from. The model
+    has ``e`` (with ``som_threads``), ``seed`` and a connection ``c1``; each subclass names its
+    ``CHECKPOINT_FORMAT``. Weights without factors are saved in full."""
+
+    def compact_state(self) -> dict:
+        """The trained state in compact form (``self.CHECKPOINT_FORMAT``): every small tensor of
+        ``state_dict()`` as it is, and for each large weight what the trainer formed it from (the
+        SOMs' scale factors and coefficients over their pattern sets, the Hebbian closed forms'
+        decay and per-pattern sums, the shared-sequence Hebbian connections' training sequences). The initial weights are not
+        saved: they are drawn again from ``seed``. :meth:`load_compact_state` forms the weights by
+        the same functions, so they come back bit for bit; ``probe`` (each weight's first and last
+        row) checks that on load. Needs a model trained by :meth:`fit` in this process."""
+        fx = getattr(self, "_factors", None)
+        if not fx:
+            raise ValueError("compact_state() needs a model trained by fit() in this process; use state_dict()")
+        state = self.state_dict()
+        return {"format": self.CHECKPOINT_FORMAT, "seed": self.seed, "participants": self.c1.participants,
+                "state": {k: v for k, v in state.items() if k not in fx}, "factors": fx,
+                "probe": {k: state[k][:, [0, -1]].clone() for k in fx}}
+
+    @torch.no_grad()
+    def load_compact_state(self, ck: dict) -> None:
+        """Load a :meth:`compact_state` into this *freshly built* model (built with the checkpoint's
+        ``seed`` and participants, and the experiment settings it was trained with: the initial
+        weights are the starting point of every formula). Raises ``ValueError`` on another format
+        or when the rebuilt weights do not match the saved probe rows."""
+        fmt = ck.get("format") if isinstance(ck, dict) else None
+        if fmt != self.CHECKPOINT_FORMAT:
+            raise ValueError(f"unknown checkpoint format {fmt!r} ({type(self).__name__} reads {self.CHECKPOINT_FORMAT!r})")
+        if ck["seed"] != self.seed or ck["participants"] != self.c1.participants:
+            raise ValueError(f"checkpoint of seed {ck['seed']}, {ck['participants']} participants loaded into a model "
+                             f"of seed {self.seed}, {self.c1.participants} participants (its initial weights differ)")
+        for key, f in ck["factors"].items():
+            mod = self.get_submodule(key.rsplit(".", 1)[0])
+            if f["kind"] == "som_windowed":  # the trainer's threads (the final product ran inside fit_soms)
+                threads = torch.get_num_threads()
+                torch.set_num_threads(min(threads, self.e.som_threads))
+                try:
+                    rebuild_windowed(mod, f)
+                finally:
+                    torch.set_num_threads(threads)
+            elif f["kind"] == "hebbian_indexed":
+                mod.weight.copy_(rebuild_indexed(mod.weight, f))
+            elif f["kind"] == "hebbian_shared":
+                mod.weight.copy_(hebbian_shared(mod.weight, f["pre"], f["post"], f["eta"]))
+            else:
+                raise ValueError(f"unknown factor kind {f['kind']!r} for {key}")
+        res = self.load_state_dict(ck["state"], strict=False)
+        if set(res.missing_keys) != set(ck["factors"]) or res.unexpected_keys:
+            raise ValueError(f"checkpoint state does not fit the model: missing {sorted(set(res.missing_keys) - set(ck['factors']))}, "
+                             f"unexpected {res.unexpected_keys}")
+        state = self.state_dict()
+        bad = [k for k, v in ck["probe"].items() if not torch.equal(state[k][:, [0, -1]], v)]
+        if bad:
+            raise ValueError(f"the weights rebuilt from the checkpoint's factors differ from the trained ones ({', '.join(bad)}): "
+                             "was it trained with other experiment settings (e.g. init_high, som_cutoff)?")
+        self._lookup_cache = (None,)
+
+
+class MotorRotationModel(FactorCheckpoint, nn.Module):
     """Fig. 5.6 for ``participants`` robots (batched); ``e`` is an ``Exp2Config``."""
+
+    CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
 
     def __init__(self, e, participants: int, seed: int) -> None:
         super().__init__()
@@ -170,9 +234,14 @@ class MotorRotationModel(nn.Module):
         # C1: every image pre-activates the 7 postures at 0.2; C6: the target image selects its own
         all7 = self.pmc1_code(ang, e.preactivation).sum(0)
         seq = list(range(14)) * e.c1_epochs
+        # what each trained weight is formed from, for compact_state (key: the state_dict entry)
+        self._factors = fx = {}
         self.c1.weight.copy_(hebbian_shared(self.c1.weight, img[seq], all7.expand(len(seq), -1), e.hebb_eta))
+        fx["c1.weight"] = {"kind": "hebbian_shared", "pre": img[seq], "post": all7.expand(len(seq), -1).contiguous(),
+                           "eta": e.hebb_eta}
         own = self.pmc1_code(torch.tensor([a for _, a in items]), e.bias)
         self.c6.weight.copy_(hebbian_shared(self.c6.weight, img[seq], own[seq], e.hebb_eta))
+        fx["c6.weight"] = {"kind": "hebbian_shared", "pre": img[seq], "post": own[seq], "eta": e.hebb_eta}
         # babbling stream: SOM M1_1 (C7, C8), then C9, C10, C2 on its first hebb_steps steps
         T = max(e.som_iterations, e.hebb_steps)
         b = self.babble(T)
@@ -189,6 +258,9 @@ class MotorRotationModel(nn.Module):
         self.pfc2.train()
         self.fit_soms([(self.m11, X, pat[:, : e.som_iterations], (3100, 3100)),  # [SS, PMC_1]
                        (self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som_iterations,)), (1024, 1024))])  # [PP, PFC_1]
+        if e.som_method == "windowed":  # the other methods leave no factors: their weights are saved in full
+            fx["m11.weight"] = {"kind": "som_windowed", **windowed_factors(self.m11)}
+            fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
         Th = e.hebb_steps
         table = self.m11_table(torch.arange(2).repeat_interleave(7), ang.repeat(2))  # SS codes of the 14 postures
         ids = torch.arange(98)
@@ -197,19 +269,23 @@ class MotorRotationModel(nn.Module):
         nxt_idx = b["obj"][:, :Th] * 7 + b["nxt"][:, :Th]
         ss_set = self.ss_code(torch.tensor([o for o, _ in items]), torch.tensor([a for _, a in items]))  # (14, 3100)
         # C9 and C10 see the same M1_1 sequence (participant p: m_act[p, pat[p, :Th]], Th x 4096)
+        hf = []  # factors of C9, C10, C2, C5 in that order
         w9, w10 = hebbian_indexed_many(lambda p: m_act[p, pat[p, :Th]], [(self.c9.weight, b["act"][:, :Th] + 1, acts),
-                                                                         (self.c10.weight, nxt_idx, ss_set)], e.hebb_eta)
+                                                                         (self.c10.weight, nxt_idx, ss_set)], e.hebb_eta, hf)
         self.c9.weight.copy_(w9)
         self.c10.weight.copy_(w10)
-        (w2,) = hebbian_indexed_many(lambda p: ss_set[nxt_idx[p]], [(self.c2.weight, nxt_idx, img)], e.hebb_eta)
+        (w2,) = hebbian_indexed_many(lambda p: ss_set[nxt_idx[p]], [(self.c2.weight, nxt_idx, img)], e.hebb_eta, hf)
         self.c2.weight.copy_(w2)
         # C5: PFC_2's cluster to the answer clusters
         same = torch.tensor([items[i][0] == items[j][0] for i, j in pairs])
         order = torch.stack([torch.cat([torch.randperm(196, generator=g_) for _ in range(e.c5_epochs)]) for g_ in gens])
         p_act = self.som_bump(self.pfc2, Y.expand(P, -1, -1))
         ans = self.pmc2.flat(self.pmc2.encode(torch.tensor([[4.5, 4.5], [4.5, 14.5]])))
-        (w5,) = hebbian_indexed_many(lambda p: p_act[p, order[p]], [(self.c5.weight, (~same[order]).long(), ans)], e.hebb_eta)
+        (w5,) = hebbian_indexed_many(lambda p: p_act[p, order[p]], [(self.c5.weight, (~same[order]).long(), ans)],
+                                     e.hebb_eta, hf)
         self.c5.weight.copy_(w5)
+        for k, f in zip(("c9.weight", "c10.weight", "c2.weight", "c5.weight"), hf):
+            fx[k] = {"kind": "hebbian_indexed", **f}
         self.eval()
         return {"m11_patterns": X, "pfc2_patterns": Y}
 

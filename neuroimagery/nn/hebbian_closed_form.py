@@ -65,7 +65,7 @@ def hebbian_indexed(weight0: torch.Tensor, pre: torch.Tensor, post_index: torch.
 
 
 @torch.no_grad()
-def hebbian_indexed_many(pre_of, targets, eta: float) -> list[torch.Tensor]:
+def hebbian_indexed_many(pre_of, targets, eta: float, factors: list | None = None) -> list[torch.Tensor]:
     """:func:`hebbian_indexed` for several connections that see the same presynaptic sequence.
 
     ``pre_of(p)`` gives participant ``p``'s sequence ``(T, in)``; ``targets`` is a list of
@@ -73,8 +73,14 @@ def hebbian_indexed_many(pre_of, targets, eta: float) -> list[torch.Tensor]:
     ``(T, in)`` suffix products of ``1 - eta x``) are formed once per participant and shared by
     every target; working one participant at a time keeps them small. Each participant's
     arithmetic is element for element that of the batched form, so the weights are identical.
+
+    ``factors``, if a list, receives one dict per target with what its weights are formed from:
+    ``a`` ``(P, in)`` (the decay of the initial weights), ``C`` ``(P, K, in)`` (the time sums per
+    output pattern) and ``post_set``; :func:`rebuild_indexed` forms the same weights from them
+    and the initial weights.
     """
     outs = [torch.empty_like(w0) for w0, _, _ in targets]
+    kept = [([], []) for _ in targets]
     for p in range(targets[0][0].shape[0]):
         pre = pre_of(p).unsqueeze(0)  # (1, T, in)
         keep = 1.0 - eta * pre.float()
@@ -83,9 +89,37 @@ def hebbian_indexed_many(pre_of, targets, eta: float) -> list[torch.Tensor]:
         a = rev[:, -1]  # (1, in)
         c = eta * pre.float() * suffix  # (1, T, in)
         _, T, n_in = pre.shape
-        for out, (weight0, post_index, post_set) in zip(outs, targets):
+        for out, (weight0, post_index, post_set), (ka, kc) in zip(outs, targets, kept):
             C = torch.zeros(1, post_set.shape[0], n_in)
             C.scatter_add_(1, post_index[p:p + 1].long().unsqueeze(-1).expand(1, T, n_in), c)
-            b = torch.einsum("ko,pki->poi", post_set.float(), C)
-            torch.mul(weight0[p:p + 1], a.unsqueeze(1), out=out[p:p + 1]).add_(b)
+            _form_indexed(out[p:p + 1], weight0[p:p + 1], a, C, post_set)
+            if factors is not None:
+                ka.append(a.clone())  # not a view: it would keep the (T, in) products alive
+                kc.append(C)
+    if factors is not None:
+        factors.extend({"a": torch.cat(ka), "C": torch.cat(kc), "post_set": post_set.float().clone()}
+                       for (ka, kc), (_, _, post_set) in zip(kept, targets))
     return outs
+
+
+def _form_indexed(out: torch.Tensor, weight0: torch.Tensor, a: torch.Tensor, C: torch.Tensor,
+                  post_set: torch.Tensor) -> None:
+    """One participant's weights ``out`` ``(1, out, in)`` of :func:`hebbian_indexed_many`:
+    ``a * w0 + post_set^T C``."""
+    b = torch.einsum("ko,pki->poi", post_set.float(), C)
+    torch.mul(weight0, a.unsqueeze(1), out=out).add_(b)
+
+
+@torch.no_grad()
+def rebuild_indexed(weight0: torch.Tensor, factors: dict) -> torch.Tensor:
+    """The weights :func:`hebbian_indexed_many` trained from the initial ``weight0`` ``(P, out, in)``,
+    formed again from one of its ``factors`` by the same products (so they are identical)."""
+    a, C, post_set = factors["a"], factors["C"], factors["post_set"]
+    P, n_out, n_in = weight0.shape
+    if a.shape != (P, n_in) or C.shape[0] != P or C.shape[2] != n_in or post_set.shape != (C.shape[1], n_out):
+        raise ValueError(f"Hebbian factors a {tuple(a.shape)}, C {tuple(C.shape)}, post_set {tuple(post_set.shape)} "
+                         f"do not fit weights {tuple(weight0.shape)}")
+    out = torch.empty_like(weight0)
+    for p in range(P):
+        _form_indexed(out[p:p + 1], weight0[p:p + 1], a[p:p + 1], C[p:p + 1], post_set)
+    return out

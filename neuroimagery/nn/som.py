@@ -532,14 +532,58 @@ def fit_windowed_many(jobs) -> list[torch.Tensor]:
             f[pp_, uu] *= cc.squeeze(-1)
             c[pp_, uu] = 1.0
     out, i = [], 0
-    for som, X32 in zip(soms, X32s):
+    for (som, patterns, _, _), X32 in zip(jobs, X32s):
         W0, Nj = som.weight, X32.shape[1]
+        scales, coefs = [], []
         for p in range(som.participants):  # w_k = c_k f_k W0_k + (c_k R_k) X: coefficients in float64, product in the weights' precision
-            cr = (c[i, :U, None] * R[i, :U, :Nj]).to(W0.dtype)
-            W0[p].mul_((c[i, :U] * f[i, :U]).to(W0.dtype).unsqueeze(-1))
-            for lo in range(0, U, 512):  # a block of units at a time (each row of the product is its own)
-                W0[p, lo:lo + 512].add_(cr[lo:lo + 512] @ X32[p])
+            coefs.append((c[i, :U, None] * R[i, :U, :Nj]).to(W0.dtype))
+            scales.append((c[i, :U] * f[i, :U]).to(W0.dtype))
+            form_windowed_weights(W0[p], scales[-1], coefs[-1], X32[p])
             i += 1
         som.steps += order.shape[1]
+        # what the final weights were formed from (see ``windowed_factors``); not part of the state
+        som.windowed_factors = {"scale": torch.stack(scales), "coef": torch.stack(coefs),
+                                "patterns": X32[0].clone() if patterns.dim() == 2 else X32.clone()}
         out.append(winners[i - som.participants:i])
     return out
+
+
+WINDOWED_BLOCK = 512  # units per block of the final product (each row of a product is its own)
+
+
+@torch.no_grad()
+def form_windowed_weights(w0: torch.Tensor, scale: torch.Tensor, coef: torch.Tensor, patterns: torch.Tensor) -> None:
+    """The last step of :func:`fit_windowed_many`, in place on one participant's initial weights
+    ``w0`` ``(U, in)``: ``w_k = scale_k w0_k + sum_n coef_kn x_n``, the product a block of
+    ``WINDOWED_BLOCK`` units at a time, in the weights' precision (``scale`` ``(U,)``, ``coef``
+    ``(U, N)``, ``patterns`` ``(N, in)``, all of the weights' dtype)."""
+    w0.mul_(scale.unsqueeze(-1))
+    for lo in range(0, w0.shape[0], WINDOWED_BLOCK):
+        w0[lo:lo + WINDOWED_BLOCK].add_(coef[lo:lo + WINDOWED_BLOCK] @ patterns)
+
+
+@torch.no_grad()
+def windowed_factors(som) -> dict:
+    """The factors :func:`fit_windowed_many` formed ``som``'s current weights from: ``scale``
+    ``(P, U)``, ``coef`` ``(P, U, N)`` and ``patterns`` ``(N, in)`` (shared) or ``(P, N, in)``.
+    Together with the initial weights they give the trained weights back bit for bit
+    (:func:`rebuild_windowed`), at ``N / in`` of their size. Raises if the map was not trained by
+    the windowed form in this process."""
+    f = getattr(som, "windowed_factors", None)
+    if f is None:
+        raise ValueError(f"SOM {som.name!r} was not trained by fit_windowed in this process: no factors to save")
+    return f
+
+
+@torch.no_grad()
+def rebuild_windowed(som, factors: dict) -> None:
+    """Form ``som``'s trained weights from its *initial* weights (in place) and ``factors`` of
+    :func:`windowed_factors`, by the very products of the trainer (so the weights are identical)."""
+    scale, coef, X = factors["scale"], factors["coef"], factors["patterns"]
+    P, U = som.participants, som.units
+    if scale.shape != (P, U) or coef.shape[:2] != (P, U) or X.shape[-1] != som.n_in or X.shape[-2] != coef.shape[2]:
+        raise ValueError(f"SOM {som.name!r}: factors of shapes scale {tuple(scale.shape)}, coef {tuple(coef.shape)}, "
+                         f"patterns {tuple(X.shape)} do not fit {P} participants x {U} units x {som.n_in} inputs")
+    for p in range(P):
+        form_windowed_weights(som.weight[p], scale[p].to(som.weight.dtype), coef[p].to(som.weight.dtype),
+                              (X if X.dim() == 2 else X[p]).to(som.weight.dtype))
