@@ -52,7 +52,8 @@ def test_config_composes_and_validates():
 
 
 @pytest.mark.parametrize("key,value", [("q_form", "sideways"), ("attempts", 0), ("gamma", 1.5),
-                                       ("hp1_ages", [14]), ("situations", ["near"]), ("temperature", 0.0)])
+                                       ("hp1_ages", [14]), ("situations", ["near"]), ("temperature", 0.0),
+                                       ("c3_recall", "nearest"), ("planning_test", "dream"), ("reach_bound", "far")])
 def test_config_rejects_bad_values_naming_the_key(key, value):
     with pytest.raises(ValueError, match=key):
         exp5.Exp5Config(**{key: value})
@@ -106,6 +107,75 @@ def test_imagination_returns_the_trained_outcome_for_the_intended_action():
     assert torch.equal(b.imagine(sit, 7), sit)  # an untrained primitive imagines no change
 
 
+def test_situation_recall_imagines_no_change_where_the_primitive_never_succeeded():
+    """C3 recognises the situation first: a primitive that succeeded only from situation A
+    imagines nothing from situation B (c3_recall='situation'), while the joint match lets A's
+    outcome answer for B (c3_recall='joint')."""
+    g = torch.Generator().manual_seed(0)
+    sit_a, sit_b = torch.zeros(2, 6, 8), torch.zeros(2, 6, 8)
+    sit_a[0, 1, 1] = sit_a[1, 5, 5] = 1
+    sit_b[0, 1, 1] = sit_b[1, 2, 6] = sit_b[1, 3, 6] = 1
+    out_a, out_b = torch.zeros(2, 6, 8), torch.zeros(2, 6, 8)
+    out_a[0, 4, 1] = 1
+    out_b[0, 0, 7] = 1
+    brains = {}
+    for recall in ("situation", "joint"):
+        b = ToolUseBrain((6, 8), c3_eta=0.5, c3_recall=recall)
+        b.train()
+        b.train_c3(sit_a, unit=1, posture=1, outcome=out_a, times=40, generator=g)  # pull works from A only
+        b.train_c3(sit_b, unit=2, posture=4, outcome=out_b, times=40, generator=g)  # touch works from B
+        brains[recall] = b
+    s, j = brains["situation"], brains["joint"]
+    assert torch.allclose(s.imagine(sit_a, 1), out_a, atol=1e-3)
+    assert torch.allclose(s.imagine(sit_b, 2), out_b, atol=1e-3)
+    assert torch.equal(s.imagine(sit_b, 1), sit_b)  # pull never succeeded from B: no change
+    near_a = sit_a.clone()
+    near_a[1, 0, 0] = 1  # a new scene that looks like A: A's pull outcome is imagined
+    assert torch.allclose(s.imagine(near_a, 1), out_a, atol=1e-3)
+    assert torch.allclose(j.imagine(sit_b, 1), out_a, atol=1e-3)  # joint match: A answers for B
+    with pytest.raises(ValueError, match="c3_recall"):
+        ToolUseBrain((6, 8), c3_recall="nearest")
+
+
+def test_practised_recall_recognises_a_situation_where_nothing_succeeded():
+    """Only the pull succeeded, from A. 'practised' recognises B (practised, nothing stored in C3)
+    and imagines no change; 'situation' knows only A and answers with A's outcome."""
+    g = torch.Generator().manual_seed(0)
+    sit_a, sit_b = torch.zeros(2, 6, 8), torch.zeros(2, 6, 8)
+    sit_a[0, 1, 1] = sit_a[1, 5, 5] = 1
+    sit_b[0, 1, 1] = sit_b[1, 2, 6] = sit_b[1, 3, 6] = 1
+    out_a = torch.zeros(2, 6, 8)
+    out_a[0, 4, 1] = 1
+    imagined = {}
+    for recall in ("practised", "situation"):
+        b = ToolUseBrain((6, 8), c3_eta=0.5, c3_recall=recall)
+        b.train()
+        b.practise_in(1, sit_a)
+        b.practise_in(4, sit_b)
+        b.train_c3(sit_a, unit=1, posture=1, outcome=out_a, times=40, generator=g)
+        imagined[recall] = (b.imagine(sit_a, 1), b.imagine(sit_b, 1), b.recall_unit(sit_b, 1))
+    assert torch.allclose(imagined["practised"][0], out_a, atol=1e-3)
+    assert torch.equal(imagined["practised"][1], sit_b) and imagined["practised"][2] == 3 * 10 + 1
+    assert torch.allclose(imagined["situation"][1], out_a, atol=1e-3)
+
+
+def test_path_reach_bound_keeps_every_step_near_the_start():
+    from types import SimpleNamespace
+
+    from neuroimagery.models.tool_use import ToolWorldEnvironment
+
+    q0 = torch.zeros(7)
+    t = torch.linspace(0, 1, 20).view(1, 20, 1)
+    traj = 0.5 * torch.sin(3.14 * t).expand(1, 20, 7) + 0.1 * t  # overshoots to 0.5 rad, ends at 0.1
+    kin = SimpleNamespace(clamp=lambda q: q.clamp(-3, 3))
+    env = SimpleNamespace(dmp=SimpleNamespace(max_goal_offset=0.15), world=SimpleNamespace(kin=kin))
+    env.reach_bound = "path"
+    path = ToolWorldEnvironment.bounded(env, traj, q0)
+    assert float(path.abs().max()) <= 0.15 + 1e-6 and torch.allclose(path[:, -1], traj[:, -1])
+    env.reach_bound = "goal"
+    assert torch.equal(ToolWorldEnvironment.bounded(env, traj, q0), traj)
+
+
 # ---------------------------------------------------------------------------------- algorithms
 @pytest.fixture(scope="module")
 def acquired():
@@ -134,6 +204,7 @@ def test_replayed_brain_equals_the_brain_trained_during_acquisition(acquired):
     assert torch.allclose(rebuilt.c1.weight, brain.c1.weight, atol=1e-5)
     assert torch.allclose(rebuilt.c2.weight, brain.c2.weight, atol=1e-5)
     assert torch.equal(rebuilt.c3_trained, brain.c3_trained)
+    assert torch.equal(rebuilt.practised_seen, brain.practised_seen) and torch.equal(rebuilt.practised, brain.practised)
 
 
 def test_planning_child_trains_without_moving_and_reactive_child_moves(acquired):
@@ -152,6 +223,24 @@ def test_planning_child_trains_without_moving_and_reactive_child_moves(acquired)
     assert rec.success == bool(rec.rewards[-1] > 0)
     if any(rec.rewards):
         assert not torch.equal(w0, brain.c4.weight)
+
+
+def test_planning_test_acts_from_the_real_scene_each_attempt(acquired):
+    """planning_test='act': every attempt is performed and judged on the real scene."""
+    env, _, lib = acquired
+    brain = build_brain(env, lib, small_acq(), ToolUseBrain(env.image_shape), torch.Generator().manual_seed(0))
+    outcomes = Outcomes(env, {s.event: s for s in lib.skills}, env.perceive)
+    g = torch.Generator().manual_seed(5)
+    for posture in (1, 4):
+        for _ in range(5):
+            rec = sequence_trial(brain, outcomes, lib.skills, posture, "planning", False, 5, 0.1, g,
+                                 planning_test="act")
+            real = [outcomes.after(posture, tuple(rec.actions[:n + 1])).retrieved for n in range(len(rec.actions))]
+            assert rec.rewards == [float(r) for r in real]  # rewards read from the real scenes
+            assert rec.success == real[-1] and not any(real[:-1])  # stops at the first real retrieval
+            assert len(rec.actions) == 5 or rec.success
+    with pytest.raises(ValueError, match="planning_test"):
+        sequence_trial(brain, outcomes, lib.skills, 1, "planning", False, 5, 0.1, g, planning_test="dream")
 
 
 # ---------------------------------------------------------------------------------- the run
@@ -248,7 +337,7 @@ def test_direct_brain_updates_equal_the_generic_connections():
             assert torch.allclose(q.c4.weight, refq.weight, atol=1e-6)
             assert torch.allclose(q.q_values(x1), refq(q.flat(x1))[0], atol=1e-5)
     # C3: the mental image equals the SOM block's own backward pass
-    c = ToolUseBrain((6, 8), c3_eta=0.5)
+    c = ToolUseBrain((6, 8), c3_eta=0.5, c3_recall="joint")
     c.train()
     c.train_c3(x, unit=2, posture=3, outcome=x1, times=20, generator=g)
     via_som = c.c3.backward(c._c3_b(x, 2)).reshape(2, 6, 8).clamp(0, 1)
@@ -281,14 +370,22 @@ def test_full_run_shows_the_thesis_claims(tmp_path):
     cfg = compose("logger=none", "progress=false")
     s = R.evaluate(cfg, out_dir=out)
     rate = {(g["hypothesis"], g["level"], g["situation"], g["strategy"]): g["success_rate"] for g in s["groups"]}
+    failed = []  # every claim is checked, the failures are listed together
+
+    def claim(ok, what):
+        if not ok:
+            failed.append(what)
+
     for strat in ("reactive", "planning"):
         behind = [rate[("hp1", k, "behind", strat)] for k in (2, 3, 4, 5, 6)]
         far = [rate[("hp1", k, "far", strat)] for k in (2, 3, 4, 5, 6)]
-        assert min(behind) >= 0.75, f"HP1 tool-behind success high at every age ({strat}): {behind}"
-        assert far[0] <= 0.15, f"HP1 tool-far near zero at 14 months ({strat}): {far}"
-        assert max(far[:2]) < min(behind), f"HP1 tool-far low before 18 months ({strat})"
-        assert s["checks"][f"hp1_far_spearman_{strat}"] >= 0.8, f"HP1 tool-far rises with skills ({strat}): {far}"
+        claim(min(behind) >= 0.75, f"HP1 tool-behind success high at every age ({strat}): {behind}")
+        claim(far[0] <= 0.15, f"HP1 tool-far near zero at 14 months ({strat}): {far}")
+        claim(max(far[:2]) < min(behind), f"HP1 tool-far low before 18 months ({strat})")
+        claim(s["checks"][f"hp1_far_spearman_{strat}"] >= 0.8, f"HP1 tool-far rises with skills ({strat}): {far}")
         for sit in ("behind", "far"):
             hp2 = [rate[("hp2", t, sit, strat)] for t in (0, 2, 4, 6, 8, 10)]
-            assert max(hp2[1:]) > hp2[0], f"HP2 {sit} improves with training ({strat}): {hp2}"
-    assert s["checks"]["reactive_planning_max_abs_diff"] <= 0.25, "reactive and planning children alike"
+            claim(max(hp2[1:]) > hp2[0], f"HP2 {sit} improves with training ({strat}): {hp2}")
+    diff = s["checks"]["reactive_planning_max_abs_diff"]
+    claim(diff <= 0.25, f"reactive and planning children alike: largest difference {diff}")
+    assert not failed, "claims not shown:\n" + "\n".join(failed)

@@ -73,6 +73,10 @@ class Exp5Config:
     gamma: float = 0.8  # discount (thesis: 0.8)
     temperature: float = 0.1  # softmax temperature of action selection in training trials (not given)
     test_temperature: float = 0.1  # softmax temperature in the test trial (not given)
+    # how a planning child is tested (Fig. 7.6 does not say): 'act' = each attempt chooses from the
+    # real scene with the C4 learnt in mind, imagines, performs and looks again | 'plan' = the whole
+    # plan is made in mind from the initial image, then performed. See docs/exp5.md.
+    planning_test: str = "act"
     # --- skill acquisition (Fig. 7.5, eq. 7.6-7.8)
     n_dmps: int = 10  # M1 / PMC units (thesis: 10)
     pibb_samples: int = 10  # K samples per posture and update (thesis: 10)
@@ -87,7 +91,12 @@ class Exp5Config:
     c2_eta: float = 0.1  # C2 Hebbian rate (not given)
     c3_eta: float = 0.1  # C3 SOM rate (not given); 50 steps make the prototype the last outcome
     c3_sigma: float = 0.1  # C3 neighbourhood width in units; small: each pair keeps its own unit
-    c3_action_gain: float = 100.0  # weight of the primitive's code against the image in C3's match
+    c3_action_gain: float = 100.0  # weight of the primitive's code against the image in C3's match ('joint')
+    # how C3 finds the unit that imagines "primitive a in this image": 'practised' = recognise the
+    # nearest of the initial situations practised in (Fig. 7.5 B), then that situation's unit for a
+    # (never trained: no change imagined) | 'situation' = the same among the situations stored in C3
+    # only | 'joint' = nearest [image, gain * code] (any situation where a once succeeded answers)
+    c3_recall: str = "practised"
     hip_threshold: float = 0.5  # a distal goal (C2 -> HIP) this active makes an event "not new"
     explore_batch: int = 8  # exploration movements rolled out per batch (the first new event wins)
     explore_max_rollouts: int = 400  # give up looking for further events after this many movements
@@ -101,6 +110,10 @@ class Exp5Config:
     # same movement shape from every situation, so its effect depends on where the rake starts) |
     # 'absolute' = joint angles (every start ends in the same arm posture). See docs/exp5.md.
     goal_frame: str = "absolute"
+    # the reach of one movement (WorldConfig.max_goal_offset_rad = 0.15 rad): 'goal' = only the DMP
+    # goal is bounded, as in the world (the shape term can carry a joint 2-4 times farther on the
+    # way) | 'path' = every joint stays within the bound of its start at every step. See docs/exp5.md.
+    reach_bound: str = "goal"
     # --- engine
     environment: str = "robot"  # 'robot' (pybullet ToolWorld) or 'module:Class' of another Environment
     share_library_across_situations: bool = False  # one library per repetition for both situations
@@ -156,6 +169,12 @@ class Exp5Config:
             bad("situations", f"must be distinct names of {sorted(SITUATIONS)}")
         if self.goal_frame not in ("relative", "absolute"):
             bad("goal_frame", "must be 'relative' or 'absolute'")
+        if self.reach_bound not in ("path", "goal"):
+            bad("reach_bound", "must be 'path' or 'goal'")
+        if self.c3_recall not in ("practised", "situation", "joint"):
+            bad("c3_recall", "must be 'practised', 'situation' or 'joint'")
+        if self.planning_test not in ("act", "plan"):
+            bad("planning_test", "must be 'act' or 'plan'")
         if self.environment != "robot" and ":" not in self.environment:
             bad("environment", "must be 'robot' or 'module:Class'")
 
@@ -183,7 +202,7 @@ def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
 
 
 _ENV_KEYS = ("environment", "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
-             "search_weight_sigma", "goal_frame")
+             "search_weight_sigma", "goal_frame", "reach_bound")
 _WORKER_ENV: dict[tuple, object] = {}  # one world per worker process, reused by its tasks
 
 
@@ -213,7 +232,7 @@ def make_environment(e: Exp5Config):
         return ToolWorldEnvironment(duration_s=e.duration_s, explore_goal_sigma=e.explore_goal_sigma,
                                     explore_weight_sigma=e.explore_weight_sigma,
                                     search_goal_sigma=e.search_goal_sigma, search_weight_sigma=e.search_weight_sigma,
-                                    goal_frame=e.goal_frame)
+                                    goal_frame=e.goal_frame, reach_bound=e.reach_bound)
     mod, _, cls = e.environment.partition(":")
     try:
         return getattr(importlib.import_module(mod), cls)()
@@ -273,7 +292,8 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
     sit_ids = [list(SITUATIONS).index(s) for s in task["situations"]]
     g_lib = _gen(seed, 1, r, *sit_ids)
     brain_kw = dict(n_dmps=e.n_dmps, c1_eta=e.c1_eta, c2_eta=e.c2_eta, c3_eta=e.c3_eta, c3_sigma=e.c3_sigma,
-                    c3_action_gain=e.c3_action_gain, q_eta=e.eta, q_gamma=e.gamma, q_form=e.q_form)
+                    c3_action_gain=e.c3_action_gain, q_eta=e.eta, q_gamma=e.gamma, q_form=e.q_form,
+                    c3_recall=e.c3_recall)
     lib_brain = ToolUseBrain(env.image_shape, seed=seed, **brain_kw)
     lib = acquire_skills(env, EVENTS, acq, g_lib, brain=lib_brain)
     t_acq = time.perf_counter() - t0
@@ -297,11 +317,12 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
                 train_ok = []
                 for _ in range(grp["trials"]):
                     rec = sequence_trial(brain, outcomes, sub.skills, posture, strategy, True, e.attempts,
-                                         e.temperature, g_ind)
+                                         e.temperature, g_ind, planning_test=e.planning_test)
                     train_ok.append(rec.success if strategy == "reactive" else rec.imagined_success)
                 filming = (film is None and r == e.filmstrip_repetition and strategy == "planning")
                 test = sequence_trial(brain, outcomes, sub.skills, posture, strategy, False, e.attempts,
-                                      e.test_temperature, g_ind, record_frames=filming)
+                                      e.test_temperature, g_ind, record_frames=filming,
+                                      planning_test=e.planning_test)
                 if filming and test.success and (sit == "far" or gi == len(groups(e)) - 1):
                     film = dict(situation=sit, hypothesis=grp["hypothesis"], level=grp["level"],
                                 strategy=strategy, start=_pack(outcomes.image(posture, ())),

@@ -17,7 +17,8 @@ Connections
     C3  PMC <-> PFC bidirectional supervised SOM (``nn.som.BidirectionalSOM``): a unit per
                     (posture, primitive) pair keeps the situation image plus the primitive's code
                     on one side and the outcome image on the other; run backwards (situation +
-                    intended action -> outcome) it yields the mental image.
+                    intended action -> outcome) it yields the mental image, the perceived scene
+                    being first recognised as one of the initial situations (``c3_recall``).
     C4  PC -> PMC   Q-learning (eq. 7.1, ``nn.rules.QLearning``), standard sign by default.
 
 Algorithms
@@ -131,8 +132,11 @@ class ToolUseBrain(nn.Module):
     def __init__(self, image_shape: tuple[int, int], n_dmps: int = 10, n_goals: int = 6,
                  c1_eta: float = 0.1, c2_eta: float = 0.1, c3_eta: float = 0.1, c3_sigma: float = 0.1,
                  c3_action_gain: float = 100.0, q_eta: float = 1e-4, q_gamma: float = 0.8,
-                 q_form: str = "standard", seed: int = 0) -> None:
+                 q_form: str = "standard", c3_recall: str = "practised", seed: int = 0) -> None:
         super().__init__()
+        if c3_recall not in ("practised", "situation", "joint"):
+            raise ValueError(f"c3_recall must be 'practised', 'situation' or 'joint', got {c3_recall!r}")
+        self.c3_recall = c3_recall
         self.image_shape = tuple(image_shape)
         self.n_pc = 2 * image_shape[0] * image_shape[1]
         self.n_dmps, self.n_goals = int(n_dmps), int(n_goals)
@@ -145,7 +149,11 @@ class ToolUseBrain(nn.Module):
                                    sigma=c3_sigma, iterations=1, name="C3")
         self.register_buffer("acquired", torch.zeros(n_dmps, dtype=torch.bool))  # M1 units holding a skill
         self.register_buffer("c3_trained", torch.zeros(N_POSTURES * n_dmps, dtype=torch.bool))
+        # the initial situations practised in (Fig. 7.5 B: every posture, success or not)
+        self.register_buffer("practised", torch.zeros(N_POSTURES, self.n_pc))
+        self.register_buffer("practised_seen", torch.zeros(N_POSTURES, dtype=torch.bool))
         self._b_norms: torch.Tensor | None = None  # cache of C3's input-side prototype norms
+        self._s_norms: torch.Tensor | None = None  # cache of the norms of their situation parts
 
     # --- read-outs
     @staticmethod
@@ -186,18 +194,53 @@ class ToolUseBrain(nn.Module):
             self._b_norms = (w * w).sum(-1)
         return self._b_norms
 
+    def _c3_s_norms(self) -> torch.Tensor:
+        """Squared norms of the situation parts of C3's input-side prototypes (cached)."""
+        if getattr(self, "_s_norms", None) is None:
+            w = self.c3.som.weight[0, :, self.n_pc: 2 * self.n_pc]
+            self._s_norms = (w * w).sum(-1)
+        return self._s_norms
+
+    def recall_unit(self, image: torch.Tensor, unit: int) -> int:
+        """The C3 unit that answers "what if I do primitive ``unit`` in situation ``image``".
+
+        ``c3_recall = "practised"``: the perceived scene is recognised first, as the nearest of the
+        initial situations the robot practised in (all it met in Fig. 7.5 B, whether a movement
+        succeeded there or not); the answer is that situation's unit for the intended primitive,
+        trained or not. ``"situation"``: the same, but only among the situations stored in C3
+        (those where some primitive succeeded).  ``"joint"``: the unit whose
+        input side [situation, gain * primitive code] is nearest (the primitive's code dominates,
+        so any situation where the primitive ever succeeded can answer).
+        """
+        w = self.c3.som.weight[0]
+        if self.c3_recall == "joint":
+            b = self._c3_b(image, unit)[0]
+            return int((self._c3_b_norms() - 2.0 * (w[:, self.n_pc:] @ b)).argmin())
+        x = self.flat(image)[0]
+        if self.c3_recall == "practised":
+            if not bool(self.practised_seen.any()):
+                return unit
+            s = self.practised
+            d = (s * s).sum(-1) - 2.0 * (s @ x)
+            d = torch.where(self.practised_seen, d, torch.full_like(d, float("inf")))
+            return int(d.argmin()) * self.n_dmps + int(unit)
+        if not bool(self.c3_trained.any()):
+            return unit
+        d = self._c3_s_norms() - 2.0 * (w[:, self.n_pc: 2 * self.n_pc] @ x)
+        d = torch.where(self.c3_trained, d, torch.full_like(d, float("inf")))
+        situation = int(d.argmin()) // self.n_dmps
+        return situation * self.n_dmps + int(unit)
+
     def imagine(self, image: torch.Tensor, unit: int) -> torch.Tensor:
         """C3 run backwards: the mental image of doing primitive ``unit`` in situation ``image``.
 
-        The best-matching unit on the input side (situation + intended primitive) gives its
-        outcome prototype; a unit never trained means nothing was learnt: no change is imagined.
+        The unit found by :meth:`recall_unit` gives its outcome prototype; a unit never trained
+        means nothing was learnt for that situation and primitive: no change is imagined.
         """
-        b = self._c3_b(image, unit)[0]
-        w = self.c3.som.weight[0]
-        d = self._c3_b_norms() - 2.0 * (w[:, self.n_pc:] @ b)
-        winner = int(d.argmin())
+        winner = self.recall_unit(image, unit)
         if not bool(self.c3_trained[winner]):
             return image.reshape(2, *self.image_shape).float().clone()
+        w = self.c3.som.weight[0]
         return w[winner, : self.n_pc].reshape(2, *self.image_shape).clamp(0.0, 1.0)
 
     def reset_c4(self) -> None:
@@ -226,6 +269,12 @@ class ToolUseBrain(nn.Module):
             self._outstar_row(self.c1.weight[0, unit], self.flat(image)[0], float(signal), self.c1.rules[0].eta, times)
 
     @torch.no_grad()
+    def practise_in(self, posture: int, image: torch.Tensor) -> None:
+        """Remember initial situation ``posture`` as seen (for C3's situation recognition)."""
+        self.practised[posture - 1] = self.flat(image)[0]
+        self.practised_seen[posture - 1] = True
+
+    @torch.no_grad()
     def train_c2(self, image: torch.Tensor, goal: int, times: int) -> None:
         """C2 trained toward distal goal ``goal`` with teaching signal 1."""
         if self.c2.training:
@@ -248,11 +297,11 @@ class ToolUseBrain(nn.Module):
             x = torch.cat([a, b], dim=-1)[0, 0]
             w.copy_(x + (1.0 - float(eta)) ** times * (w - x))
             self.c3.som.steps += times
-            self._b_norms = None
+            self._b_norms = self._s_norms = None
         else:
             self.c3.fit(a, b, labels=torch.tensor([[label]]), iterations=times,
                         order=torch.zeros(1, times, dtype=torch.long))
-            self._b_norms = None
+            self._b_norms = self._s_norms = None
         self.c3_trained[label] = True
 
     @torch.no_grad()
@@ -433,6 +482,7 @@ def _learn_skill(env, skill: Skill, cfg: AcquisitionConfig, generator, brain, pe
             signal = n_ok / cfg.pibb_samples
             skill.log.append(("c1", p, signal))
             if brain is not None:
+                brain.practise_in(p, perceive(env.start(p)))
                 brain.train_c1(perceive(env.start(p)), skill.unit, signal, cfg.c1_repeats)
         # competence check with the mean movement from every posture
         ok = []
@@ -472,6 +522,7 @@ def build_brain(env: Environment, lib: Library, cfg: AcquisitionConfig, brain: T
         brain.acquired[s.unit] = True
         for op in s.log:
             if op[0] == "c1":
+                brain.practise_in(op[1], perceive(env.start(op[1])))
                 brain.train_c1(perceive(env.start(op[1])), s.unit, op[2], cfg.c1_repeats)
             else:
                 _train_c23(brain, env, perceive, s, op[1], op[2], cfg, generator)
@@ -524,18 +575,29 @@ class Outcomes:
 
 def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Skill], posture: int, strategy: str,
                    training: bool, attempts: int, temperature: float, generator: torch.Generator,
-                   record_frames: bool = False) -> TrialRecord:
+                   record_frames: bool = False, planning_test: str = "act") -> TrialRecord:
     """One trial of Fig. 7.6 from initial posture ``posture``.
 
     Each attempt: feed the current PC image through C1 and C4, pick one acquired PMC unit with
     softmax, then a reactive child performs the primitive (the real scene is perceived next)
     while a planning child imagines it through C3 (the mental image becomes the next input). The
     toy-related reward is read from that next image (reactive: the retrieve detector). In
-    training mode C4 learns by eq. 7.1. A planning child trains in mind only; its test ends by
-    performing the imagined plan for real, so test success is always judged in the real world.
+    training mode C4 learns by eq. 7.1; a planning child trains in mind only.
+
+    The test (``training`` False) of a planning child, ``planning_test``:
+
+    * ``"act"``: every attempt starts from the real scene: the child chooses from what it sees
+      (C1 + the C4 it learnt in mind), imagines the outcome, performs the primitive and looks
+      again; it stops once the toy is really in reach.
+    * ``"plan"``: the whole plan (up to ``attempts`` primitives, until the mental image shows the
+      toy in reach) is made in mind from the initial image, then performed for real.
+
+    Test success is always the real retrieval.
     """
     if strategy not in ("reactive", "planning"):
         raise ValueError(f"strategy must be 'reactive' or 'planning', got {strategy!r}")
+    if planning_test not in ("act", "plan"):
+        raise ValueError(f"planning_test must be 'act' or 'plan', got {planning_test!r}")
     env = outcomes.env
     units = torch.tensor([s.unit for s in skills])
     by_unit = {s.unit: s for s in skills}
@@ -545,34 +607,38 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     if len(skills) == 0:
         return rec
     brain.train(training)
+    acting = strategy == "reactive" or (not training and planning_test == "act")
+    imagining = strategy == "planning"
     for _ in range(attempts):
         act = brain.pmc(x0)[units]
         k = int(softmax_select(act.view(1, -1), temperature, generators=[generator])[0])
         skill = by_unit[int(units[k])]
         done_events = done_events + (skill.event,)
-        if strategy == "reactive":
+        imagined = brain.imagine(x0, skill.unit) if imagining or record_frames else None
+        if imagining and float(env.reward(imagined)) > 0:
+            rec.imagined_success = True
+        if acting:
             r = outcomes.after(posture, done_events)
             x1 = outcomes.perceive(r.next_state)
             reward = 1.0 if r.retrieved else 0.0
         else:
-            x1 = brain.imagine(x0, skill.unit)
+            x1 = imagined
             reward = float(env.reward(x1))
         rec.actions.append(skill.event)
         rec.rewards.append(reward)
         if record_frames:
-            real = outcomes.image(posture, done_events)
-            rec.frames.append({"action": skill.event, "real": real, "imagined": brain.imagine(x0, skill.unit),
-                               "reward": reward})
+            rec.frames.append({"action": skill.event, "real": outcomes.image(posture, done_events),
+                               "imagined": imagined, "reward": reward})
         if training:
             brain.q_update(x0, skill.unit, reward, x1, done=reward > 0)
         x0 = x1
         if reward > 0:
             break
-    if strategy == "reactive":
+    if acting:
         rec.success = bool(rec.rewards and rec.rewards[-1] > 0)
     else:
         rec.imagined_success = bool(rec.rewards and rec.rewards[-1] > 0)
-        # in the test the plan is performed for real (prefixes are cached); stop once the toy is in reach
+        # "plan" test: the plan is performed for real (prefixes are cached); stop once the toy is in reach
         for n in range(1, 0 if training else len(rec.actions) + 1):
             if outcomes.after(posture, tuple(rec.actions[:n])).retrieved:
                 rec.success = True
@@ -602,11 +668,16 @@ class ToolWorldEnvironment:
     Exploration draws goals as the start posture plus noise (clipped to the joint limits) in both
     frames, so a discovered movement is the same either way; the frames differ only in how a
     learnt primitive is replayed from another posture or after earlier moves.
+
+    ``reach_bound`` says how the reach of one movement (``DMP.max_goal_offset``, the world's
+    ``max_goal_offset_rad``) is enforced: ``"path"`` keeps every joint within it of its start at
+    every step; ``"goal"`` bounds only the DMP goal, so the shape term can carry a joint farther on
+    the way (learnt skills: a median 0.32 rad, some 0.6 rad, against the 0.15 rad bound).
     """
 
     def __init__(self, world_config=None, duration_s: float = 1.5, explore_goal_sigma: float = 0.35,
                  explore_weight_sigma: float = 300.0, search_goal_sigma: float = 0.05,
-                 search_weight_sigma: float = 30.0, goal_frame: str = "relative") -> None:
+                 search_weight_sigma: float = 30.0, goal_frame: str = "relative", reach_bound: str = "goal") -> None:
         from ..motor.dmp import DMP
         from ..robot.world import ToolWorld
 
@@ -622,7 +693,9 @@ class ToolWorldEnvironment:
 
         if goal_frame not in ("relative", "absolute"):
             raise ValueError(f"goal_frame must be 'relative' or 'absolute', got {goal_frame!r}")
-        self.goal_frame = goal_frame
+        if reach_bound not in ("path", "goal"):
+            raise ValueError(f"reach_bound must be 'path' or 'goal', got {reach_bound!r}")
+        self.goal_frame, self.reach_bound = goal_frame, reach_bound
         self.world = _World(world_config)
         self.dmp = DMP()
         self.n_params = self.dmp.n_params
@@ -666,12 +739,22 @@ class ToolWorldEnvironment:
     def search_sigma(self) -> torch.Tensor:
         return self._sigma.clone()
 
+    def bounded(self, traj: torch.Tensor, q0: torch.Tensor) -> torch.Tensor:
+        """Joint trajectories (N, T, 7) kept inside the arm's limits and, with ``reach_bound`` =
+        ``"path"``, inside ``q0 +- max_goal_offset`` at every step (the DMP bounds only the goal:
+        its shape term can carry a joint 2-4 times farther on the way)."""
+        b = self.dmp.max_goal_offset
+        if self.reach_bound == "path" and b is not None:
+            q0 = q0.to(traj.dtype)
+            traj = torch.minimum(torch.maximum(traj, q0 - b), q0 + b)
+        return self.world.kin.clamp(traj)
+
     def execute(self, params: torch.Tensor, state: State, watched: str | None) -> list[Result]:
         import time
 
         t0 = time.perf_counter()
         q0 = self._q(state)
-        traj = self.world.kin.clamp(self.dmp.rollout(self.joint_params(params, q0), q0, self.duration_s, self.dt))
+        traj = self.bounded(self.dmp.rollout(self.joint_params(params, q0), q0, self.duration_s, self.dt), q0)
         fresh = state.q is None and state.toy_xy is None
         self.world.start_state = None if fresh else (q0, state.toy_xy)
         try:
