@@ -16,8 +16,9 @@ Goals are absolute joint angles, so one DMP rolled out from different initial po
 same arm configuration by different paths, as long as that configuration lies within the DMP's
 reach: a movement starts from the arm's current posture and its goal is bounded to
 ``y0 +- max_goal_offset`` per joint (``MAX_GOAL_OFFSET_RAD`` by default; ``None`` removes the
-bound).  Since the forcing term scales with ``g - y0`` (eq. 7.3), the bound limits the whole
-movement, shape included, to a neighbourhood of its start.  Integration is semi-implicit Euler on the whole batch
+bound).  The forcing term scales with ``g - y0`` (eq. 7.3), so the bound also shrinks the shape
+term, but it does not cap the path: with large shape weights a joint can pass 2-4 times the bound
+on the way to the goal.  Integration is semi-implicit Euler on the whole batch
 at once; the phase ``x`` is evaluated in closed form.
 """
 from __future__ import annotations
