@@ -43,6 +43,17 @@ def test_config_errors_name_the_key():
         WorldConfig(retrieve_x=0.9)
     with pytest.raises(ValueError, match="rake_drive"):
         WorldConfig(rake_drive="magnetic")
+    with pytest.raises(ValueError, match="posture_4"):
+        WorldConfig(posture_4="behind")
+
+
+def test_posture_4_places_the_rake_far_right_of_the_toy():
+    """posture_4 = "right" (default): rake head at (0.60, -0.38); "far": (0.525, -0.43)."""
+    for key, xy in (("far", (0.525, -0.43)), ("right", (0.60, -0.38))):
+        with ToolWorld(WorldConfig(posture_4=key)) as w:
+            head = w.kin.rake_head_position(w.initial_posture(4).double())
+            assert abs(float(head[0]) - xy[0]) < 0.005 and abs(float(head[1]) - xy[1]) < 0.005, (key, head)
+    assert WorldConfig().postures[3] == WorldConfig(posture_4="right").postures[3]
 
 
 def test_scene_is_at_rest(world):

@@ -114,6 +114,10 @@ class Exp5Config:
     # goal is bounded, as in the world (the shape term can carry a joint 2-4 times farther on the
     # way) | 'path' = every joint stays within the bound of its start at every step. See docs/exp5.md.
     reach_bound: str = "goal"
+    # which joint vector is posture 4, the tool-far situation (WorldConfig.posture_4): 'right' =
+    # rake head at (0.60, -0.38), 17 cm from the toy | 'far' = (0.525, -0.43), 22.5 cm.
+    # See docs/robot.md and docs/exp5.md.
+    posture_4: str = "right"
     # --- engine
     environment: str = "robot"  # 'robot' (pybullet ToolWorld) or 'module:Class' of another Environment
     share_library_across_situations: bool = False  # one library per repetition for both situations
@@ -171,6 +175,8 @@ class Exp5Config:
             bad("goal_frame", "must be 'relative' or 'absolute'")
         if self.reach_bound not in ("path", "goal"):
             bad("reach_bound", "must be 'path' or 'goal'")
+        if self.posture_4 not in ("far", "right"):
+            bad("posture_4", "must be 'far' or 'right'")
         if self.c3_recall not in ("practised", "situation", "joint"):
             bad("c3_recall", "must be 'practised', 'situation' or 'joint'")
         if self.planning_test not in ("act", "plan"):
@@ -202,7 +208,7 @@ def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
 
 
 _ENV_KEYS = ("environment", "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
-             "search_weight_sigma", "goal_frame", "reach_bound")
+             "search_weight_sigma", "goal_frame", "reach_bound", "posture_4")
 _WORKER_ENV: dict[tuple, object] = {}  # one world per worker process, reused by its tasks
 
 
@@ -228,8 +234,9 @@ def make_environment(e: Exp5Config):
     """The world the robots live in: the pybullet ToolWorld, or ``module:Class`` (tests' stand-ins)."""
     if e.environment == "robot":
         from ..models.tool_use import ToolWorldEnvironment
+        from ..robot.config import WorldConfig
 
-        return ToolWorldEnvironment(duration_s=e.duration_s, explore_goal_sigma=e.explore_goal_sigma,
+        return ToolWorldEnvironment(WorldConfig(posture_4=e.posture_4), duration_s=e.duration_s, explore_goal_sigma=e.explore_goal_sigma,
                                     explore_weight_sigma=e.explore_weight_sigma,
                                     search_goal_sigma=e.search_goal_sigma, search_weight_sigma=e.search_weight_sigma,
                                     goal_frame=e.goal_frame, reach_bound=e.reach_bound)
@@ -360,7 +367,10 @@ def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
         d = torch.load(path, map_location="cpu", weights_only=False)
     except Exception:
         return None
-    return d if d.get("config") == asdict(e) and d.get("seed") == seed else None
+    stored = d.get("config")
+    if isinstance(stored, dict) and "posture_4" not in stored:  # written before the key existed
+        stored = {**stored, "posture_4": "right"}
+    return d if stored == asdict(e) and d.get("seed") == seed else None
 
 
 def train(cfg, run) -> dict:
