@@ -19,7 +19,8 @@ from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import summarise_trials
 from ..models.rotation_affordance import AffordanceRotationModel
-from .protocol_ch5 import (auto_threads, edge_maps, finish_report, load_model, objects_of, pearson, stimulus_set,
+from .protocol_ch5 import (auto_threads, edge_maps, finish_report, load_model, objects_of, pearson,
+                           record_figures_and_scalars, stimulus_set,
                            to_np, train_and_save, trials_frame)
 
 
@@ -218,10 +219,7 @@ def evaluate(cfg, run, trained) -> dict:
     a = df[(df["rotated_object"] == "A") & df["test"].isin(["recognition", "generalisation"])]
     shown["fig5_5b_rt"] = figures.rt_by_disparity(a, run.figures / "fig5_5b_rt.png", groups=("test",), signed=True,
                                                   ylabel="RT (cycles = ms)", title="Object A: seen vs unseen orientations")
-    summary["figures"] = {k: str(v.relative_to(run.root)) for k, v in shown.items()}
-    for key, t in tests.items():
-        run.logger.scalars({k: v for k, v in t.items() if isinstance(v, (int, float))}, prefix=f"exp1/{key}/")
-    return summary
+    return record_figures_and_scalars(run, summary, shown, tests, "exp1")
 
 
 def report(cfg, run, summary) -> None:

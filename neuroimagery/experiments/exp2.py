@@ -15,7 +15,8 @@ from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import compare_rates, compare_rt, summarise_trials
 from ..models.rotation_motor import ANGLES, MotorRotationModel
-from .protocol_ch5 import (auto_threads, edge_maps, finish_report, load_model, objects_of, stimulus_set, to_np,
+from .protocol_ch5 import (auto_threads, edge_maps, finish_report, load_model, objects_of,
+                           record_figures_and_scalars, stimulus_set, to_np,
                            train_and_save, trials_frame)
 
 
@@ -188,10 +189,7 @@ def evaluate(cfg, run, trained) -> dict:
     shown["fig5_8b_rt"] = figures.rt_by_disparity(df[df["test"] == "all"], run.figures / "fig5_8b_rt.png",
                                                   groups=("condition",), ylabel="RT (cycles = ms)",
                                                   title="RT by proprioception condition")
-    summary["figures"] = {k: str(v.relative_to(run.root)) for k, v in shown.items()}
-    for key, t in tests.items():
-        run.logger.scalars({k: v for k, v in t.items() if isinstance(v, (int, float))}, prefix=f"exp2/{key}/")
-    return summary
+    return record_figures_and_scalars(run, summary, shown, tests, "exp2")
 
 
 def report(cfg, run, summary) -> None:

@@ -112,14 +112,7 @@ def train_model(cfg, ids, eye=None):
     n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
     X, Y, _ = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner, offsets=(0, 1, 2))
     pc.train_delta_binary(model.c6, X, Y, e.eta_fm, e.fm_batch)
-    bank = pc.StimulusBank.build(eye, pc.stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
-    labels = bank.angle_labels(e.posture_angles)
-    for som in (model.c2, model.c3):
-        som.fit(bank.maps, labels=labels, generators=gens, method="factored")
-    model.eval()
-    model.freeze()
-    model.participant_ids = list(ids)
-    return model
+    return pc.train_posture_maps_and_freeze(cfg, eye, model, (model.c2, model.c3), e.posture_angles, gens, ids)
 
 
 def train(cfg, run):

@@ -137,14 +137,7 @@ def train_model(cfg, ids, eye=None):
     for m, conn in enumerate(model.fm):
         Xm, Ym = _images_of_move(X, Y, moves, m)
         pc.train_delta_binary(conn, Xm, Ym, e.eta_fm, e.fm_batch)
-    bank = pc.StimulusBank.build(eye, pc.stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
-    labels = bank.angle_labels(e.ppc_angles)
-    for som in (model.c16, model.c17):
-        som.fit(bank.maps, labels=labels, generators=gens, method="factored")
-    model.eval()
-    model.freeze()
-    model.participant_ids = list(ids)
-    return model
+    return pc.train_posture_maps_and_freeze(cfg, eye, model, (model.c16, model.c17), e.ppc_angles, gens, ids)
 
 
 def _images_of_move(X, Y, moves, m):

@@ -143,6 +143,15 @@ def to_np(t: torch.Tensor) -> np.ndarray:
     return t.detach().cpu().float().numpy()
 
 
+def record_figures_and_scalars(run, summary: dict, shown: dict, tests: dict, prefix: str) -> dict:
+    """Store the figure paths ``shown`` (relative to the run) in ``summary["figures"]`` and log every
+    numeric figure of ``tests`` as a TensorBoard scalar under ``<prefix>/<test>/``; returns ``summary``."""
+    summary["figures"] = {k: str(v.relative_to(run.root)) for k, v in shown.items()}
+    for key, t in tests.items():
+        run.logger.scalars({k: v for k, v in t.items() if isinstance(v, (int, float))}, prefix=f"{prefix}/{key}/")
+    return summary
+
+
 def finish_report(r, cfg, run, summary: dict, custom_limit: str) -> None:
     """Close a chapter-5 report: the user-stimulus section (with ``custom_limit``, why these
     object-specific models cannot really rotate an unseen shape), the figures, and the

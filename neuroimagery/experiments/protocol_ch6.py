@@ -250,6 +250,21 @@ def binary_matmul_rows(table: torch.Tensor, group: torch.Tensor, x: torch.Tensor
     return torch.nn.functional.embedding_bag(flat_idx, table.reshape(G * I, O), offsets, mode="sum")
 
 
+def train_posture_maps_and_freeze(cfg, eye, model, soms, angles: Sequence[float], generators, ids):
+    """Train the posture maps ``soms`` (supervised, factored) on the training set ``cfg.experiment.train_set``
+    labelled by the nearest of ``angles``, then put ``model`` in eval mode, cache its tables and record the
+    participant ids; returns ``model``."""
+    e = cfg.experiment
+    bank = StimulusBank.build(eye, stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
+    labels = bank.angle_labels(angles)
+    for som in soms:
+        som.fit(bank.maps, labels=labels, generators=generators, method="factored")
+    model.eval()
+    model.freeze()
+    model.participant_ids = list(ids)
+    return model
+
+
 def save_model(run, name: str, model, ids) -> None:
     """Checkpoint ``model`` of participants ``ids`` as ``checkpoints/<name>.pt``."""
     run.save_checkpoint(name, {"state_dict": model.state_dict(), "participants": list(ids)})

@@ -57,6 +57,16 @@ def reflection_index(size: int, axis_deg: float) -> torch.Tensor:
     return torch.where(ok, row * size + col, torch.full_like(col, size * size)).reshape(-1)
 
 
+def posture_maps(p, n_in: int, units: int, generators, names: Sequence[str]) -> list[SOM]:
+    """The chapter-6 image -> wrist-posture maps (supervised Kohonen, eq. 6.7-6.8), one per name,
+    built in order from ``p``'s ``init_high``, ``eta_posture(_final)``, ``posture_sigma`` and
+    ``posture_iterations``."""
+    kw = dict(shape=(units,), n_in=n_in, generators=generators, init=(0.0, p.init_high), eta=p.eta_posture,
+              sigma=p.posture_sigma, eta_final=p.eta_posture_final, sigma_final=p.posture_sigma,
+              iterations=p.posture_iterations, supervised=True, readout="dot")
+    return [SOM(name=name, **kw) for name in names]
+
+
 class RotationEmbodied(nn.Module):
     """The Experiment 4 network for ``P`` participants (``generators``: one per participant)."""
 
@@ -70,11 +80,7 @@ class RotationEmbodied(nn.Module):
             AllToAll(n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.eta_fm), name=f"C{k + 1}")
             for k in range(3)])
         nu = len(p.ppc_angles)
-        kw = dict(shape=(nu,), n_in=n, generators=generators, init=(0.0, p.init_high), eta=p.eta_posture,
-                  sigma=p.posture_sigma, eta_final=p.eta_posture_final, sigma_final=p.posture_sigma,
-                  iterations=p.posture_iterations, supervised=True, readout="dot")
-        self.c16 = SOM(name="C16", **kw)
-        self.c17 = SOM(name="C17", **kw)
+        self.c16, self.c17 = posture_maps(p, n, nu, generators, ("C16", "C17"))
         self.ppc = PopulationMap("PPC", (nu,), 0.0, float(nu - 1), sigma=p.ppc_sigma)
         self.c20 = HardWired(triangle_weights(nu), name="C20")
         self.pmcd = LeakyCompetingAccumulator(2, k=p.lca_k, w=p.lca_w, threshold=p.lca_threshold, dt=p.lca_dt)

@@ -27,7 +27,7 @@ from torch import nn
 from ..nn import AllToAll, Delta, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..experiments.protocol_ch6 import binary_matmul
-from .rotation_embodied import triangle_weights
+from .rotation_embodied import posture_maps, triangle_weights
 
 MOVES = ("n1", "n2", "n3")
 
@@ -43,11 +43,7 @@ class RotationGeneralising(nn.Module):
         self.step_angles = (-float(p.step_deg), 0.0, float(p.step_deg))  # n1 cw, n2 none, n3 ccw
         self.c6 = AllToAll(3 * n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.eta_fm), name="C6")
         nu = len(p.posture_angles)
-        kw = dict(shape=(nu,), n_in=n, generators=generators, init=(0.0, p.init_high), eta=p.eta_posture,
-                  sigma=p.posture_sigma, eta_final=p.eta_posture_final, sigma_final=p.posture_sigma,
-                  iterations=p.posture_iterations, supervised=True, readout="dot")
-        self.c2 = SOM(name="C2", **kw)
-        self.c3 = SOM(name="C3", **kw)
+        self.c2, self.c3 = posture_maps(p, n, nu, generators, ("C2", "C3"))
         # M1_1 -> M1_2 hard-wired masks: lower-left -> n1, diagonal -> n2, upper-right -> n3
         self.register_buffer("m1_masks", triangle_weights(nu))
         self._table: torch.Tensor | None = None
