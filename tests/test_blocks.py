@@ -85,3 +85,21 @@ def test_participant_mismatch_is_reported():
     c = AllToAll(5, 3, participants=2)
     with pytest.raises(ValueError, match="participants"):
         c(torch.rand(3, 1, 5))
+
+
+def test_intra_op_threads_sets_caps_and_restores():
+    from neuroimagery.nn.functional import intra_op_threads
+
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        with intra_op_threads(1):
+            assert torch.get_num_threads() == 1
+        with intra_op_threads(3, cap=True):
+            assert torch.get_num_threads() == 2
+        with pytest.raises(RuntimeError):
+            with intra_op_threads(1):
+                raise RuntimeError("inside")
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)

@@ -14,6 +14,7 @@ import pandas as pd
 import torch
 
 from ..analysis.summary import TRIAL_COLUMNS, check_trials
+from ..nn.functional import intra_op_threads
 
 
 # ---------------------------------------------------------------------------------- stimuli
@@ -59,12 +60,8 @@ def auto_threads(fn):
     def wrapper(cfg, *args, **kwargs):
         if getattr(cfg, "threads", 0):
             return fn(cfg, *args, **kwargs)
-        before = torch.get_num_threads()
-        torch.set_num_threads(cfg.experiment.auto_threads)
-        try:
+        with intra_op_threads(cfg.experiment.auto_threads):
             return fn(cfg, *args, **kwargs)
-        finally:
-            torch.set_num_threads(before)
 
     return wrapper
 

@@ -29,6 +29,7 @@ import torch
 from torch import nn
 
 from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators, seeding
+from ..nn.functional import intra_op_threads
 from ..nn.hebbian_closed_form import hebbian_shared
 from ..nn.som import fit_windowed as som_fit_windowed, windowed_factors
 from .rotation_motor import FactorCheckpoint
@@ -120,16 +121,12 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         P = self.c1.participants
         self.pfc2.train()
         order = seeding.randint(participant_generators(self.seed, P, stream=4), X.shape[0], (e.som_iterations,))
-        threads = torch.get_num_threads()
-        torch.set_num_threads(min(threads, e.som_threads))  # each SOM step is small: extra threads only add hand-offs
-        try:
+        with intra_op_threads(e.som_threads, cap=True):  # each SOM step is small: extra threads only add hand-offs
             if e.som_method == "windowed":
                 som_fit_windowed(self.pfc2, X, order)
                 fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
             else:
                 self.pfc2.fit(X, order=order, method=e.som_method)
-        finally:
-            torch.set_num_threads(threads)
         act, _ = self.pfc2_activity(X[:, :1024].expand(P, -1, -1), X[:, 1024:].expand(P, -1, -1))
         yes = torch.tensor([i == j for i, j in pairs])
         target = self.answer_code(yes)  # (4, 200)

@@ -26,6 +26,7 @@ from torch import nn
 from ..nn.hebbian_closed_form import hebbian_indexed_many, hebbian_shared, rebuild_indexed
 from ..nn.som import fit_windowed_many, rebuild_windowed, squared_norms, windowed_factors
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
+from ..nn.functional import intra_op_threads
 
 ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]
 CHECKPOINT_FORMAT = "neuroimagery.exp2.factors/1"  # the compact checkpoint of MotorRotationModel.compact_state
@@ -68,12 +69,8 @@ class FactorCheckpoint:
         for key, f in ck["factors"].items():
             mod = self.get_submodule(key.rsplit(".", 1)[0])
             if f["kind"] == "som_windowed":  # the trainer's threads (the final product ran inside fit_soms)
-                threads = torch.get_num_threads()
-                torch.set_num_threads(min(threads, self.e.som_threads))
-                try:
+                with intra_op_threads(self.e.som_threads, cap=True):
                     rebuild_windowed(mod, f)
-                finally:
-                    torch.set_num_threads(threads)
             elif f["kind"] == "hebbian_indexed":
                 mod.weight.copy_(rebuild_indexed(mod.weight, f))
             elif f["kind"] == "hebbian_shared":
@@ -185,14 +182,10 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         names the input segments whose distinct pieces it works with). The per-step work is
         small, so it runs on ``e.som_threads`` intra-op threads.
         """
-        threads = torch.get_num_threads()
-        torch.set_num_threads(min(threads, self.e.som_threads))
-        try:
+        with intra_op_threads(self.e.som_threads, cap=True):
             if self.e.som_method == "windowed":
                 return fit_windowed_many(jobs)
             return [som.fit(X, order=order, method=self.e.som_method) for som, X, order, _ in jobs]
-        finally:
-            torch.set_num_threads(threads)
 
     @torch.no_grad()
     def babble(self, steps: int) -> dict:

@@ -2,6 +2,7 @@
 softmax selection and input checks."""
 from __future__ import annotations
 
+import contextlib
 import math
 from typing import Callable, Sequence
 
@@ -113,3 +114,16 @@ def softmax_select(x: torch.Tensor, temperature: float, generators: Sequence[tor
 def user_error(msg: str) -> UserInputError:
     """Shorthand used by loaders for a user's mistake."""
     return UserInputError(msg)
+
+
+@contextlib.contextmanager
+def intra_op_threads(n: int, cap: bool = False):
+    """Run the block on ``n`` torch intra-op threads (with ``cap``: at most ``n``, never more than
+    are set now), restoring the previous setting afterwards. Loops of small products run faster on
+    one thread than with several threads handing work to each other."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(min(before, n) if cap else n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
