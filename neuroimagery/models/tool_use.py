@@ -216,20 +216,15 @@ class ToolUseBrain(nn.Module):
         if self.c3_recall == "joint":
             b = self._c3_b(image, unit)[0]
             return int((self._c3_b_norms() - 2.0 * (w[:, self.n_pc:] @ b)).argmin())
-        x = self.flat(image)[0]
-        if self.c3_recall == "practised":
-            if not bool(self.practised_seen.any()):
-                return unit
-            s = self.practised
-            d = (s * s).sum(-1) - 2.0 * (s @ x)
-            d = torch.where(self.practised_seen, d, torch.full_like(d, float("inf")))
-            return int(d.argmin()) * self.n_dmps + int(unit)
-        if not bool(self.c3_trained.any()):
+        if self.c3_recall == "practised":  # rows: the practised initial situations
+            rows, norms, known, per_situation = self.practised, (self.practised ** 2).sum(-1), self.practised_seen, 1
+        else:  # rows: the situation parts of C3's trained prototypes
+            rows, norms, known, per_situation = w[:, self.n_pc: 2 * self.n_pc], self._c3_s_norms(), self.c3_trained, self.n_dmps
+        if not bool(known.any()):
             return unit
-        d = self._c3_s_norms() - 2.0 * (w[:, self.n_pc: 2 * self.n_pc] @ x)
-        d = torch.where(self.c3_trained, d, torch.full_like(d, float("inf")))
-        situation = int(d.argmin()) // self.n_dmps
-        return situation * self.n_dmps + int(unit)
+        d = norms - 2.0 * (rows @ self.flat(image)[0])  # squared distance up to the image's own norm
+        d = torch.where(known, d, torch.full_like(d, float("inf")))
+        return int(d.argmin()) // per_situation * self.n_dmps + int(unit)
 
     def imagine(self, image: torch.Tensor, unit: int) -> torch.Tensor:
         """C3 run backwards: the mental image of doing primitive ``unit`` in situation ``image``.
@@ -482,8 +477,9 @@ def _learn_skill(env, skill: Skill, cfg: AcquisitionConfig, generator, brain, pe
             signal = n_ok / cfg.pibb_samples
             skill.log.append(("c1", p, signal))
             if brain is not None:
-                brain.practise_in(p, perceive(env.start(p)))
-                brain.train_c1(perceive(env.start(p)), skill.unit, signal, cfg.c1_repeats)
+                seen = perceive(env.start(p))
+                brain.practise_in(p, seen)
+                brain.train_c1(seen, skill.unit, signal, cfg.c1_repeats)
         # competence check with the mean movement from every posture
         ok = []
         for p in range(1, N_POSTURES + 1):
@@ -522,8 +518,9 @@ def build_brain(env: Environment, lib: Library, cfg: AcquisitionConfig, brain: T
         brain.acquired[s.unit] = True
         for op in s.log:
             if op[0] == "c1":
-                brain.practise_in(op[1], perceive(env.start(op[1])))
-                brain.train_c1(perceive(env.start(op[1])), s.unit, op[2], cfg.c1_repeats)
+                seen = perceive(env.start(op[1]))
+                brain.practise_in(op[1], seen)
+                brain.train_c1(seen, s.unit, op[2], cfg.c1_repeats)
             else:
                 _train_c23(brain, env, perceive, s, op[1], op[2], cfg, generator)
     return brain
