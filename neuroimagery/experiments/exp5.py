@@ -34,9 +34,10 @@ import pandas as pd
 import torch
 
 from ..errors import UserInputError
-from ..models.tool_use import (EVENTS, N_POSTURES, AcquisitionConfig, Library, Outcomes, ToolUseBrain, acquire_skills,
+from ..models.tool_use import (CHOICES, EVENTS, N_POSTURES, AcquisitionConfig, Library, Outcomes, ToolUseBrain, acquire_skills,
                                build_brain, sequence_trial)
 from ..nn.seeding import participant_seed
+from ..robot.config import POSTURE_4
 
 SITUATIONS = {"behind": 1, "far": 4}  # thesis: posture 1 = tool behind toy, posture 4 = tool far from toy
 THESIS = {  # read off Fig. 7.9-7.10 and the text of section 7.1.3 (approximate)
@@ -171,16 +172,11 @@ class Exp5Config:
             bad("hp1_levels", f"must lie in [{len(self.base_detectors)}, {len(EVENTS)}]")
         if not self.situations or any(s not in SITUATIONS for s in self.situations) or len(set(self.situations)) != len(self.situations):
             bad("situations", f"must be distinct names of {sorted(SITUATIONS)}")
-        if self.goal_frame not in ("relative", "absolute"):
-            bad("goal_frame", "must be 'relative' or 'absolute'")
-        if self.reach_bound not in ("path", "goal"):
-            bad("reach_bound", "must be 'path' or 'goal'")
-        if self.posture_4 not in ("far", "right"):
-            bad("posture_4", "must be 'far' or 'right'")
-        if self.c3_recall not in ("practised", "situation", "joint"):
-            bad("c3_recall", "must be 'practised', 'situation' or 'joint'")
-        if self.planning_test not in ("act", "plan"):
-            bad("planning_test", "must be 'act' or 'plan'")
+        for key, allowed in CHOICES.items():
+            if getattr(self, key) not in allowed:
+                bad(key, f"must be one of {', '.join(map(repr, allowed))}")
+        if self.posture_4 not in POSTURE_4:
+            bad("posture_4", f"must be one of {sorted(POSTURE_4)}")
         if self.environment != "robot" and ":" not in self.environment:
             bad("environment", "must be 'robot' or 'module:Class'")
 

@@ -50,6 +50,15 @@ from ..nn.som import BidirectionalSOM
 EVENTS = ("retrieve", "touch", "south", "north", "west", "east")  # thesis Fig. 7.3 / Table 7.1 order
 SKILL_LETTERS = ("P", "T", "S", "N", "W", "E")  # Table 7.1 column names of the skills
 N_POSTURES = 4
+# the values each modelling switch of this module accepts (Exp5Config checks the same table)
+CHOICES = {"c3_recall": ("practised", "situation", "joint"), "planning_test": ("act", "plan"),
+           "goal_frame": ("relative", "absolute"), "reach_bound": ("path", "goal")}
+
+
+def check_choice(key: str, value) -> None:
+    """Raise ``ValueError`` naming ``key`` when ``value`` is not one of ``CHOICES[key]``."""
+    if value not in CHOICES[key]:
+        raise ValueError(f"{key} must be one of {', '.join(map(repr, CHOICES[key]))}, got {value!r}")
 
 
 # ---------------------------------------------------------------------------------- environment
@@ -134,8 +143,7 @@ class ToolUseBrain(nn.Module):
                  c3_action_gain: float = 100.0, q_eta: float = 1e-4, q_gamma: float = 0.8,
                  q_form: str = "standard", c3_recall: str = "practised", seed: int = 0) -> None:
         super().__init__()
-        if c3_recall not in ("practised", "situation", "joint"):
-            raise ValueError(f"c3_recall must be 'practised', 'situation' or 'joint', got {c3_recall!r}")
+        check_choice("c3_recall", c3_recall)
         self.c3_recall = c3_recall
         self.image_shape = tuple(image_shape)
         self.n_pc = 2 * image_shape[0] * image_shape[1]
@@ -593,8 +601,7 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     """
     if strategy not in ("reactive", "planning"):
         raise ValueError(f"strategy must be 'reactive' or 'planning', got {strategy!r}")
-    if planning_test not in ("act", "plan"):
-        raise ValueError(f"planning_test must be 'act' or 'plan', got {planning_test!r}")
+    check_choice("planning_test", planning_test)
     env = outcomes.env
     units = torch.tensor([s.unit for s in skills])
     by_unit = {s.unit: s for s in skills}
@@ -688,10 +695,8 @@ class ToolWorldEnvironment:
                     q, toy_xy = self.start_state
                 super().reset(posture, q=q, toy_xy=toy_xy)
 
-        if goal_frame not in ("relative", "absolute"):
-            raise ValueError(f"goal_frame must be 'relative' or 'absolute', got {goal_frame!r}")
-        if reach_bound not in ("path", "goal"):
-            raise ValueError(f"reach_bound must be 'path' or 'goal', got {reach_bound!r}")
+        check_choice("goal_frame", goal_frame)
+        check_choice("reach_bound", reach_bound)
         self.goal_frame, self.reach_bound = goal_frame, reach_bound
         self.world = _World(world_config)
         self.dmp = DMP()
