@@ -32,7 +32,7 @@ from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participan
 from ..nn.functional import intra_op_threads
 from ..nn.hebbian_closed_form import hebbian_shared
 from ..nn.som import fit_windowed as som_fit_windowed, windowed_factors
-from .rotation_motor import FactorCheckpoint
+from .factor_checkpoint import FactorCheckpoint
 
 
 class AffordanceRotationModel(FactorCheckpoint, nn.Module):
