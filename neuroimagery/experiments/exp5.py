@@ -119,6 +119,10 @@ class Exp5Config:
     # rake head at (0.60, -0.38), 17 cm from the toy | 'far' = (0.525, -0.43), 22.5 cm.
     # See docs/robot.md and docs/exp5.md.
     posture_4: str = "right"
+    # the DMPs left free once every enabled event has its skill (n_dmps = 10 for 6 events):
+    # 'none' = unused | 'unmastered' = exploration goes on and an event firing from a situation
+    # where it is not yet mastered (distal goal off) is learnt again by a spare DMP. docs/exp5.md.
+    spare_dmps: str = "none"
     # --- engine
     environment: str = "robot"  # 'robot' (pybullet ToolWorld) or 'module:Class' of another Environment
     share_library_across_situations: bool = False  # one library per repetition for both situations
@@ -200,7 +204,8 @@ def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
                              pibb_decay=e.pibb_decay, max_epochs=e.max_epochs,
                              competence_tolerance=e.competence_tolerance, c1_repeats=e.c1_repeats,
                              c2_repeats=e.c2_repeats, c3_repeats=e.c3_repeats, hip_threshold=e.hip_threshold,
-                             explore_batch=e.explore_batch, explore_max_rollouts=e.explore_max_rollouts)
+                             explore_batch=e.explore_batch, explore_max_rollouts=e.explore_max_rollouts,
+                             spare_dmps=e.spare_dmps)
 
 
 _ENV_KEYS = ("environment", "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
@@ -304,7 +309,7 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
     built: dict[tuple, ToolUseBrain] = {}
     for sit in task["situations"]:
         posture = SITUATIONS[sit]
-        outcomes = Outcomes(env, {s.event: s for s in lib.skills}, env.perceive)
+        outcomes = Outcomes(env, {s.name: s for s in lib.skills}, env.perceive)
         for gi, grp in enumerate(groups(e)):
             g_ind = _gen(seed, 2, r, list(SITUATIONS).index(sit), gi)
             enabled = detectors_for(e, grp["detectors"], g_ind)
@@ -335,7 +340,7 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
                     hypothesis=grp["hypothesis"], level=grp["level"], age_months=grp["age_months"],
                     situation=sit, strategy=strategy, repetition=r, library=task["key"],
                     training_trials=grp["trials"], n_detectors=len(enabled), detectors="+".join(enabled),
-                    n_skills=len(sub.skills), skills="+".join(s.event for s in sub.skills),
+                    n_skills=len(sub.skills), skills="+".join(s.name for s in sub.skills),
                     train_success_rate=float(np.mean(train_ok)) if train_ok else float("nan"),
                     success=int(test.success), imagined_success=int(test.imagined_success),
                     test_actions=">".join(test.actions), test_attempts=len(test.actions)))
@@ -364,8 +369,8 @@ def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
     except Exception:
         return None
     stored = d.get("config")
-    if isinstance(stored, dict) and "posture_4" not in stored:  # written before the key existed
-        stored = {**stored, "posture_4": "right"}
+    if isinstance(stored, dict):  # written before these keys existed: their values then
+        stored = {"posture_4": "right", "spare_dmps": "none", **stored}
     return d if stored == asdict(e) and d.get("seed") == seed else None
 
 
@@ -434,6 +439,61 @@ def _spearman(x, y) -> float | None:
     return float(spearmanr(x, y).statistic)
 
 
+def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
+    """The must-show claims of thesis section 7.1.3, each checked on this run's group rates.
+
+    Returns one dict per claim (``claim``, ``value``: the numbers it was judged on, ``holds``);
+    claims whose groups were not run are left out. Thresholds: tool behind >= 75 % at every age;
+    tool far at the youngest HP1 age <= 15 % ("about 0 %"); tool far before 18 months below every
+    tool-behind rate, and >= 10 points higher from 18 months on (Rat-Fischer et al., 2012);
+    Spearman's rho of tool far over the HP1 groups >= 0.8; the mean of the trained HP2 groups above
+    the untrained group; reactive and planning children within 25 points of each other in every group.
+    """
+    rate = {(g["hypothesis"], g["level"], g["situation"], g["strategy"]): g["success_rate"] for g in summary["groups"]}
+    out = []
+
+    def claim(what, value, holds):
+        out.append(dict(claim=what, value=value, holds=bool(holds)))
+
+    def pct(xs):
+        return ", ".join(f"{100 * x:.0f} %" for x in xs)
+
+    young = [i for i, a in enumerate(e.hp1_ages) if a < 18]
+    for strat in STRATEGIES:
+        behind = [rate.get(("hp1", k, "behind", strat)) for k in e.hp1_levels]
+        far = [rate.get(("hp1", k, "far", strat)) for k in e.hp1_levels]
+        if None not in behind:
+            claim(f"HP1 tool behind high at every age ({strat})", pct(behind), min(behind) >= 0.75)
+        if None in far:
+            continue
+        claim(f"HP1 tool far near zero at {e.hp1_ages[0]} months ({strat})", pct(far[:1]), far[0] <= 0.15)
+        if None not in behind and young:
+            claim(f"HP1 tool far low before 18 months against tool behind ({strat})",
+                  f"{pct([far[i] for i in young])} against >= {100 * min(behind):.0f} %",
+                  max(far[i] for i in young) < min(behind))
+        old = [i for i in range(len(far)) if i not in young]
+        if young and old:
+            before, after = np.mean([far[i] for i in young]), np.mean([far[i] for i in old])
+            claim(f"HP1 tool far appears from 18 months ({strat})",
+                  f"{100 * before:.0f} % before, {100 * after:.0f} % after", after - before >= 0.10)
+        rho = summary["checks"].get(f"hp1_far_spearman_{strat}")
+        claim(f"HP1 tool far rises with skills, Spearman rho >= 0.8 ({strat})",
+              f"{pct(far)}; rho {rho:.2f}" if rho is not None else pct(far), rho is not None and rho >= 0.8)
+    for strat in STRATEGIES:
+        for sit in e.situations:
+            hp2 = [rate.get(("hp2", t, sit, strat)) for t in e.hp2_trials]
+            if None in hp2 or len(hp2) < 2:
+                continue
+            trained = float(np.mean(hp2[1:]))
+            claim(f"HP2 tool {sit} improves with training ({strat})", f"{pct(hp2)}; trained mean {100 * trained:.0f} %",
+                  trained > hp2[0])
+    diff = summary["checks"].get("reactive_planning_max_abs_diff")
+    if diff is not None:
+        claim("reactive and planning children alike (largest difference <= 25 points)", f"{100 * diff:.0f} points",
+              diff <= 0.25)
+    return out
+
+
 def evaluate(cfg, run, trained) -> dict:
     """individuals.csv, summary (RESULTS.md exp5 layout), figures and TensorBoard scalars."""
     from . import exp5_figures as figs
@@ -457,6 +517,10 @@ def evaluate(cfg, run, trained) -> dict:
     diffs = [abs(rate[(h, lv, si, "reactive")] - rate[(h, lv, si, "planning")])
              for (h, lv, si, st) in rate if st == "reactive" and (h, lv, si, "planning") in rate]
     checks["reactive_planning_max_abs_diff"] = round(float(max(diffs)), 4) if diffs else None
+    # how the youngest HP1 robots solved the tool-far test: one pull (from posture 4) or a sequence; the thesis has them near zero, "sometimes pulling after touching" (l. 1692)
+    young = df[(df.hypothesis == "hp1") & (df.level == e.hp1_levels[0]) & (df.situation == "far") & (df.success == 1)]
+    checks["hp1_far_youngest_successes"] = int(len(young))
+    checks["hp1_far_youngest_single_pull"] = int(young.test_actions.str.fullmatch(r"retrieve\d*").sum())
     timing = [d["timing"] for d in results]
     summary = {
         "experiment": "exp5",
@@ -485,6 +549,7 @@ def evaluate(cfg, run, trained) -> dict:
                  "rollout_s": round(sum(t.get("rollout_s", 0.0) for t in timing), 2),
                  "render_s": round(sum(t.get("render_s", 0.0) for t in timing), 2)},
     }
+    summary["claims"] = thesis_claims(summary, e)
     for i, r in enumerate(grp_rows):
         run.logger.scalar(f"success/{r['hypothesis']}/{r['situation']}/{r['strategy']}", r["success_rate"], r["level"])
     figs.draw_all(cfg, run, df, summary, results)
@@ -497,4 +562,5 @@ def report(cfg, run, summary) -> None:
     figs.write_report(cfg, run, summary)
 
 
-__all__ = ["Exp5Config", "CONFIG", "train", "load", "evaluate", "report", "run_task", "groups", "tasks"]
+__all__ = ["Exp5Config", "CONFIG", "train", "load", "evaluate", "report", "run_task", "groups", "tasks",
+           "thesis_claims"]

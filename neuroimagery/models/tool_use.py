@@ -52,7 +52,8 @@ SKILL_LETTERS = ("P", "T", "S", "N", "W", "E")  # Table 7.1 column names of the 
 N_POSTURES = 4
 # the values each modelling switch of this module accepts (Exp5Config checks the same table)
 CHOICES = {"c3_recall": ("practised", "situation", "joint"), "planning_test": ("act", "plan"),
-           "goal_frame": ("relative", "absolute"), "reach_bound": ("path", "goal")}
+           "goal_frame": ("relative", "absolute"), "reach_bound": ("path", "goal"),
+           "spare_dmps": ("none", "unmastered")}
 
 
 def check_choice(key: str, value) -> None:
@@ -342,6 +343,14 @@ class AcquisitionConfig:
     hip_threshold: float = 0.5
     explore_batch: int = 8
     explore_max_rollouts: int = 400
+    # the DMPs left free once every enabled event has its skill: 'none' = unused | 'unmastered' =
+    # exploration goes on, and an enabled event firing from a situation whose distal goal (HIP) is
+    # not active there is learnt again by a free DMP (thesis: the extra DMPs serve events one DMP
+    # cannot achieve from every initial posture)
+    spare_dmps: str = "none"
+
+    def __post_init__(self) -> None:
+        check_choice("spare_dmps", self.spare_dmps)
 
 
 @dataclass
@@ -355,6 +364,12 @@ class Skill:
     competence: list[float] = field(default_factory=list)  # per epoch (successes / (4 K))
     succeeds_from: tuple[bool, ...] = (False,) * N_POSTURES  # last competence check, per posture
     log: list[tuple] = field(default_factory=list)  # ("c1", posture, signal) | ("c23", posture, State)
+    copy: int = 0  # 0: the event's first skill; k: its (k+1)-th, learnt by a spare DMP
+
+    @property
+    def name(self) -> str:
+        """The primitive's name in sequences and tables: the event, numbered from its second DMP on."""
+        return self.event if self.copy == 0 else f"{self.event}{self.copy + 1}"
 
 
 @dataclass
@@ -373,7 +388,7 @@ class Library:
                        self.learn_rollouts, [e for e in self.missing if e in keep])
 
     def to_state(self) -> dict:
-        return {"skills": [dict(event=s.event, unit=s.unit, theta=s.theta, found_from=s.found_from,
+        return {"skills": [dict(event=s.event, unit=s.unit, copy=s.copy, theta=s.theta, found_from=s.found_from,
                                 competence=s.competence, succeeds_from=s.succeeds_from,
                                 log=[(op[0], op[1], op[2] if op[0] == "c1" else _state_tuple(op[2])) for op in s.log])
                            for s in self.skills],
@@ -384,7 +399,8 @@ class Library:
     def from_state(cls, d: dict) -> "Library":
         skills = [Skill(s["event"], s["unit"], s["theta"], s["found_from"], list(s["competence"]),
                         tuple(s["succeeds_from"]),
-                        [(op[0], op[1], op[2] if op[0] == "c1" else State(*op[2])) for op in s["log"]])
+                        [(op[0], op[1], op[2] if op[0] == "c1" else State(*op[2])) for op in s["log"]],
+                        s.get("copy", 0))
                   for s in d["skills"]]
         return cls(skills, d["events_seen"], d["explore_rollouts"], d["learn_rollouts"], list(d["missing"]))
 
@@ -414,6 +430,10 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionCon
        each success trains C2 ``c2_repeats`` times and C3 ``c3_repeats`` times. The epoch's
        competence is successes / (4 K); learning stops when it changes by less than
        ``competence_tolerance`` from the previous epoch, or after ``max_epochs``.
+    With ``cfg.spare_dmps == "unmastered"``, once every enabled event has a skill the free DMPs go on
+    exploring: an enabled event that fires from a situation where it is not yet mastered (its
+    distal goal below ``hip_threshold`` there; without a brain: no skill of it succeeded from that
+    posture) is learnt again, by A and B, as a further skill of that event.
     If ``brain`` is given it is trained on the way; the returned :class:`Library` also records
     every training step so that a brain can be rebuilt later (:func:`build_brain`).
     """
@@ -424,46 +444,72 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionCon
     lib = Library([], [[0] * len(EVENTS) for _ in range(N_POSTURES)])
     free = list(range(cfg.n_dmps))
     wanted = [e for e in EVENTS if e in enabled]
-    while wanted and free:
-        slot = free[int(torch.randint(len(free), (1,), generator=generator))]
-        found = None
-        tried = 0
-        # ---- A. exploration (batched: the first new event in draw order wins; all are recorded)
-        while found is None and tried < cfg.explore_max_rollouts:
-            postures = torch.randint(1, N_POSTURES + 1, (cfg.explore_batch,), generator=generator).tolist()
-            results: list[tuple[int, torch.Tensor, Result]] = []
-            for p in sorted(set(postures)):
-                idx = [i for i, q in enumerate(postures) if q == p]
-                theta = env.random_params(p, len(idx), generator)
-                for i, th, r in zip(idx, theta, env.execute(theta, env.start(p), None)):
-                    results.append((i, th, r))
-            results.sort(key=lambda t: t[0])
-            for i, th, r in results:
-                tried += 1
-                lib.explore_rollouts += 1
-                p = postures[i]
-                for k, f in enumerate(r.events):
-                    lib.events_seen[p - 1][k] += int(f)
-                if found is None:
-                    e = _new_event(r, wanted)
-                    if e is not None and brain is not None:
-                        hip = brain.distal_goals(perceive(env.start(p)))[EVENTS.index(e)]
-                        if hip >= cfg.hip_threshold:
-                            e = None
-                    if e is not None:
-                        found = (e, th.clone(), p)
+    hip_cache: dict[int, torch.Tensor] = {}
+
+    def mastered(e: str, p: int) -> bool:
+        if brain is not None:
+            if p not in hip_cache:
+                hip_cache[p] = brain.distal_goals(perceive(env.start(p)))
+            return bool(hip_cache[p][EVENTS.index(e)] >= cfg.hip_threshold)
+        return any(s.event == e and s.succeeds_from[p - 1] for s in lib.skills)
+
+    def acquire(slot: int, events: list[str]) -> Skill | None:
+        found = _explore(env, events, cfg, generator, lib, mastered)
         if found is None:
-            lib.missing.extend(wanted)
-            break
+            return None
         event, theta, p0 = found
         if progress:
             progress(f"learning {event} on DMP {slot}")
-        skill = Skill(event, slot, theta, p0)
+        skill = Skill(event, slot, theta, p0, copy=sum(s.event == event for s in lib.skills))
         _learn_skill(env, skill, cfg, generator, brain, perceive, lib)
+        hip_cache.clear()  # C2 has learnt
         lib.skills.append(skill)
         free.remove(slot)
-        wanted.remove(event)  # the detector is disabled once its skill is acquired
+        return skill
+
+    while wanted and free:
+        skill = acquire(free[int(torch.randint(len(free), (1,), generator=generator))], wanted)
+        if skill is None:
+            lib.missing.extend(wanted)
+            break
+        wanted.remove(skill.event)  # the detector is disabled once its skill is acquired
+    if cfg.spare_dmps == "unmastered":
+        again = [e for e in EVENTS if e in enabled and e not in lib.missing]
+        while again and free:
+            if acquire(free[int(torch.randint(len(free), (1,), generator=generator))], again) is None:
+                break
     return lib
+
+
+def _explore(env, events: Sequence[str], cfg: AcquisitionConfig, generator, lib: Library,
+             mastered: Callable[[str, int], bool]) -> tuple[str, torch.Tensor, int] | None:
+    """Part A of Fig. 7.5: random movements from random postures (batched) until one fires an
+    event of ``events`` not yet mastered from its posture; the first such rollout in draw order
+    wins, every rollout is counted in ``lib``. Returns (event, parameters, posture) or None."""
+    tried = 0
+    while tried < cfg.explore_max_rollouts:
+        postures = torch.randint(1, N_POSTURES + 1, (cfg.explore_batch,), generator=generator).tolist()
+        results: list[tuple[int, torch.Tensor, Result]] = []
+        for p in sorted(set(postures)):
+            idx = [i for i, q in enumerate(postures) if q == p]
+            theta = env.random_params(p, len(idx), generator)
+            for i, th, r in zip(idx, theta, env.execute(theta, env.start(p), None)):
+                results.append((i, th, r))
+        results.sort(key=lambda t: t[0])
+        found = None
+        for i, th, r in results:
+            tried += 1
+            lib.explore_rollouts += 1
+            p = postures[i]
+            for k, f in enumerate(r.events):
+                lib.events_seen[p - 1][k] += int(f)
+            if found is None:
+                e = _new_event(r, events)
+                if e is not None and not mastered(e, p):
+                    found = (e, th.clone(), p)
+        if found is not None:
+            return found
+    return None
 
 
 def _learn_skill(env, skill: Skill, cfg: AcquisitionConfig, generator, brain, perceive, lib: Library) -> None:
@@ -549,8 +595,9 @@ class TrialRecord:
 class Outcomes:
     """Deterministic real outcomes of skill sequences from an initial posture, computed once.
 
-    The physics is deterministic, so the scene after primitives ``(a1, ..., an)`` from posture
-    ``p`` depends on nothing else; every individual sharing a skill library shares this cache.
+    ``skills`` maps each primitive's name (:attr:`Skill.name`) to its skill. The physics is
+    deterministic, so the scene after primitives ``(a1, ..., an)`` (names) from posture ``p``
+    depends on nothing else; every individual sharing a skill library shares this cache.
     """
 
     def __init__(self, env: Environment, skills: dict[str, Skill], perceive: Callable[[State], torch.Tensor]):
@@ -617,7 +664,7 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
         act = brain.pmc(x0)[units]
         k = int(softmax_select(act.view(1, -1), temperature, generators=[generator])[0])
         skill = by_unit[int(units[k])]
-        done_events = done_events + (skill.event,)
+        done_events = done_events + (skill.name,)
         imagined = brain.imagine(x0, skill.unit) if imagining or record_frames else None
         if imagining and float(env.reward(imagined)) > 0:
             rec.imagined_success = True
@@ -628,10 +675,10 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
         else:
             x1 = imagined
             reward = float(env.reward(x1))
-        rec.actions.append(skill.event)
+        rec.actions.append(skill.name)
         rec.rewards.append(reward)
         if record_frames:
-            rec.frames.append({"action": skill.event, "real": outcomes.image(posture, done_events),
+            rec.frames.append({"action": skill.name, "real": outcomes.image(posture, done_events),
                                "imagined": imagined, "reward": reward})
         if training:
             brain.q_update(x0, skill.unit, reward, x1, done=reward > 0)
