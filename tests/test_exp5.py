@@ -301,6 +301,7 @@ def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
     monkeypatch.setattr(exp5, "run_task", lambda *a, **k: pytest.fail("a finished task was recomputed"))
     summary2 = R.evaluate(cfg, out_dir=tmp_path)
     assert summary2["groups"] == summary["groups"]
+    assert summary["cost"]["tasks_read_back"] == 0 and summary2["cost"]["tasks_read_back"] == summary2["cost"]["tasks"]
 
 
 @pytest.mark.slow

@@ -384,6 +384,7 @@ def train(cfg, run) -> dict:
     for t in tasks(cfg):
         d = _valid(_task_path(run, t["key"]), e, cfg.seed)
         (done if d is not None else todo).append(d if d is not None else t)
+    read_back = len(done)
     bar = tqdm(total=len(todo) + len(done), initial=len(done), desc="exp5 tasks", disable=not cfg.progress)
     if todo:
         jobs = (delayed(run_task)(e, cfg.seed, t, str(_task_path(run, t["key"]))) for t in todo)
@@ -395,7 +396,7 @@ def train(cfg, run) -> dict:
     bar.close()
     done.sort(key=lambda d: d["task"]["key"])
     run.save_checkpoint("exp5_index", {"keys": [d["task"]["key"] for d in done], "seed": cfg.seed})
-    return {"results": done}
+    return {"results": done, "read_back": read_back}
 
 
 def load(cfg, checkpoint_dir) -> dict:
@@ -406,7 +407,7 @@ def load(cfg, checkpoint_dir) -> dict:
         if d is None:
             raise UserInputError(f"checkpoint: {checkpoint_dir} has no finished task {t['key']} for this configuration")
         out.append(d)
-    return {"results": out}
+    return {"results": out, "read_back": len(out)}
 
 
 def table_7_1(results: list[dict]) -> dict:
@@ -538,7 +539,7 @@ def evaluate(cfg, run, trained) -> dict:
         # one individual = one robot of one group (repetition x situation), tested as both strategies
         "individuals": int(len(df) // len(STRATEGIES)),
         "environment": e.environment,
-        "cost": {"tasks": len(results), "task_s_total": round(sum(t["task_s"] for t in timing), 2),
+        "cost": {"tasks": len(results), "tasks_read_back": int(trained.get("read_back", 0)), "task_s_total": round(sum(t["task_s"] for t in timing), 2),
                  "task_cpu_s_total": (round(sum(t["cpu_s"] for t in timing), 2)
                                       if all("cpu_s" in t for t in timing) else None),
                  "acquisition_s_total": round(sum(t["acquisition_s"] for t in timing), 2),
