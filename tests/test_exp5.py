@@ -295,13 +295,42 @@ def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
     young = df[(df.hypothesis == "hp1") & (df.level == 2) & (df.situation == "far") & (df.success == 1)]
     assert saved["checks"]["hp1_far_youngest_successes"] == len(young)
     assert saved["checks"]["hp1_far_youngest_single_pull"] == int((young.test_actions == "retrieve").sum())
-    assert "STAND-IN" in (tmp_path / "report.md").read_text()
+    far = df[(df.situation == "far")]
+    assert len(saved["routes"]) == far.groupby(["hypothesis", "level", "strategy"]).ngroups
+    for r in saved["routes"]:
+        g = far[(far.hypothesis == r["hypothesis"]) & (far.level == r["level"]) & (far.strategy == r["strategy"])]
+        assert r["n"] == len(g) and r["successes"] == int(g.success.sum())
+        assert r["pull"] + r["moves_then_pull"] + r["other"] == r["successes"]
+    report = (tmp_path / "report.md").read_text()
+    assert "STAND-IN" in report and "How the tool-far successes happen" in report
     assert (tmp_path / "figures" / "fig_7_9_hp1_skills.png").exists()
     # an interrupted run resumes: finished tasks are read back, not recomputed
     monkeypatch.setattr(exp5, "run_task", lambda *a, **k: pytest.fail("a finished task was recomputed"))
     summary2 = R.evaluate(cfg, out_dir=tmp_path)
     assert summary2["groups"] == summary["groups"]
     assert summary["cost"]["tasks_read_back"] == 0 and summary2["cost"]["tasks_read_back"] == summary2["cost"]["tasks"]
+
+
+@pytest.mark.parametrize("actions, route", [
+    ("retrieve", "pull"), ("retrieve2", "pull"), ("touch>retrieve", "moves_then_pull"),
+    ("south>south>retrieve3", "moves_then_pull"), ("north", "other"), ("retrieve>touch", "other"),
+    ("west>east", "other"),
+])
+def test_success_route_names_the_move_that_brought_the_toy_in(actions, route):
+    assert exp5.success_route(actions) == route
+
+
+def test_success_routes_count_each_far_group():
+    df = pd.DataFrame(dict(
+        hypothesis=["hp1"] * 6, level=[2, 2, 2, 2, 3, 3], situation=["far", "far", "far", "behind", "far", "far"],
+        strategy=["reactive"] * 6, success=[1, 1, 0, 1, 1, 0],
+        test_actions=["retrieve", "touch>retrieve", "touch>touch", "retrieve", "north", "south"]))
+    routes = {r["level"]: r for r in exp5.success_routes(df)}
+    assert set(routes) == {2, 3}
+    assert (routes[2]["n"], routes[2]["successes"], routes[2]["pull"], routes[2]["moves_then_pull"], routes[2]["other"]) == (3, 2, 1, 1, 0)
+    assert (routes[3]["n"], routes[3]["successes"], routes[3]["other"]) == (2, 1, 1)
+    with pytest.raises(ValueError, match="empty"):
+        exp5.success_route("")
 
 
 @pytest.mark.slow

@@ -495,6 +495,42 @@ def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
     return out
 
 
+ROUTES = ("pull", "moves_then_pull", "other")
+
+
+def success_route(actions: str) -> str:
+    """How one successful test sequence (``test_actions``, primitives joined by '>') brought the toy in.
+
+    ``pull``: one pull (the retrieve skill, or a spare copy of it) and nothing else;
+    ``moves_then_pull``: a pull as the last move, after one or more other moves (the thesis's route
+    from the tool-far situation, Fig. 7.8); ``other``: the last move, the one that brought the toy
+    into reach, was not a pull (touch or an interaction primitive).
+    """
+    moves = actions.split(">")
+    if not actions or not moves[-1]:
+        raise ValueError(f"empty action sequence {actions!r}")
+    if not _is_pull(moves[-1]):
+        return "other"
+    return "pull" if len(moves) == 1 else "moves_then_pull"
+
+
+def _is_pull(name: str) -> bool:
+    return name.rstrip("0123456789") == "retrieve"
+
+
+def success_routes(df: pd.DataFrame) -> list[dict]:
+    """Per tool-far group and strategy: the number of successes and how many took each route of
+    :func:`success_route` (summary.json key ``routes``)."""
+    out = []
+    far = df[df.situation == "far"]
+    for (h, lvl, strat), g in far.groupby(["hypothesis", "level", "strategy"], sort=False):
+        won = g[g.success == 1].test_actions.astype(str)
+        counts = won.map(success_route).value_counts()
+        out.append(dict(hypothesis=h, level=int(lvl), situation="far", strategy=strat, n=int(len(g)),
+                        successes=int(len(won)), **{k: int(counts.get(k, 0)) for k in ROUTES}))
+    return out
+
+
 def evaluate(cfg, run, trained) -> dict:
     """individuals.csv, summary (RESULTS.md exp5 layout), figures and TensorBoard scalars."""
     from . import exp5_figures as figs
@@ -518,10 +554,12 @@ def evaluate(cfg, run, trained) -> dict:
     diffs = [abs(rate[(h, lv, si, "reactive")] - rate[(h, lv, si, "planning")])
              for (h, lv, si, st) in rate if st == "reactive" and (h, lv, si, "planning") in rate]
     checks["reactive_planning_max_abs_diff"] = round(float(max(diffs)), 4) if diffs else None
-    # how the youngest HP1 robots solved the tool-far test: one pull (from posture 4) or a sequence; the thesis has them near zero, "sometimes pulling after touching" (l. 1692)
-    young = df[(df.hypothesis == "hp1") & (df.level == e.hp1_levels[0]) & (df.situation == "far") & (df.success == 1)]
-    checks["hp1_far_youngest_successes"] = int(len(young))
-    checks["hp1_far_youngest_single_pull"] = int(young.test_actions.str.fullmatch(r"retrieve\d*").sum())
+    # how the tool-far tests were solved (thesis: pulling only after a move that brings the tool
+    # behind the toy, Fig. 7.8; at 14 months "sometimes pulling after touching", l. 1692)
+    routes = success_routes(df)
+    young = [r for r in routes if r["hypothesis"] == "hp1" and r["level"] == e.hp1_levels[0] and r["situation"] == "far"]
+    checks["hp1_far_youngest_successes"] = int(sum(r["successes"] for r in young))
+    checks["hp1_far_youngest_single_pull"] = int(sum(r["pull"] for r in young))
     timing = [d["timing"] for d in results]
     summary = {
         "experiment": "exp5",
@@ -535,6 +573,7 @@ def evaluate(cfg, run, trained) -> dict:
             "hp1_far_spearman_min": 0.8,
         },
         "checks": checks,
+        "routes": routes,
         "repetitions": repetitions(cfg),
         # one individual = one robot of one group (repetition x situation), tested as both strategies
         "individuals": int(len(df) // len(STRATEGIES)),
@@ -564,4 +603,4 @@ def report(cfg, run, summary) -> None:
 
 
 __all__ = ["Exp5Config", "CONFIG", "train", "load", "evaluate", "report", "run_task", "groups", "tasks",
-           "thesis_claims"]
+           "thesis_claims", "success_route", "success_routes"]
