@@ -230,7 +230,8 @@ def write_report(cfg, run, summary: dict) -> None:
         n = {k: sum(r[k] for r in old) for k in ("successes", "pull", "moves_then_pull", "other")}
         bullets.append(
             f"In the thesis the tool-far success of older robots comes from moves that bring the tool behind the toy "
-            f"followed by P (Fig. 7.8). Here, of the {n['successes']} tool-far successes at {e.hp1_ages[-1]} months "
+            f"followed by P (Fig. 7.8). Here, of the {n['successes']} tool-far success{'' if n['successes'] == 1 else 'es'} "
+            f"at {e.hp1_ages[-1]} months "
             f"(both strategies), {n['moves_then_pull']} took that route, {n['pull']} were one pull and {n['other']} "
             "ended with a move that is not a pull: a touch or interaction primitive, learnt for another event, brought "
             "the toy into reach itself (table above).")
