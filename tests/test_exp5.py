@@ -54,7 +54,7 @@ def test_config_composes_and_validates():
 @pytest.mark.parametrize("key,value", [("q_form", "sideways"), ("attempts", 0), ("gamma", 1.5),
                                        ("hp1_ages", [14]), ("situations", ["near"]), ("temperature", 0.0),
                                        ("c3_recall", "nearest"), ("planning_test", "dream"), ("reach_bound", "far"),
-                                       ("posture_4", "near")])
+                                       ("posture_4", "near"), ("retrieve_x", 0.6)])
 def test_config_rejects_bad_values_naming_the_key(key, value):
     with pytest.raises(ValueError, match=key):
         exp5.Exp5Config(**{key: value})

@@ -37,7 +37,7 @@ from ..errors import UserInputError
 from ..models.tool_use import (CHOICES, EVENTS, N_POSTURES, AcquisitionConfig, Library, Outcomes, ToolUseBrain, acquire_skills,
                                build_brain, sequence_trial)
 from ..nn.seeding import participant_seed
-from ..robot.config import POSTURE_4
+from ..robot.config import POSTURE_4, WorldConfig
 
 SITUATIONS = {"behind": 1, "far": 4}  # thesis: posture 1 = tool behind toy, posture 4 = tool far from toy
 THESIS = {  # read off Fig. 7.9-7.10 and the text of section 7.1.3 (approximate)
@@ -119,6 +119,9 @@ class Exp5Config:
     # rake head at (0.60, -0.38), 17 cm from the toy | 'far' = (0.525, -0.43), 22.5 cm.
     # See docs/robot.md and docs/exp5.md.
     posture_4: str = "right"
+    # m, the reachable area: the retrieve event fires when the toy's centre comes nearer to the robot
+    # than this (WorldConfig.retrieve_x; the toy starts at x = 0.56). See docs/robot.md and docs/exp5.md.
+    retrieve_x: float = 0.48
     # the DMPs left free once every enabled event has its skill (n_dmps = 10 for 6 events):
     # 'none' = unused | 'unmastered' = exploration goes on and an event firing from a situation
     # where it is not yet mastered (distal goal off) is learnt again by a spare DMP. docs/exp5.md.
@@ -181,6 +184,9 @@ class Exp5Config:
                 bad(key, f"must be one of {', '.join(map(repr, allowed))}")
         if self.posture_4 not in POSTURE_4:
             bad("posture_4", f"must be one of {sorted(POSTURE_4)}")
+        toy_x = WorldConfig.__dataclass_fields__["toy_xy"].default[0]
+        if not 0.3 <= self.retrieve_x < toy_x:
+            bad("retrieve_x", f"must lie in [0.3, {toy_x}) m (the toy starts at x = {toy_x})")
         if self.environment != "robot" and ":" not in self.environment:
             bad("environment", "must be 'robot' or 'module:Class'")
 
@@ -209,7 +215,7 @@ def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
 
 
 _ENV_KEYS = ("environment", "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
-             "search_weight_sigma", "goal_frame", "reach_bound", "posture_4")
+             "search_weight_sigma", "goal_frame", "reach_bound", "posture_4", "retrieve_x")
 _WORKER_ENV: dict[tuple, object] = {}  # one world per worker process, reused by its tasks
 
 
@@ -235,9 +241,8 @@ def make_environment(e: Exp5Config):
     """The world the robots live in: the pybullet ToolWorld, or ``module:Class`` (tests' stand-ins)."""
     if e.environment == "robot":
         from ..models.tool_use import ToolWorldEnvironment
-        from ..robot.config import WorldConfig
 
-        return ToolWorldEnvironment(WorldConfig(posture_4=e.posture_4), duration_s=e.duration_s, explore_goal_sigma=e.explore_goal_sigma,
+        return ToolWorldEnvironment(WorldConfig(posture_4=e.posture_4, retrieve_x=e.retrieve_x), duration_s=e.duration_s, explore_goal_sigma=e.explore_goal_sigma,
                                     explore_weight_sigma=e.explore_weight_sigma,
                                     search_goal_sigma=e.search_goal_sigma, search_weight_sigma=e.search_weight_sigma,
                                     goal_frame=e.goal_frame, reach_bound=e.reach_bound)
@@ -370,7 +375,7 @@ def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
         return None
     stored = d.get("config")
     if isinstance(stored, dict):  # written before these keys existed: their values then
-        stored = {"posture_4": "right", "spare_dmps": "none", **stored}
+        stored = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, **stored}
     return d if stored == asdict(e) and d.get("seed") == seed else None
 
 
