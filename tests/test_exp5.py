@@ -17,8 +17,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from support_tool_env import StandInToolEnv  # noqa: E402
 
 from neuroimagery.experiments import exp5  # noqa: E402
-from neuroimagery.models.tool_use import (EVENTS, AcquisitionConfig, Library, Outcomes, ToolUseBrain, acquire_skills,  # noqa: E402
-                                          build_brain, sequence_trial)
+from neuroimagery.models.tool_use import (EVENTS, AcquisitionConfig, Library, Outcomes, Result, ToolUseBrain,  # noqa: E402
+                                          acquire_skills, build_brain, sequence_trial)
 
 CONF = str(Path(__file__).resolve().parents[1] / "conf")
 STANDIN = "support_tool_env:StandInToolEnv"
@@ -295,12 +295,18 @@ def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
     young = df[(df.hypothesis == "hp1") & (df.level == 2) & (df.situation == "far") & (df.success == 1)]
     assert saved["checks"]["hp1_far_youngest_successes"] == len(young)
     assert saved["checks"]["hp1_far_youngest_single_pull"] == int((young.test_actions == "retrieve").sum())
+    won = df[df.success == 1]  # a success in one or two moves is a route the world offers (routes_1, routes_2)
+    assert (won.test_attempts <= 2).any()
+    assert (won[won.test_attempts == 1].routes_1 > 0).all()
+    short = won[won.test_attempts <= 2]
+    assert (short.routes_1 + short.routes_2 > 0).all()
     far = df[(df.situation == "far")]
     assert len(saved["routes"]) == far.groupby(["hypothesis", "level", "strategy"]).ngroups
     for r in saved["routes"]:
         g = far[(far.hypothesis == r["hypothesis"]) & (far.level == r["level"]) & (far.strategy == r["strategy"])]
         assert r["n"] == len(g) and r["successes"] == int(g.success.sum())
         assert r["pull"] + r["moves_then_pull"] + r["other"] == r["successes"]
+        assert r["available"] == int(((g.routes_1 + g.routes_2) > 0).sum())
     report = (tmp_path / "report.md").read_text()
     assert "STAND-IN" in report and "How the tool-far successes happen" in report
     assert (tmp_path / "figures" / "fig_7_9_hp1_skills.png").exists()
@@ -318,6 +324,15 @@ def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
 ])
 def test_success_route_names_the_move_that_brought_the_toy_in(actions, route):
     assert exp5.success_route(actions) == route
+
+
+def test_routes_available_counts_single_moves_and_pairs():
+    class Fake:  # 'a' brings the toy in from anywhere; 'b' then 'c' does too
+        def after(self, posture, seq):
+            return Result((seq[-1] == "a" or seq == ("b", "c"),) + (False,) * 5, None)
+
+    assert exp5.routes_available(Fake(), 4, ["a", "b", "c"]) == (1, 3)  # a; b>a, b>c, c>a
+    assert exp5.routes_available(Fake(), 4, ["b", "c"]) == (0, 1)
 
 
 def test_success_routes_count_each_far_group():

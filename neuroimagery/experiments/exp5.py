@@ -26,6 +26,7 @@ from __future__ import annotations
 import importlib
 import json
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -294,6 +295,16 @@ def _pack(img: torch.Tensor) -> torch.Tensor:
     return (img.clamp(0, 1) * 255).round().to(torch.uint8)
 
 
+def routes_available(outcomes: Outcomes, posture: int, names: Sequence[str]) -> tuple[int, int]:
+    """What the world offers a robot with primitives ``names`` from ``posture``, whatever it learns:
+    the number of single primitives that retrieve the toy, and of ordered pairs (a, b) where a alone
+    does not and a then b does (individuals.csv ``routes_1``, ``routes_2``; rollouts are cached in
+    ``outcomes`` and shared with the action sequencing)."""
+    one = {a for a in names if outcomes.after(posture, (a,)).retrieved}
+    two = sum(outcomes.after(posture, (a, b)).retrieved for a in names if a not in one for b in names)
+    return len(one), int(two)
+
+
 # ---------------------------------------------------------------------------------- one task
 def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> dict:
     """Acquire one library, then simulate every individual built on it (all groups, strategies)."""
@@ -312,6 +323,7 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
     t_acq = time.perf_counter() - t0
     rows, film = [], None
     built: dict[tuple, ToolUseBrain] = {}
+    available: dict[tuple, tuple[int, int]] = {}
     for sit in task["situations"]:
         posture = SITUATIONS[sit]
         outcomes = Outcomes(env, {s.name: s for s in lib.skills}, env.perceive)
@@ -320,6 +332,8 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
             enabled = detectors_for(e, grp["detectors"], g_ind)
             sub = lib.subset(enabled)
             key = tuple(enabled)
+            if (sit, key) not in available:
+                available[(sit, key)] = routes_available(outcomes, posture, [s.name for s in sub.skills])
             if key not in built:
                 built[key] = build_brain(env, sub, acq, ToolUseBrain(env.image_shape, seed=seed, **brain_kw),
                                          _gen(seed, 3, r), env.perceive)
@@ -348,7 +362,8 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
                     n_skills=len(sub.skills), skills="+".join(s.name for s in sub.skills),
                     train_success_rate=float(np.mean(train_ok)) if train_ok else float("nan"),
                     success=int(test.success), imagined_success=int(test.imagined_success),
-                    test_actions=">".join(test.actions), test_attempts=len(test.actions)))
+                    test_actions=">".join(test.actions), test_attempts=len(test.actions),
+                    routes_1=available[(sit, key)][0], routes_2=available[(sit, key)][1]))
     timing = dict(task_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0, acquisition_s=t_acq,
                   explore_rollouts=lib.explore_rollouts, learn_rollouts=lib.learn_rollouts)
     timing.update({k: v for k, v in getattr(env, "timing", {}).items()})
@@ -531,8 +546,11 @@ def success_routes(df: pd.DataFrame) -> list[dict]:
     for (h, lvl, strat), g in far.groupby(["hypothesis", "level", "strategy"], sort=False):
         won = g[g.success == 1].test_actions.astype(str)
         counts = won.map(success_route).value_counts()
-        out.append(dict(hypothesis=h, level=int(lvl), situation="far", strategy=strat, n=int(len(g)),
-                        successes=int(len(won)), **{k: int(counts.get(k, 0)) for k in ROUTES}))
+        row = dict(hypothesis=h, level=int(lvl), situation="far", strategy=strat, n=int(len(g)),
+                   successes=int(len(won)), **{k: int(counts.get(k, 0)) for k in ROUTES})
+        if {"routes_1", "routes_2"} <= set(g.columns):  # robots for which the world holds a 1-2 move retrieval
+            row["available"] = int(((g.routes_1 + g.routes_2) > 0).sum())
+        out.append(row)
     return out
 
 
