@@ -348,6 +348,40 @@ def test_success_routes_count_each_far_group():
         exp5.success_route("")
 
 
+def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, monkeypatch):
+    import dataclasses
+
+    from omegaconf import OmegaConf
+
+    import neuroimagery.run as R
+
+    args = ("preset=quick", f"experiment.environment={STANDIN}", "experiment.n_jobs=1",
+            "experiment.quick_repetitions=1", "experiment.max_epochs=2", "experiment.explore_max_rollouts=120",
+            "experiment.hp1_levels=[2,6]", "experiment.hp1_ages=[14,22]", "experiment.hp2_trials=[0,4]",
+            "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
+    R.evaluate(compose(*args), out_dir=tmp_path / "a")
+    full = R.evaluate(compose(*args, "experiment.eta=0.01"), out_dir=tmp_path / "b")  # acquires again
+    assert full["cost"]["libraries_reused"] == 0
+    monkeypatch.setattr(exp5, "acquire_skills", lambda *a, **k: pytest.fail("a stored library was acquired again"))
+    reused = R.evaluate(compose(*args, "experiment.eta=0.01", f"experiment.reuse_libraries={tmp_path / 'a'}"),
+                        out_dir=tmp_path / "c")
+    assert reused["cost"]["libraries_reused"] == reused["cost"]["tasks"] == 2
+    assert reused["groups"] == full["groups"]
+    a = pd.read_csv(tmp_path / "b" / "individuals.csv")
+    pd.testing.assert_frame_equal(a, pd.read_csv(tmp_path / "c" / "individuals.csv"))
+    # a setting of skill acquisition differs: nothing is reused
+    with pytest.raises(pytest.fail.Exception, match="acquired again"):
+        R.evaluate(compose(*args, "experiment.pibb_samples=5", f"experiment.reuse_libraries={tmp_path / 'a'}"),
+                   out_dir=tmp_path / "d")
+    # how the work is spread changes no result: a finished task stays valid
+    e = OmegaConf.to_object(compose(*args).experiment)
+    path = exp5._task_path(tmp_path / "a", "rep000_far")
+    assert exp5._valid(path, dataclasses.replace(e, n_jobs=3), 0) is not None
+    assert exp5._valid(path, dataclasses.replace(e, eta=0.01), 0) is None
+    with pytest.raises(ValueError, match="reuse_libraries"):
+        dataclasses.replace(e, reuse_libraries=str(tmp_path / "nowhere"))
+
+
 @pytest.mark.slow
 def test_quick_run_on_the_robot_world(tmp_path):
     import neuroimagery.run as R

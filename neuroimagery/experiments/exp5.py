@@ -132,6 +132,11 @@ class Exp5Config:
     share_library_across_situations: bool = False  # one library per repetition for both situations
     n_jobs: int = 2  # parallel tasks (joblib processes); 1 runs in this process
     filmstrip_repetition: int = 0  # repetition whose planning test is filmed (imagined vs real)
+    # a run directory whose skill libraries are reused when every setting of skill acquisition
+    # (Fig. 7.5: the world, acquisition and C2 keys, the seed) matches; only action sequencing
+    # (Fig. 7.6) is then run again, e.g. in a sweep over eta or temperature. '' = none. Libraries
+    # of this run's own directory are always reused that way.
+    reuse_libraries: str = ""
 
     def __post_init__(self) -> None:
         def bad(key, why):
@@ -190,6 +195,8 @@ class Exp5Config:
             bad("retrieve_x", f"must lie in [0.3, {toy_x}) m (the toy starts at x = {toy_x})")
         if self.environment != "robot" and ":" not in self.environment:
             bad("environment", "must be 'robot' or 'module:Class'")
+        if self.reuse_libraries and not (Path(self.reuse_libraries) / "checkpoints").is_dir():
+            bad("reuse_libraries", "must be a run directory with a checkpoints/ folder")
 
 
 CONFIG = Exp5Config
@@ -217,6 +224,13 @@ def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
 
 _ENV_KEYS = ("environment", "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
              "search_weight_sigma", "goal_frame", "reach_bound", "posture_4", "retrieve_x")
+# the settings a task's skill library depends on (Fig. 7.5); the other keys act only in Fig. 7.6
+_LIBRARY_KEYS = _ENV_KEYS + ("n_dmps", "pibb_samples", "pibb_temperature", "pibb_decay", "max_epochs",
+                             "competence_tolerance", "c1_repeats", "c2_repeats", "c3_repeats", "hip_threshold",
+                             "explore_batch", "explore_max_rollouts", "spare_dmps", "c2_eta",
+                             "share_library_across_situations")
+# settings that change no result (how the work is spread, where libraries come from)
+_ENGINE_KEYS = ("n_jobs", "reuse_libraries")
 _WORKER_ENV: dict[tuple, object] = {}  # one world per worker process, reused by its tasks
 
 
@@ -306,8 +320,9 @@ def routes_available(outcomes: Outcomes, posture: int, names: Sequence[str]) -> 
 
 
 # ---------------------------------------------------------------------------------- one task
-def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> dict:
-    """Acquire one library, then simulate every individual built on it (all groups, strategies)."""
+def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, library: dict | None = None) -> dict:
+    """Acquire one library (or take ``library``, a stored one acquired with the same settings),
+    then simulate every individual built on it (all groups, strategies)."""
     torch.set_num_threads(1)
     t0, c0 = time.perf_counter(), time.process_time()
     env = _task_environment(e)
@@ -318,8 +333,11 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
     brain_kw = dict(n_dmps=e.n_dmps, c1_eta=e.c1_eta, c2_eta=e.c2_eta, c3_eta=e.c3_eta, c3_sigma=e.c3_sigma,
                     c3_action_gain=e.c3_action_gain, q_eta=e.eta, q_gamma=e.gamma, q_form=e.q_form,
                     c3_recall=e.c3_recall)
-    lib_brain = ToolUseBrain(env.image_shape, seed=seed, **brain_kw)
-    lib = acquire_skills(env, EVENTS, acq, g_lib, brain=lib_brain)
+    if library is not None:
+        lib = Library.from_state(library)
+    else:
+        lib_brain = ToolUseBrain(env.image_shape, seed=seed, **brain_kw)
+        lib = acquire_skills(env, EVENTS, acq, g_lib, brain=lib_brain)
     t_acq = time.perf_counter() - t0
     rows, film = [], None
     built: dict[tuple, ToolUseBrain] = {}
@@ -365,7 +383,8 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None) -> d
                     test_actions=">".join(test.actions), test_attempts=len(test.actions),
                     routes_1=available[(sit, key)][0], routes_2=available[(sit, key)][1]))
     timing = dict(task_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0, acquisition_s=t_acq,
-                  explore_rollouts=lib.explore_rollouts, learn_rollouts=lib.learn_rollouts)
+                  explore_rollouts=0 if library is not None else lib.explore_rollouts,
+                  learn_rollouts=0 if library is not None else lib.learn_rollouts, library_reused=library is not None)
     timing.update({k: v for k, v in getattr(env, "timing", {}).items()})
     out = dict(task=task, rows=rows, library=lib.to_state(), film=film, timing=timing, config=asdict(e), seed=seed)
     if path is not None:
@@ -381,17 +400,39 @@ def _task_path(run_or_dir, key: str) -> Path:
     return Path(root) / f"exp5_{key}.pt"
 
 
-def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
+def _stored(path: Path) -> dict | None:
     if not path.exists():
         return None
     try:
         d = torch.load(path, map_location="cpu", weights_only=False)
     except Exception:
         return None
-    stored = d.get("config")
-    if isinstance(stored, dict):  # written before these keys existed: their values then
-        stored = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, **stored}
-    return d if stored == asdict(e) and d.get("seed") == seed else None
+    if not isinstance(d.get("config"), dict):
+        return None
+    # written before these keys existed: their values then
+    d["config"] = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, **d["config"]}
+    return d
+
+
+def _same(stored: dict, e: Exp5Config, keys=None) -> bool:
+    now = asdict(e)
+    keys = [k for k in now if k not in _ENGINE_KEYS] if keys is None else keys
+    return all(stored.get(k) == now[k] for k in keys)
+
+
+def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
+    """The finished task stored at ``path`` if it was computed with this configuration and seed."""
+    d = _stored(path)
+    return d if d is not None and d.get("seed") == seed and _same(d["config"], e) else None
+
+
+def _reusable_library(paths, e: Exp5Config, seed: int) -> dict | None:
+    """A stored skill library acquired with this task's acquisition settings and seed, if any."""
+    for path in paths:
+        d = _stored(path)
+        if d is not None and d.get("seed") == seed and "library" in d and _same(d["config"], e, _LIBRARY_KEYS):
+            return d["library"]
+    return None
 
 
 def train(cfg, run) -> dict:
@@ -405,9 +446,12 @@ def train(cfg, run) -> dict:
         d = _valid(_task_path(run, t["key"]), e, cfg.seed)
         (done if d is not None else todo).append(d if d is not None else t)
     read_back = len(done)
+    sources = [run] + ([e.reuse_libraries] if e.reuse_libraries else [])
+    libraries = {t["key"]: _reusable_library([_task_path(src, t["key"]) for src in sources], e, cfg.seed)
+                 for t in todo}
     bar = tqdm(total=len(todo) + len(done), initial=len(done), desc="exp5 tasks", disable=not cfg.progress)
     if todo:
-        jobs = (delayed(run_task)(e, cfg.seed, t, str(_task_path(run, t["key"]))) for t in todo)
+        jobs = (delayed(run_task)(e, cfg.seed, t, str(_task_path(run, t["key"])), libraries[t["key"]]) for t in todo)
         results = Parallel(n_jobs=min(e.n_jobs, len(todo)), return_as="generator_unordered")(jobs)
         for res in results:
             done.append(res)
@@ -416,7 +460,8 @@ def train(cfg, run) -> dict:
     bar.close()
     done.sort(key=lambda d: d["task"]["key"])
     run.save_checkpoint("exp5_index", {"keys": [d["task"]["key"] for d in done], "seed": cfg.seed})
-    return {"results": done, "read_back": read_back}
+    return {"results": done, "read_back": read_back,
+            "libraries_reused": sum(v is not None for v in libraries.values())}
 
 
 def load(cfg, checkpoint_dir) -> dict:
@@ -601,7 +646,8 @@ def evaluate(cfg, run, trained) -> dict:
         # one individual = one robot of one group (repetition x situation), tested as both strategies
         "individuals": int(len(df) // len(STRATEGIES)),
         "environment": e.environment,
-        "cost": {"tasks": len(results), "tasks_read_back": int(trained.get("read_back", 0)), "task_s_total": round(sum(t["task_s"] for t in timing), 2),
+        "cost": {"tasks": len(results), "tasks_read_back": int(trained.get("read_back", 0)),
+                 "libraries_reused": int(sum(bool(t.get("library_reused")) for t in timing)), "task_s_total": round(sum(t["task_s"] for t in timing), 2),
                  "task_cpu_s_total": (round(sum(t["cpu_s"] for t in timing), 2)
                                       if all("cpu_s" in t for t in timing) else None),
                  "acquisition_s_total": round(sum(t["acquisition_s"] for t in timing), 2),

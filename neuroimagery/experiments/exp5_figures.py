@@ -265,6 +265,8 @@ def write_report(cfg, run, summary: dict) -> None:
           f"{cost.get('acquisition_s_total')} s. Wall clock of this call: train {rt.get('train')} s"
           + (f" ({cost['tasks_read_back']} of the {cost.get('tasks')} tasks read back from an earlier call's "
              "checkpoints; their times are in the sums above)" if cost.get("tasks_read_back") else "")
+          + (f"; {cost['libraries_reused']} tasks reused a stored skill library and ran action sequencing only"
+             if cost.get("libraries_reused") else "")
           + f", evaluate {rt.get('evaluate')} s.")
     rep.p(reproducibility_note(cfg.seed))
     rep.write(run.report_path)
