@@ -240,6 +240,27 @@ def test_replayed_brain_equals_the_brain_trained_during_acquisition(acquired):
     assert torch.equal(rebuilt.practised_seen, brain.practised_seen) and torch.equal(rebuilt.practised, brain.practised)
 
 
+def test_every_c3_outcome_imagines_where_a_primitive_leads_from_every_practised_situation(acquired):
+    """c3_outcomes='every': C3 also holds the learnt primitive's real outcome from the initial
+    situations where it missed its event; 'success' imagines no change there. C1 and C2 are the same."""
+    env, _, lib = acquired
+    only = build_brain(env, lib, small_acq(c3_repeats=50), ToolUseBrain(env.image_shape), torch.Generator().manual_seed(0))
+    every = build_brain(env, lib, small_acq(c3_repeats=50, c3_outcomes="every"), ToolUseBrain(env.image_shape),
+                        torch.Generator().manual_seed(0))
+    assert torch.equal(every.c1.weight, only.c1.weight) and torch.equal(every.c2.weight, only.c2.weight)
+    missed = [(s, p) for s in lib.skills for p in range(1, 5) if not s.succeeds_from[p - 1]]
+    assert missed, "the stand-in world should leave some skill failing from some posture"
+    for s, p in missed:
+        label = (p - 1) * only.n_dmps + s.unit
+        assert not only.c3_trained[label] and every.c3_trained[label]
+        seen = env.perceive(env.start(p))
+        real = env.perceive(env.execute(s.theta.unsqueeze(0), env.start(p), s.event)[0].next_state)
+        assert torch.equal(only.imagine(seen, s.unit), seen)  # no change imagined
+        assert (every.imagine(seen, s.unit) - real).abs().max() < 0.05  # where it really leads
+    with pytest.raises(ValueError, match="c3_outcomes"):
+        small_acq(c3_outcomes="some")
+
+
 def test_planning_child_trains_without_moving_and_reactive_child_moves(acquired):
     env, _, lib = acquired
     brain = build_brain(env, lib, small_acq(), ToolUseBrain(env.image_shape), torch.Generator().manual_seed(0))

@@ -127,6 +127,10 @@ class Exp5Config:
     # 'none' = unused | 'unmastered' = exploration goes on and an event firing from a situation
     # where it is not yet mastered (distal goal off) is learnt again by a spare DMP. docs/exp5.md.
     spare_dmps: str = "none"
+    # what C3 (the mental images) holds: 'success' = a primitive's outcome from an initial situation
+    # only where it achieved its event (Fig. 7.5) | 'every' = also its outcome from the other initial
+    # situations (the learnt movement performed there). Acts in the brain only. docs/exp5.md.
+    c3_outcomes: str = "success"
     # --- engine
     environment: str = "robot"  # 'robot' (pybullet ToolWorld) or 'module:Class' of another Environment
     share_library_across_situations: bool = False  # one library per repetition for both situations
@@ -219,7 +223,7 @@ def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
                              competence_tolerance=e.competence_tolerance, c1_repeats=e.c1_repeats,
                              c2_repeats=e.c2_repeats, c3_repeats=e.c3_repeats, hip_threshold=e.hip_threshold,
                              explore_batch=e.explore_batch, explore_max_rollouts=e.explore_max_rollouts,
-                             spare_dmps=e.spare_dmps)
+                             spare_dmps=e.spare_dmps, c3_outcomes=e.c3_outcomes)
 
 
 _ENV_KEYS = ("environment", "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",

@@ -53,7 +53,7 @@ N_POSTURES = 4
 # the values each modelling switch of this module accepts (Exp5Config checks the same table)
 CHOICES = {"c3_recall": ("practised", "situation", "joint"), "planning_test": ("act", "plan"),
            "goal_frame": ("relative", "absolute"), "reach_bound": ("path", "goal"),
-           "spare_dmps": ("none", "unmastered")}
+           "spare_dmps": ("none", "unmastered"), "c3_outcomes": ("success", "every")}
 
 
 def check_choice(key: str, value) -> None:
@@ -348,9 +348,14 @@ class AcquisitionConfig:
     # not active there is learnt again by a free DMP (thesis: the extra DMPs serve events one DMP
     # cannot achieve from every initial posture)
     spare_dmps: str = "none"
+    # what C3 holds: 'success' = a primitive's outcome from an initial situation only where it achieved
+    # its event (Fig. 7.5) | 'every' = also, from the other initial situations, the outcome of the
+    # learnt primitive performed there (the movement runs to its end); applied by build_brain
+    c3_outcomes: str = "success"
 
     def __post_init__(self) -> None:
         check_choice("spare_dmps", self.spare_dmps)
+        check_choice("c3_outcomes", self.c3_outcomes)
 
 
 @dataclass
@@ -577,6 +582,14 @@ def build_brain(env: Environment, lib: Library, cfg: AcquisitionConfig, brain: T
                 brain.train_c1(seen, s.unit, op[2], cfg.c1_repeats)
             else:
                 _train_c23(brain, env, perceive, s, op[1], op[2], cfg, generator)
+        if cfg.c3_outcomes == "every":
+            # the learnt movement from the initial situations where it did not achieve its event
+            # (the last competence check): C3 learns where it leads there, C2 learns nothing
+            for p in range(1, N_POSTURES + 1):
+                if not s.succeeds_from[p - 1]:
+                    r = env.execute(s.theta.unsqueeze(0), env.start(p), s.event)[0]
+                    brain.train_c3(perceive(env.start(p)), s.unit, p, perceive(r.next_state), cfg.c3_repeats,
+                                   generator)
     return brain
 
 
