@@ -257,6 +257,9 @@ def test_every_c3_outcome_imagines_where_a_primitive_leads_from_every_practised_
         real = env.perceive(env.execute(s.theta.unsqueeze(0), env.start(p), s.event)[0].next_state)
         assert torch.equal(only.imagine(seen, s.unit), seen)  # no change imagined
         assert (every.imagine(seen, s.unit) - real).abs().max() < 0.05  # where it really leads
+    cached = build_brain(env, lib, small_acq(c3_repeats=50, c3_outcomes="every"), ToolUseBrain(env.image_shape),
+                         torch.Generator().manual_seed(0), outcomes=Outcomes(env, {s.name: s for s in lib.skills}, env.perceive))
+    assert torch.equal(cached.c3.som.weight, every.c3.som.weight)  # the rollout cache gives the same brain
     with pytest.raises(ValueError, match="c3_outcomes"):
         small_acq(c3_outcomes="some")
 
@@ -399,6 +402,10 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
     path = exp5._task_path(tmp_path / "a", "rep000_far")
     assert exp5._valid(path, dataclasses.replace(e, n_jobs=3), 0) is not None
     assert exp5._valid(path, dataclasses.replace(e, eta=0.01), 0) is None
+    d = torch.load(path, weights_only=False)  # a checkpoint written before c3_outcomes existed is still read back
+    del d["config"]["c3_outcomes"]
+    torch.save(d, path)
+    assert exp5._valid(path, e, 0) is not None
     with pytest.raises(ValueError, match="reuse_libraries"):
         dataclasses.replace(e, reuse_libraries=str(tmp_path / "nowhere"))
 

@@ -194,7 +194,7 @@ class Exp5Config:
                 bad(key, f"must be one of {', '.join(map(repr, allowed))}")
         if self.posture_4 not in POSTURE_4:
             bad("posture_4", f"must be one of {sorted(POSTURE_4)}")
-        toy_x = WorldConfig.__dataclass_fields__["toy_xy"].default[0]
+        toy_x = WorldConfig().toy_xy[0]
         if not 0.3 <= self.retrieve_x < toy_x:
             bad("retrieve_x", f"must lie in [0.3, {toy_x}) m (the toy starts at x = {toy_x})")
         if self.environment != "robot" and ":" not in self.environment:
@@ -358,7 +358,7 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
                 available[(sit, key)] = routes_available(outcomes, posture, [s.name for s in sub.skills])
             if key not in built:
                 built[key] = build_brain(env, sub, acq, ToolUseBrain(env.image_shape, seed=seed, **brain_kw),
-                                         _gen(seed, 3, r), env.perceive)
+                                         _gen(seed, 3, r), env.perceive, outcomes=outcomes)
             for strategy in STRATEGIES:
                 # only C4 learns in Fig. 7.6: every individual starts from the built brain with a fresh C4
                 brain = built[key]
@@ -414,7 +414,8 @@ def _stored(path: Path) -> dict | None:
     if not isinstance(d.get("config"), dict):
         return None
     # written before these keys existed: their values then
-    d["config"] = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, **d["config"]}
+    d["config"] = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, "c3_outcomes": "success",
+                   **d["config"]}
     return d
 
 
@@ -424,18 +425,22 @@ def _same(stored: dict, e: Exp5Config, keys=None) -> bool:
     return all(stored.get(k) == now[k] for k in keys)
 
 
+def _finished(d: dict | None, e: Exp5Config, seed: int) -> bool:
+    """Whether the stored task ``d`` was computed with this configuration and seed."""
+    return d is not None and d.get("seed") == seed and _same(d["config"], e)
+
+
 def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
     """The finished task stored at ``path`` if it was computed with this configuration and seed."""
     d = _stored(path)
-    return d if d is not None and d.get("seed") == seed and _same(d["config"], e) else None
+    return d if _finished(d, e, seed) else None
 
 
-def _reusable_library(paths, e: Exp5Config, seed: int) -> dict | None:
-    """A stored skill library acquired with this task's acquisition settings and seed, if any."""
-    for path in paths:
-        d = _stored(path)
-        if d is not None and d.get("seed") == seed and "library" in d and _same(d["config"], e, _LIBRARY_KEYS):
-            return d["library"]
+def _library_of(d: dict | None, e: Exp5Config, seed: int) -> dict | None:
+    """The skill library of the stored task ``d`` if it was acquired with this task's acquisition
+    settings and seed."""
+    if d is not None and d.get("seed") == seed and "library" in d and _same(d["config"], e, _LIBRARY_KEYS):
+        return d["library"]
     return None
 
 
@@ -445,14 +450,18 @@ def train(cfg, run) -> dict:
     from tqdm.auto import tqdm
 
     e = _exp(cfg)
-    todo, done = [], []
+    todo, done, libraries = [], [], {}
     for t in tasks(cfg):
-        d = _valid(_task_path(run, t["key"]), e, cfg.seed)
-        (done if d is not None else todo).append(d if d is not None else t)
+        d = _stored(_task_path(run, t["key"]))  # each checkpoint is read once
+        if _finished(d, e, cfg.seed):
+            done.append(d)
+            continue
+        todo.append(t)
+        lib = _library_of(d, e, cfg.seed)
+        if lib is None and e.reuse_libraries:
+            lib = _library_of(_stored(_task_path(e.reuse_libraries, t["key"])), e, cfg.seed)
+        libraries[t["key"]] = lib
     read_back = len(done)
-    sources = [run] + ([e.reuse_libraries] if e.reuse_libraries else [])
-    libraries = {t["key"]: _reusable_library([_task_path(src, t["key"]) for src in sources], e, cfg.seed)
-                 for t in todo}
     bar = tqdm(total=len(todo) + len(done), initial=len(done), desc="exp5 tasks", disable=not cfg.progress)
     if todo:
         jobs = (delayed(run_task)(e, cfg.seed, t, str(_task_path(run, t["key"])), libraries[t["key"]]) for t in todo)

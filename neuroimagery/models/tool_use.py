@@ -565,11 +565,15 @@ def _train_c23(brain: ToolUseBrain, env, perceive, skill: Skill, p: int, outcome
 
 
 def build_brain(env: Environment, lib: Library, cfg: AcquisitionConfig, brain: ToolUseBrain,
-                generator: torch.Generator, perceive: Callable[[State], torch.Tensor] | None = None) -> ToolUseBrain:
+                generator: torch.Generator, perceive: Callable[[State], torch.Tensor] | None = None,
+                outcomes: Outcomes | None = None) -> ToolUseBrain:
     """Replay the C1/C2/C3 training of Fig. 7.5 for the skills of ``lib`` (in their order).
 
     Used when one acquired library serves several individuals (a HP1 robot keeps only the skills
     of its enabled detectors): the brain ends exactly as if only those skills had been trained.
+    With ``cfg.c3_outcomes == "every"`` the primitives are also performed from the initial
+    situations where they missed their event, through ``outcomes`` (the rollout cache shared with
+    action sequencing) when given.
     """
     perceive = perceive or env.perceive
     brain.train()
@@ -587,7 +591,8 @@ def build_brain(env: Environment, lib: Library, cfg: AcquisitionConfig, brain: T
             # (the last competence check): C3 learns where it leads there, C2 learns nothing
             for p in range(1, N_POSTURES + 1):
                 if not s.succeeds_from[p - 1]:
-                    r = env.execute(s.theta.unsqueeze(0), env.start(p), s.event)[0]
+                    r = (outcomes.after(p, (s.name,)) if outcomes is not None  # cached, shared with sequencing
+                         else env.execute(s.theta.unsqueeze(0), env.start(p), s.event)[0])
                     brain.train_c3(perceive(env.start(p)), s.unit, p, perceive(r.next_state), cfg.c3_repeats,
                                    generator)
     return brain
