@@ -410,6 +410,46 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
         dataclasses.replace(e, reuse_libraries=str(tmp_path / "nowhere"))
 
 
+def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
+    import neuroimagery.run as R
+    from neuroimagery.errors import UserInputError
+    from neuroimagery.experiments import exp5_pool
+
+    args = ("preset=quick", f"experiment.environment={STANDIN}", "experiment.n_jobs=1",
+            "experiment.quick_repetitions=1", "experiment.max_epochs=2", "experiment.explore_max_rollouts=120",
+            "experiment.hp1_levels=[2,6]", "experiment.hp1_ages=[14,22]", "experiment.hp2_trials=[0,4]",
+            "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
+    runs = [tmp_path / f"s{s}" for s in (0, 1)]
+    singles = [R.evaluate(compose(*args, f"seed={s}"), out_dir=d) for s, d in zip((0, 1), runs)]
+    summary, df = exp5_pool.pool(runs)
+    both = pd.concat([pd.read_csv(d / "individuals.csv") for d in runs])
+    assert len(df) == len(both) and set(df.run) == {str(d) for d in runs}
+    for g in summary["groups"]:
+        rows = both[(both.hypothesis == g["hypothesis"]) & (both.level == g["level"]) & (both.situation == g["situation"])
+                    & (both.strategy == g["strategy"])]
+        assert g["n"] == len(rows) == 2 and g["success_rate"] == round(rows.success.mean(), 4)
+    assert [r["claims_holding"] for r in summary["runs"]] == [sum(c["holds"] for c in s["claims"]) for s in singles]
+    assert [r["groups"] for r in summary["runs"]] == [s["groups"] for s in singles]
+    assert len(summary["claims"]) == len(singles[0]["claims"])
+    exp5_pool.main([*map(str, runs), "--out", str(tmp_path / "pool")])
+    assert "Must-show claims on the pooled individuals" in capsys.readouterr().out
+    saved = json.loads((tmp_path / "pool" / "summary.json").read_text())
+    assert saved["groups"] == summary["groups"] and (tmp_path / "pool" / "report.md").exists()
+    # runs of another configuration, the same seed twice, or a directory that is not a run: clear errors
+    other = tmp_path / "eta"
+    import shutil
+
+    shutil.copytree(runs[1], other)
+    cfg_file = other / ".hydra" / "config.yaml"
+    cfg_file.write_text(cfg_file.read_text().replace("eta: 0.0001", "eta: 0.001", 1))
+    with pytest.raises(UserInputError, match="experiment.eta"):
+        exp5_pool.pool([runs[0], other])
+    with pytest.raises(UserInputError, match="seed 0"):
+        exp5_pool.pool([runs[0], runs[0]])
+    with pytest.raises(UserInputError, match="not a finished Exp. 5 run"):
+        exp5_pool.pool([runs[0], tmp_path / "nowhere"])
+
+
 @pytest.mark.slow
 def test_quick_run_on_the_robot_world(tmp_path):
     import neuroimagery.run as R

@@ -612,15 +612,10 @@ def success_routes(df: pd.DataFrame) -> list[dict]:
     return out
 
 
-def evaluate(cfg, run, trained) -> dict:
-    """individuals.csv, summary (RESULTS.md exp5 layout), figures and TensorBoard scalars."""
-    from . import exp5_figures as figs
-
-    e = _exp(cfg)
-    results = trained["results"]
-    df = pd.DataFrame([row for d in results for row in d["rows"]])
-    df.insert(0, "individual", df["library"] + "_" + df["situation"])
-    run.write_csv("individuals.csv", df)
+def summarise(df: pd.DataFrame, e: Exp5Config) -> dict:
+    """Group rates, checks, success routes and must-show claims of the individuals in ``df``
+    (the rows of individuals.csv; one run's or several runs' pooled): summary.json keys ``groups``,
+    ``checks``, ``routes`` and ``claims``."""
     grp_rows = []
     for (h, lvl, sit, strat), g in df.groupby(["hypothesis", "level", "situation", "strategy"], sort=False):
         grp_rows.append(dict(hypothesis=h, level=int(lvl), age_months=int(g["age_months"].iloc[0]), situation=sit,
@@ -641,6 +636,22 @@ def evaluate(cfg, run, trained) -> dict:
     young = [r for r in routes if r["hypothesis"] == "hp1" and r["level"] == e.hp1_levels[0] and r["situation"] == "far"]
     checks["hp1_far_youngest_successes"] = int(sum(r["successes"] for r in young))
     checks["hp1_far_youngest_single_pull"] = int(sum(r["pull"] for r in young))
+    out = {"groups": grp_rows, "checks": checks, "routes": routes}
+    out["claims"] = thesis_claims(out, e)
+    return out
+
+
+def evaluate(cfg, run, trained) -> dict:
+    """individuals.csv, summary (RESULTS.md exp5 layout), figures and TensorBoard scalars."""
+    from . import exp5_figures as figs
+
+    e = _exp(cfg)
+    results = trained["results"]
+    df = pd.DataFrame([row for d in results for row in d["rows"]])
+    df.insert(0, "individual", df["library"] + "_" + df["situation"])
+    run.write_csv("individuals.csv", df)
+    rates = summarise(df, e)
+    grp_rows, checks, routes = rates["groups"], rates["checks"], rates["routes"]
     timing = [d["timing"] for d in results]
     summary = {
         "experiment": "exp5",
@@ -671,7 +682,7 @@ def evaluate(cfg, run, trained) -> dict:
                  "rollout_s": round(sum(t.get("rollout_s", 0.0) for t in timing), 2),
                  "render_s": round(sum(t.get("render_s", 0.0) for t in timing), 2)},
     }
-    summary["claims"] = thesis_claims(summary, e)
+    summary["claims"] = rates["claims"]
     for i, r in enumerate(grp_rows):
         run.logger.scalar(f"success/{r['hypothesis']}/{r['situation']}/{r['strategy']}", r["success_rate"], r["level"])
     figs.draw_all(cfg, run, df, summary, results)
@@ -685,4 +696,4 @@ def report(cfg, run, summary) -> None:
 
 
 __all__ = ["Exp5Config", "CONFIG", "train", "load", "evaluate", "report", "run_task", "groups", "tasks",
-           "thesis_claims", "success_route", "success_routes"]
+           "thesis_claims", "success_route", "success_routes", "summarise"]

@@ -1,0 +1,157 @@
+"""Experiment 5 over several runs: group rates and must-show claims of the pooled individuals.
+
+With 30 robots per group a success rate has a standard error of about 8 points, so a claim that
+compares single groups can hold on one seed and fail on the next. Runs of the same configuration
+with different seeds (``evaluate.py -m experiment=exp5 seed=0,1,2``) are pooled here: their
+``individuals.csv`` rows are put together and judged with the same functions as one run
+(:func:`neuroimagery.experiments.exp5.summarise`)::
+
+    python -m neuroimagery.experiments.exp5_pool RUN_DIR RUN_DIR ... [--out DIR]
+
+prints the pooled table and claims; ``--out`` also writes ``individuals.csv`` (with a ``run``
+column), ``summary.json`` and ``report.md`` into DIR. The runs must agree on every experiment
+setting except the engine's (``n_jobs``, ``reuse_libraries``, ``filmstrip_repetition``) and the
+number of repetitions, and must have distinct seeds.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from pathlib import Path
+
+import pandas as pd
+from omegaconf import OmegaConf
+
+from ..analysis.report import Report
+from ..errors import UserInputError
+from .exp5 import _ENGINE_KEYS, STRATEGIES, THESIS, Exp5Config, summarise
+
+# settings that may differ between pooled runs: how the work was spread, and how many robots
+_FREE_KEYS = _ENGINE_KEYS + ("filmstrip_repetition", "repetitions", "quick_repetitions")
+
+
+def read_run(run_dir: str | Path) -> tuple[Exp5Config, int, pd.DataFrame]:
+    """The experiment settings, seed and individuals of one finished Exp. 5 run directory."""
+    d = Path(run_dir)
+    cfg_path, csv_path = d / ".hydra" / "config.yaml", d / "individuals.csv"
+    for path in (cfg_path, csv_path):
+        if not path.is_file():
+            raise UserInputError(f"{d}: no {path.relative_to(d)} (not a finished Exp. 5 run directory)")
+    raw = OmegaConf.to_container(OmegaConf.load(cfg_path), resolve=True)
+    exp = dict(raw.get("experiment") or {})
+    if exp.get("name") != "exp5":
+        raise UserInputError(f"{d}: experiment {exp.get('name')!r}, not exp5")
+    known = {f.name for f in dataclasses.fields(Exp5Config)}
+    unknown = sorted(set(exp) - known)
+    if unknown:
+        raise UserInputError(f"{cfg_path}: unknown experiment keys {', '.join(unknown)}")
+    exp["reuse_libraries"] = ""  # an engine setting; the directory it named may be gone
+    try:
+        e = Exp5Config(**exp)
+    except ValueError as err:
+        raise UserInputError(f"{cfg_path}: {err}") from None
+    df = pd.read_csv(csv_path)
+    need = {"hypothesis", "level", "age_months", "situation", "strategy", "success", "n_skills", "test_actions"}
+    missing = sorted(need - set(df.columns))
+    if missing:
+        raise UserInputError(f"{csv_path}: missing columns {', '.join(missing)}")
+    return e, int(raw.get("seed", 0)), df
+
+
+def pool(run_dirs: list[str | Path]) -> tuple[dict, pd.DataFrame]:
+    """Pooled summary (``groups``, ``checks``, ``routes``, ``claims`` as in one run's summary.json,
+    plus ``runs``: each run's seed, individuals and claims) and the pooled individuals."""
+    if len(run_dirs) < 1:
+        raise UserInputError("pool: give at least one run directory")
+    runs = [(str(d), *read_run(d)) for d in run_dirs]
+    d0, e0, _, _ = runs[0]
+    ref = dataclasses.asdict(e0)
+    seen: dict[int, str] = {}
+    for d, e, seed, _ in runs:
+        now = dataclasses.asdict(e)
+        diff = [k for k in ref if k not in _FREE_KEYS and now[k] != ref[k]]
+        if diff:
+            k = diff[0]
+            raise UserInputError(f"pool: experiment.{k} is {now[k]!r} in {d} but {ref[k]!r} in {d0}; "
+                                 "pool runs of one configuration only")
+        if seed in seen:
+            raise UserInputError(f"pool: {d} and {seen[seed]} both have seed {seed} (the same robots twice)")
+        seen[seed] = d
+    df = pd.concat([df.assign(run=d) for d, _, _, df in runs], ignore_index=True)
+    out = summarise(df, e0)
+    out = {"experiment": "exp5", "pooled": True, **out, "runs": []}
+    for d, e, seed, rdf in runs:
+        s = summarise(rdf, e)
+        out["runs"].append(dict(run=d, seed=seed, individuals=int(len(rdf) // len(STRATEGIES)),
+                                claims_holding=int(sum(c["holds"] for c in s["claims"])), claims=len(s["claims"]),
+                                groups=s["groups"]))
+    return out, df
+
+
+def _rates(groups: list[dict]) -> dict:
+    return {(g["hypothesis"], g["level"], g["situation"], g["strategy"]): g["success_rate"] for g in groups}
+
+
+def report(summary: dict, e: Exp5Config) -> Report:
+    """The pooled rates beside each run's and the thesis's, and the claims judged on the pool."""
+    runs = summary["runs"]
+    rep = Report("Experiment 5 pooled over runs")
+    rep.p(f"{len(runs)} runs (seeds {', '.join(str(r['seed']) for r in runs)}), "
+          f"{sum(r['individuals'] for r in runs)} robots, each tested as a reactive and as a planning child. "
+          "Each cell: the pooled rate, then each run's in brackets (run order as listed below).")
+    pooled, per = _rates(summary["groups"]), [_rates(r["groups"]) for r in runs]
+    for h, levels, ages, xl in (("hp1", e.hp1_levels, e.hp1_ages, "IM detectors"),
+                                ("hp2", e.hp2_trials, e.hp2_ages, "training trials")):
+        rows = []
+        for lv, age in zip(levels, ages):
+            row = [lv, age]
+            for sit in e.situations:
+                for strat in STRATEGIES:
+                    key = (h, lv, sit, strat)
+                    if key not in pooled:
+                        row.append("-")
+                        continue
+                    each = ", ".join("-" if key not in p else f"{100 * p[key]:.0f}" for p in per)
+                    row.append(f"{100 * pooled[key]:.0f} % ({each})")
+                th = THESIS[h][sit].get(lv)
+                row.append("-" if th is None else f"~{100 * th:.0f} %")
+            rows.append(row)
+        head = [xl, "age (months)"]
+        for sit in e.situations:
+            head += [f"{sit} reactive", f"{sit} planning", f"{sit} thesis"]
+        rep.h(f"{h.upper()}: success rate by {xl}")
+        rep.table(head, rows)
+    claims = summary["claims"]
+    n = min(g["n"] for g in summary["groups"])
+    rep.h("Must-show claims on the pooled individuals")
+    rep.p(f"{sum(c['holds'] for c in claims)} of {len(claims)} hold on the pool ({n} robots per group or more). "
+          "Per run: " + "; ".join(f"seed {r['seed']}: {r['claims_holding']} of {r['claims']}" for r in runs) + ".")
+    rep.table(["claim", "pooled", "holds"], [[c["claim"], c["value"], "yes" if c["holds"] else "**no**"] for c in claims])
+    rep.h("Runs")
+    rep.bullets([f"`{r['run']}`: seed {r['seed']}, {r['individuals']} robots" for r in runs])
+    return rep
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(prog="python -m neuroimagery.experiments.exp5_pool", description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", nargs="+", help="finished Exp. 5 run directories (one configuration, distinct seeds)")
+    ap.add_argument("--out", help="write individuals.csv, summary.json and report.md here")
+    args = ap.parse_args(argv)
+    summary, df = pool(args.runs)
+    e = read_run(args.runs[0])[0]
+    rep = report(summary, e)
+    print(rep.text())
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        df.to_csv(out / "individuals.csv", index=False)
+        (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        rep.write(out / "report.md")
+        print(f"pooled report: {out / 'report.md'}")
+
+
+if __name__ == "__main__":
+    from ..cli import friendly_errors
+
+    friendly_errors(main)()
