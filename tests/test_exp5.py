@@ -419,7 +419,7 @@ def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
             "experiment.quick_repetitions=1", "experiment.max_epochs=2", "experiment.explore_max_rollouts=120",
             "experiment.hp1_levels=[2,6]", "experiment.hp1_ages=[14,22]", "experiment.hp2_trials=[0,4]",
             "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
-    runs = [tmp_path / f"s{s}" for s in (0, 1)]
+    runs = [tmp_path / "sweep" / str(s) for s in (0, 1)]  # laid out like a Hydra sweep (-m seed=0,1)
     singles = [R.evaluate(compose(*args, f"seed={s}"), out_dir=d) for s, d in zip((0, 1), runs)]
     summary, df = exp5_pool.pool(runs)
     both = pd.concat([pd.read_csv(d / "individuals.csv") for d in runs])
@@ -431,6 +431,7 @@ def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
     assert [r["claims_holding"] for r in summary["runs"]] == [sum(c["holds"] for c in s["claims"]) for s in singles]
     assert [r["groups"] for r in summary["runs"]] == [s["groups"] for s in singles]
     assert len(summary["claims"]) == len(singles[0]["claims"])
+    assert exp5_pool.pool([tmp_path / "sweep"])[0] == summary  # the sweep directory stands for its runs
     exp5_pool.main([*map(str, runs), "--out", str(tmp_path / "pool")])
     assert "Must-show claims on the pooled individuals" in capsys.readouterr().out
     saved = json.loads((tmp_path / "pool" / "summary.json").read_text())
@@ -446,8 +447,11 @@ def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
         exp5_pool.pool([runs[0], other])
     with pytest.raises(UserInputError, match="seed 0"):
         exp5_pool.pool([runs[0], runs[0]])
-    with pytest.raises(UserInputError, match="not a finished Exp. 5 run"):
+    with pytest.raises(UserInputError, match="no such run directory"):
         exp5_pool.pool([runs[0], tmp_path / "nowhere"])
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(UserInputError, match="not a finished Exp. 5 run"):
+        exp5_pool.pool([runs[0], tmp_path / "empty"])
 
 
 @pytest.mark.slow

@@ -176,3 +176,14 @@ def test_observe_masks(world):
     moved = world.observe(posture=1, toy_xy=(0.50, -0.10))
     cy = lambda m: (m.sum(1) * torch.arange(240)).sum() / m.sum()
     assert cy(moved["toy"]) > cy(obs["toy"]) + 3  # nearer the robot = lower in the image
+
+
+def test_colour_masks_apply_the_thresholds_exactly():
+    from neuroimagery.robot.world import colour_masks
+
+    px = np.array([[[61, 30, 30], [60, 10, 10], [100, 50, 10], [101, 50, 50], [255, 255, 255]],
+                   [[30, 61, 30], [10, 60, 10], [50, 100, 10], [50, 101, 50], [0, 0, 0]]], dtype=np.uint8)
+    toy, rake = colour_masks(px)
+    assert toy.dtype == rake.dtype == torch.float32
+    assert toy.tolist() == [[1, 0, 0, 1, 0], [0, 0, 0, 0, 0]]
+    assert rake.tolist() == [[0, 0, 0, 0, 0], [1, 0, 0, 1, 0]]

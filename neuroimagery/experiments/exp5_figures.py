@@ -176,7 +176,8 @@ def write_report(cfg, run, summary: dict) -> None:
         rep.p(f"The must-show claims (thresholds in `experiments.exp5.thesis_claims`): "
               f"{sum(c['holds'] for c in claims)} of {len(claims)} hold. With {n} robots per group one robot "
               f"is {100 / n:.1f} points of a rate, and a rate near 30 % has a binomial standard error of "
-              f"{100 * (0.21 / n) ** 0.5:.0f} points, so claims that compare single groups can change with the seed.")
+              f"{100 * (0.21 / n) ** 0.5:.0f} points, so claims that compare single groups can change with the seed (pool runs of several seeds "
+              f"with `python -m neuroimagery.experiments.exp5_pool`).")
         rep.table(["claim", "this run", "holds"], [[c["claim"], c["value"], "yes" if c["holds"] else "**no**"] for c in claims])
     routes = [r for r in summary.get("routes", []) if r["hypothesis"] == "hp1"]
     if routes:

@@ -8,7 +8,8 @@ with different seeds (``evaluate.py -m experiment=exp5 seed=0,1,2``) are pooled 
 
     python -m neuroimagery.experiments.exp5_pool RUN_DIR RUN_DIR ... [--out DIR]
 
-prints the pooled table and claims; ``--out`` also writes ``individuals.csv`` (with a ``run``
+prints the pooled table and claims (a Hydra sweep directory stands for its numbered runs);
+``--out`` also writes ``individuals.csv`` (with a ``run``
 column), ``summary.json`` and ``report.md`` into DIR. The runs must agree on every experiment
 setting except the engine's (``n_jobs``, ``reuse_libraries``, ``filmstrip_repetition``) and the
 number of repetitions, and must have distinct seeds.
@@ -34,6 +35,8 @@ _FREE_KEYS = _ENGINE_KEYS + ("filmstrip_repetition", "repetitions", "quick_repet
 def read_run(run_dir: str | Path) -> tuple[Exp5Config, int, pd.DataFrame]:
     """The experiment settings, seed and individuals of one finished Exp. 5 run directory."""
     d = Path(run_dir)
+    if not d.is_dir():
+        raise UserInputError(f"{d}: no such run directory")
     cfg_path, csv_path = d / ".hydra" / "config.yaml", d / "individuals.csv"
     for path in (cfg_path, csv_path):
         if not path.is_file():
@@ -59,9 +62,25 @@ def read_run(run_dir: str | Path) -> tuple[Exp5Config, int, pd.DataFrame]:
     return e, int(raw.get("seed", 0)), df
 
 
+def expand(dirs: list[str | Path]) -> list[Path]:
+    """Run directories, with a Hydra sweep directory (``-m``: numbered subdirectories, each a run)
+    replaced by its runs in job order."""
+    out = []
+    for d in map(Path, dirs):
+        if (d / ".hydra" / "config.yaml").is_file() or not d.is_dir():
+            out.append(d)
+            continue
+        jobs = [c for c in d.iterdir() if (c / ".hydra" / "config.yaml").is_file()]
+        jobs.sort(key=lambda c: (not c.name.isdigit(), int(c.name) if c.name.isdigit() else 0, c.name))
+        out.extend(jobs or [d])
+    return out
+
+
 def pool(run_dirs: list[str | Path]) -> tuple[dict, pd.DataFrame]:
     """Pooled summary (``groups``, ``checks``, ``routes``, ``claims`` as in one run's summary.json,
-    plus ``runs``: each run's seed, individuals and claims) and the pooled individuals."""
+    plus ``runs``: each run's seed, individuals and claims) and the pooled individuals.
+    A Hydra sweep directory stands for its runs (:func:`expand`)."""
+    run_dirs = expand(run_dirs)
     if len(run_dirs) < 1:
         raise UserInputError("pool: give at least one run directory")
     runs = [(str(d), *read_run(d)) for d in run_dirs]
@@ -135,11 +154,12 @@ def report(summary: dict, e: Exp5Config) -> Report:
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="python -m neuroimagery.experiments.exp5_pool", description=__doc__.split("\n\n")[0])
-    ap.add_argument("runs", nargs="+", help="finished Exp. 5 run directories (one configuration, distinct seeds)")
+    ap.add_argument("runs", nargs="+", help="finished Exp. 5 run directories (one configuration, distinct seeds), "
+                    "or a Hydra sweep directory holding them")
     ap.add_argument("--out", help="write individuals.csv, summary.json and report.md here")
     args = ap.parse_args(argv)
     summary, df = pool(args.runs)
-    e = read_run(args.runs[0])[0]
+    e = read_run(summary["runs"][0]["run"])[0]
     rep = report(summary, e)
     print(rep.text())
     if args.out:
