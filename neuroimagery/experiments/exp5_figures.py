@@ -117,6 +117,27 @@ def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> 
     summary["figures"] = {k: str(Path(v).relative_to(run.root)) for k, v in figs.items()}
 
 
+def group_table(e, h: str, cell) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of the success table of hypothesis ``h`` (one row per group; per situation
+    the reactive and planning cells from ``cell(h, level, situation, strategy)``, then the thesis)."""
+    from .exp5 import THESIS
+
+    levels, ages, xl = ((e.hp1_levels, e.hp1_ages, "IM detectors") if h == "hp1"
+                        else (e.hp2_trials, e.hp2_ages, "training trials"))
+    rows = []
+    for lv, age in zip(levels, ages):
+        row = [str(lv), str(age)]
+        for sit in e.situations:
+            row += [cell(h, lv, sit, strat) for strat in ("reactive", "planning")]
+            th = THESIS[h][sit].get(lv)
+            row.append("-" if th is None else f"~{100 * th:.0f} %")
+        rows.append(row)
+    head = [xl, "age (months)"]
+    for sit in e.situations:
+        head += [f"{sit} reactive", f"{sit} planning", f"{sit} thesis"]
+    return head, rows
+
+
 def _rate(summary, h, lv, sit, strat):
     for r in summary["groups"]:
         if (r["hypothesis"], r["level"], r["situation"], r["strategy"]) == (h, lv, sit, strat):
@@ -125,7 +146,7 @@ def _rate(summary, h, lv, sit, strat):
 
 
 def write_report(cfg, run, summary: dict) -> None:
-    from .exp5 import THESIS, THESIS_TABLE_7_1
+    from .exp5 import THESIS_TABLE_7_1
 
     e = cfg.experiment
     rep = Report("Experiment 5: tool-use development in infant robots")
@@ -135,22 +156,12 @@ def write_report(cfg, run, summary: dict) -> None:
           f"as a planning child; world: {env_note}. Preset `{cfg.preset}`.")
     for h, xl in (("hp1", "IM detectors"), ("hp2", "training trials")):
         rep.h(f"{h.upper()}: success rate by {xl}")
-        rows = []
-        levels = e.hp1_levels if h == "hp1" else e.hp2_trials
-        ages = e.hp1_ages if h == "hp1" else e.hp2_ages
-        for lv, age in zip(levels, ages):
-            row = [str(lv), str(age)]
-            for sit in e.situations:
-                for strat in ("reactive", "planning"):
-                    r = _rate(summary, h, lv, sit, strat)
-                    row.append("-" if r is None else f"{100 * r:.0f} %")
-                th = THESIS[h][sit].get(lv)
-                row.append("-" if th is None else f"~{100 * th:.0f} %")
-            rows.append(row)
-        head = [xl, "age (months)"]
-        for sit in e.situations:
-            head += [f"{sit} reactive", f"{sit} planning", f"{sit} thesis"]
-        rep.table(head, rows)
+
+        def cell(h, lv, sit, strat):
+            r = _rate(summary, h, lv, sit, strat)
+            return "-" if r is None else f"{100 * r:.0f} %"
+
+        rep.table(*group_table(e, h, cell))
         key = "fig_7_9" if h == "hp1" else "fig_7_10"
         if key in summary.get("figures", {}):
             rep.figure(run.root / summary["figures"][key], f"Redrawn Fig. {'7.9' if h == 'hp1' else '7.10'}", run.root)

@@ -26,7 +26,8 @@ from omegaconf import OmegaConf
 
 from ..analysis.report import Report
 from ..errors import UserInputError
-from .exp5 import _ENGINE_KEYS, STRATEGIES, THESIS, Exp5Config, summarise
+from .exp5 import _ENGINE_KEYS, STRATEGIES, Exp5Config, summarise
+from .exp5_figures import group_table
 
 # settings that may differ between pooled runs: how the work was spread, and how many robots
 _FREE_KEYS = _ENGINE_KEYS + ("filmstrip_repetition", "repetitions", "quick_repetitions")
@@ -120,27 +121,17 @@ def report(summary: dict, e: Exp5Config) -> Report:
           f"{sum(r['individuals'] for r in runs)} robots, each tested as a reactive and as a planning child. "
           "Each cell: the pooled rate, then each run's in brackets (run order as listed below).")
     pooled, per = _rates(summary["groups"]), [_rates(r["groups"]) for r in runs]
-    for h, levels, ages, xl in (("hp1", e.hp1_levels, e.hp1_ages, "IM detectors"),
-                                ("hp2", e.hp2_trials, e.hp2_ages, "training trials")):
-        rows = []
-        for lv, age in zip(levels, ages):
-            row = [lv, age]
-            for sit in e.situations:
-                for strat in STRATEGIES:
-                    key = (h, lv, sit, strat)
-                    if key not in pooled:
-                        row.append("-")
-                        continue
-                    each = ", ".join("-" if key not in p else f"{100 * p[key]:.0f}" for p in per)
-                    row.append(f"{100 * pooled[key]:.0f} % ({each})")
-                th = THESIS[h][sit].get(lv)
-                row.append("-" if th is None else f"~{100 * th:.0f} %")
-            rows.append(row)
-        head = [xl, "age (months)"]
-        for sit in e.situations:
-            head += [f"{sit} reactive", f"{sit} planning", f"{sit} thesis"]
+
+    def cell(h, lv, sit, strat):
+        key = (h, lv, sit, strat)
+        if key not in pooled:
+            return "-"
+        each = ", ".join("-" if key not in p else f"{100 * p[key]:.0f}" for p in per)
+        return f"{100 * pooled[key]:.0f} % ({each})"
+
+    for h, xl in (("hp1", "IM detectors"), ("hp2", "training trials")):
         rep.h(f"{h.upper()}: success rate by {xl}")
-        rep.table(head, rows)
+        rep.table(*group_table(e, h, cell))
     claims = summary["claims"]
     n = min(g["n"] for g in summary["groups"])
     rep.h("Must-show claims on the pooled individuals")
