@@ -31,6 +31,9 @@ class NullLogger:
     def maps(self, maps: dict, step: int = 0, prefix: str = "") -> None:
         pass
 
+    def image(self, tag: str, rgb, step: int = 0) -> None:
+        pass
+
     def text(self, tag: str, text: str, step: int = 0) -> None:
         pass
 
@@ -65,6 +68,11 @@ class TensorBoardLogger(NullLogger):
     def maps(self, maps: dict, step: int = 0, prefix: str = "") -> None:
         for k, v in maps.items():
             self.map(f"{prefix}{k}", v, step)
+
+    def image(self, tag: str, rgb, step: int = 0) -> None:
+        """An (H, W, 3) colour picture with values in [0, 1]."""
+        if self.map_images:
+            self.writer.add_image(tag, torch.as_tensor(rgb, dtype=torch.float32).clamp(0, 1), step, dataformats="HWC")
 
     def text(self, tag: str, text: str, step: int = 0) -> None:
         self.writer.add_text(tag, text, step)

@@ -240,6 +240,25 @@ def test_replayed_brain_equals_the_brain_trained_during_acquisition(acquired):
     assert torch.equal(rebuilt.practised_seen, brain.practised_seen) and torch.equal(rebuilt.practised, brain.practised)
 
 
+def test_brain_maps_show_each_connection_of_each_skill(acquired):
+    env, brain, lib = acquired
+    H, W = env.image_shape
+    skills = {s.name: s.unit for s in lib.skills}
+    maps = brain.maps(skills)
+    assert all(m.shape == (H, 2 * W) for m in maps.values())
+    for name, unit in skills.items():  # toy channel on the left, tool channel on the right
+        w = brain.c1.weight[0, unit].reshape(2, H, W)
+        assert torch.equal(maps[f"C1/{name}"][:, :W], w[0]) and torch.equal(maps[f"C1/{name}"][:, W:], w[1])
+        assert f"C4/{name}" in maps
+    assert {k for k in maps if k.startswith("C2/")} == {f"C2/{e}" for e in EVENTS}
+    c3 = {k for k in maps if k.startswith("C3/")}
+    assert len(c3) == int(brain.c3_trained.sum()) > 0  # one mental image per trained (situation, skill)
+    for k in c3:
+        _, posture, name = k.split("/")
+        image = brain.imagine(env.perceive(env.start(int(posture[-1]))), skills[name])
+        assert torch.equal(maps[k], torch.cat([image[0], image[1]], dim=1))  # C3 run backwards gives the same image
+
+
 def test_every_c3_outcome_imagines_where_a_primitive_leads_from_every_practised_situation(acquired):
     """c3_outcomes='every': C3 also holds the learnt primitive's real outcome from the initial
     situations where it missed its event; 'success' imagines no change there. C1 and C2 are the same."""
@@ -306,8 +325,17 @@ def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
 
     cfg = compose("preset=quick", f"experiment.environment={STANDIN}", "experiment.n_jobs=1",
                   "experiment.quick_repetitions=1", "experiment.max_epochs=2", "experiment.explore_max_rollouts=120",
-                  "experiment.hp2_trials=[0,2]", "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
+                  "experiment.hp2_trials=[0,2]", "experiment.hp2_ages=[14,16]", "logger=tensorboard", "progress=false")
     summary = R.evaluate(cfg, out_dir=tmp_path)
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    tb = EventAccumulator(str(tmp_path / "tb"), size_guidance={"images": 0}).Reload()
+    images = tb.Tags()["images"]
+    film = torch.load(next(p for p in (tmp_path / "checkpoints").glob("exp5_rep*.pt")
+                           if torch.load(p, weights_only=False).get("film")), weights_only=False)["film"]
+    assert len(tb.Images("film/real")) == len(film["frames"]) + 1 and len(tb.Images("film/imagined")) == len(film["frames"])
+    assert {f"brain/{k}" for k in film["maps"]} <= set(images)
+    assert any(t.startswith("brain/C3/") for t in images) and "brain/C1/retrieve" in images
     df = pd.read_csv(tmp_path / "individuals.csv")
     assert {"hypothesis", "level", "age_months", "situation", "strategy", "success"} <= set(df.columns)
     assert len(df) == 2 * 2 * (5 + 2)  # situations x strategies x groups

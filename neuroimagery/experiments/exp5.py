@@ -313,6 +313,11 @@ def _pack(img: torch.Tensor) -> torch.Tensor:
     return (img.clamp(0, 1) * 255).round().to(torch.uint8)
 
 
+def _small_maps(maps: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """Weight maps at half resolution in float16, small enough to keep in the filmed task's checkpoint."""
+    return {k: torch.nn.functional.avg_pool2d(v[None, None].float(), 2)[0, 0].half() for k, v in maps.items()}
+
+
 def routes_available(outcomes: Outcomes, posture: int, names: Sequence[str]) -> tuple[int, int]:
     """What the world offers a robot with primitives ``names`` from ``posture``, whatever it learns:
     the number of single primitives that retrieve the toy, and of ordered pairs (a, b) where a alone
@@ -376,7 +381,8 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
                     film = dict(situation=sit, hypothesis=grp["hypothesis"], level=grp["level"],
                                 strategy=strategy, start=_pack(outcomes.image(posture, ())),
                                 frames=[dict(action=f["action"], reward=f["reward"], real=_pack(f["real"]),
-                                             imagined=_pack(f["imagined"])) for f in test.frames])
+                                             imagined=_pack(f["imagined"])) for f in test.frames],
+                                maps=_small_maps(brain.maps({s.name: s.unit for s in sub.skills})))
                 rows.append(dict(
                     hypothesis=grp["hypothesis"], level=grp["level"], age_months=grp["age_months"],
                     situation=sit, strategy=strategy, repetition=r, library=task["key"],

@@ -104,6 +104,7 @@ def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> 
     film = next((d["film"] for d in results if d.get("film")), None)
     if film is not None:
         figs["filmstrip"] = filmstrip(film, run.figures / "retrieval_filmstrip.png")
+        log_film(run.logger, film)
     if cfg.experiment.environment == "robot":
         from .exp5 import make_environment
 
@@ -112,9 +113,25 @@ def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> 
             p = situations_figure(env, run.figures / "situations.png")
             if p is not None:
                 figs["situations"] = p
+            for k in range(1, N_POSTURES + 1):
+                run.logger.image(f"situations/posture-{k}", _pc_rgb(env.perceive(env.start(k)).numpy()), 0)
         finally:
             env.close()
     summary["figures"] = {k: str(Path(v).relative_to(run.root)) for k, v in figs.items()}
+
+
+def log_film(logger, film: dict) -> None:
+    """TensorBoard: the filmed retrieval step by step (``film/real``, ``film/imagined``: the PC map
+    after each attempt and the mental image C3 gave for it; step 0 = the start) and the filmed
+    child's weights after its test (``brain/C1/...``, ``brain/C2/...``, ``brain/C3/...``,
+    ``brain/C4/...``; :meth:`ToolUseBrain.maps`)."""
+    logger.text("film/child", f"{film['hypothesis']} level {film['level']}, tool {film['situation']}, "
+                              f"{film['strategy']} child: " + " > ".join(f["action"] for f in film["frames"]), 0)
+    logger.image("film/real", _pc_rgb(film["start"].numpy()), 0)
+    for i, f in enumerate(film["frames"], start=1):
+        logger.image("film/real", _pc_rgb(f["real"].numpy()), i)
+        logger.image("film/imagined", _pc_rgb(f["imagined"].numpy()), i)
+    logger.maps(film.get("maps", {}), prefix="brain/")  # absent in checkpoints written before the maps
 
 
 def group_table(e, h: str, cell) -> tuple[list[str], list[list[str]]]:

@@ -247,6 +247,35 @@ class ToolUseBrain(nn.Module):
         w = self.c3.som.weight[0]
         return w[winner, : self.n_pc].reshape(2, *self.image_shape).clamp(0.0, 1.0)
 
+    def maps(self, skills: dict[str, int]) -> dict[str, torch.Tensor]:
+        """The learnt weights as images, for TensorBoard: one (H, 2W) map per connection and unit,
+        the toy channel of the PC on the left and the tool channel on the right.
+
+        ``C1/<skill>`` (affordance: which PC pixels drive the skill's PMC unit), ``C4/<skill>``
+        (its action value), ``C2/<event>`` (distal goals) and ``C3/posture-<p>/<skill>`` (the
+        stored outcome image, the mental image of doing the skill in situation p; trained units
+        only). ``skills`` maps a skill's name to its PMC unit.
+        """
+        H, W = self.image_shape
+
+        def side_by_side(row: torch.Tensor) -> torch.Tensor:
+            m = row.reshape(2, H, W)
+            return torch.cat([m[0], m[1]], dim=1).clone()
+
+        out = {}
+        for name, unit in skills.items():
+            out[f"C1/{name}"] = side_by_side(self.c1.weight[0, unit])
+            out[f"C4/{name}"] = side_by_side(self.c4.weight[0, unit])
+        for k in range(self.n_goals):
+            out[f"C2/{EVENTS[k] if k < len(EVENTS) else k}"] = side_by_side(self.c2.weight[0, k])
+        w = self.c3.som.weight[0]
+        for name, unit in skills.items():
+            for posture in range(1, N_POSTURES + 1):
+                label = (posture - 1) * self.n_dmps + unit
+                if bool(self.c3_trained[label]):
+                    out[f"C3/posture-{posture}/{name}"] = side_by_side(w[label, : self.n_pc].clamp(0.0, 1.0))
+        return out
+
     def reset_c4(self) -> None:
         """Forget all action values (C4 back to its zero start): a fresh individual's C4."""
         self.c4.weight.zero_()
