@@ -13,7 +13,7 @@ register_configs()
 @friendly_errors
 def main(cfg: DictConfig) -> None:
     info = train(cfg)
-    print(f"trained {info['experiment']} ({info['participants']} participants) in {info['runtime_s']['train']:.1f} s; "
+    print(f"trained {info['experiment']} ({info['participants']} {info['unit']}) in {info['runtime_s']['train']:.1f} s; "
           f"checkpoints in {info['checkpoints']}")
 
 

@@ -126,7 +126,9 @@ def train(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
         t0 = time.perf_counter()
         module.train(conf, run)
         run.timings["train"] = round(time.perf_counter() - t0, 3)
-        info = {"experiment": conf.experiment.name, "participants": conf.participants, "runtime_s": dict(run.timings),
+        # experiments whose simulated subjects are not cfg.participants say how many they trained
+        count, unit = module.trained_count(conf) if hasattr(module, "trained_count") else (conf.participants, "participants")
+        info = {"experiment": conf.experiment.name, "participants": count, "unit": unit, "runtime_s": dict(run.timings),
                 "checkpoints": str(run.checkpoints)}
         run.write_json("train.json", info)
         return info

@@ -339,6 +339,7 @@ def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
     df = pd.read_csv(tmp_path / "individuals.csv")
     assert {"hypothesis", "level", "age_months", "situation", "strategy", "success"} <= set(df.columns)
     assert len(df) == 2 * 2 * (5 + 2)  # situations x strategies x groups
+    assert exp5.trained_count(cfg) == (len(df) // 2, "robots")  # what train.py reports (not cfg.participants)
     saved = json.loads((tmp_path / "summary.json").read_text())
     assert saved["experiment"] == "exp5" and set(saved["table_7_1"]) == {f"posture-{p}" for p in range(1, 5)}
     g0 = saved["groups"][0]

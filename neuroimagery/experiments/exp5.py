@@ -217,6 +217,13 @@ def repetitions(cfg) -> int:
     return e.quick_repetitions if cfg.preset == "quick" else e.repetitions
 
 
+def trained_count(cfg) -> tuple[int, str]:
+    """How many robots a run simulates (``cfg.participants`` is not used): repetitions x situations
+    x groups, each tested as a reactive and as a planning child."""
+    e = _exp(cfg)
+    return repetitions(cfg) * len(e.situations) * len(groups(e)), "robots"
+
+
 def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
     return AcquisitionConfig(n_dmps=e.n_dmps, pibb_samples=e.pibb_samples, pibb_temperature=e.pibb_temperature,
                              pibb_decay=e.pibb_decay, max_epochs=e.max_epochs,
