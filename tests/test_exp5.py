@@ -360,6 +360,8 @@ def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
         assert r["n"] == len(g) and r["successes"] == int(g.success.sum())
         assert r["pull"] + r["moves_then_pull"] + r["other"] == r["successes"]
         assert r["available"] == int(((g.routes_1 + g.routes_2) > 0).sum())
+        assert r["imagined"] == int(((g.imagined_1 + g.imagined_2) > 0).sum()) >= r["imagined_true"]
+    assert (df.imagined_true <= df.imagined_1 + df.imagined_2).all()
     report = (tmp_path / "report.md").read_text()
     assert "STAND-IN" in report and "How the tool-far successes happen" in report
     assert (tmp_path / "figures" / "fig_7_9_hp1_skills.png").exists()
@@ -386,6 +388,31 @@ def test_routes_available_counts_single_moves_and_pairs():
 
     assert exp5.routes_available(Fake(), 4, ["a", "b", "c"]) == (1, 3)  # a; b>a, b>c, c>a
     assert exp5.routes_available(Fake(), 4, ["b", "c"]) == (0, 1)
+
+
+def test_imagined_routes_count_what_c3_shows_and_check_it_in_the_world():
+    from types import SimpleNamespace
+
+    class Env:  # an "image" is one number; 1 = the toy in reach
+        def reward(self, im):
+            return float(im.item() >= 1)
+
+    class Out:  # in the world: a retrieves alone, b then a too
+        env = Env()
+
+        def image(self, posture, seq):
+            return torch.tensor(0.0)
+
+        def after(self, posture, seq):
+            return Result((seq in {("a",), ("b", "a")},) + (False,) * 5, None)
+
+    class Brain:  # in mind: a retrieves from anywhere, b leads to 0.5, c retrieves only from 0.5
+        def imagine(self, x, unit):
+            return [torch.tensor(1.0), torch.tensor(0.5), torch.tensor(1.0 if float(x) == 0.5 else 0.0)][unit]
+
+    skills = [SimpleNamespace(name=n, unit=u) for u, n in enumerate("abc")]
+    # imagined: a; b>a, b>c, c>a. True in the world: a and b>a
+    assert exp5.imagined_routes(Brain(), Out(), 4, skills) == (1, 3, 2)
 
 
 def test_success_routes_count_each_far_group():

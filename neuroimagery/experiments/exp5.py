@@ -335,6 +335,26 @@ def routes_available(outcomes: Outcomes, posture: int, names: Sequence[str]) -> 
     return len(one), int(two)
 
 
+def imagined_routes(brain: ToolUseBrain, outcomes: Outcomes, posture: int, skills: Sequence) -> tuple[int, int, int]:
+    """What a planning child's mental images offer from ``posture``: the number of primitives that
+    C3, run backwards, imagines to bring the toy into reach, of ordered pairs a, b (a alone not
+    imagined to) whose second mental image shows it in reach, and of these imagined routes how many
+    also bring the toy in for real (individuals.csv ``imagined_1``, ``imagined_2``,
+    ``imagined_true``; the real check reuses the rollouts of :func:`routes_available`)."""
+    env = outcomes.env
+    x0 = outcomes.image(posture, ())
+    first = {s.name: brain.imagine(x0, s.unit) for s in skills}
+    one = [a for a, im in first.items() if env.reward(im) > 0]
+    two = [(a, s.name) for a, im in first.items() if a not in one for s in skills
+           if env.reward(brain.imagine(im, s.unit)) > 0]
+
+    def real(moves):
+        return outcomes.after(posture, moves[:1]).retrieved or outcomes.after(posture, moves).retrieved
+
+    true = sum(real((a,)) for a in one) + sum(real(ab) for ab in two)
+    return len(one), len(two), int(true)
+
+
 # ---------------------------------------------------------------------------------- one task
 def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, library: dict | None = None) -> dict:
     """Acquire one library (or take ``library``, a stored one acquired with the same settings),
@@ -358,6 +378,7 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
     rows, film = [], None
     built: dict[tuple, ToolUseBrain] = {}
     available: dict[tuple, tuple[int, int]] = {}
+    imagined: dict[tuple, tuple[int, int, int]] = {}
     for sit in task["situations"]:
         posture = SITUATIONS[sit]
         outcomes = Outcomes(env, {s.name: s for s in lib.skills}, env.perceive)
@@ -371,6 +392,8 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
             if key not in built:
                 built[key] = build_brain(env, sub, acq, ToolUseBrain(env.image_shape, seed=seed, **brain_kw),
                                          _gen(seed, 3, r), env.perceive, outcomes=outcomes)
+            if (sit, key) not in imagined:  # C3 does not change in action sequencing
+                imagined[(sit, key)] = imagined_routes(built[key], outcomes, posture, sub.skills)
             for strategy in STRATEGIES:
                 # only C4 learns in Fig. 7.6: every individual starts from the built brain with a fresh C4
                 brain = built[key]
@@ -398,7 +421,9 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
                     train_success_rate=float(np.mean(train_ok)) if train_ok else float("nan"),
                     success=int(test.success), imagined_success=int(test.imagined_success),
                     test_actions=">".join(test.actions), test_attempts=len(test.actions),
-                    routes_1=available[(sit, key)][0], routes_2=available[(sit, key)][1]))
+                    routes_1=available[(sit, key)][0], routes_2=available[(sit, key)][1],
+                    imagined_1=imagined[(sit, key)][0], imagined_2=imagined[(sit, key)][1],
+                    imagined_true=imagined[(sit, key)][2]))
     timing = dict(task_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0, acquisition_s=t_acq,
                   explore_rollouts=0 if library is not None else lib.explore_rollouts,
                   learn_rollouts=0 if library is not None else lib.learn_rollouts, library_reused=library is not None)
@@ -621,6 +646,9 @@ def success_routes(df: pd.DataFrame) -> list[dict]:
                    successes=int(len(won)), **{k: int(counts.get(k, 0)) for k in ROUTES})
         if {"routes_1", "routes_2"} <= set(g.columns):  # robots for which the world holds a 1-2 move retrieval
             row["available"] = int(((g.routes_1 + g.routes_2) > 0).sum())
+        if {"imagined_1", "imagined_2", "imagined_true"} <= set(g.columns):  # ... and their mental images
+            row["imagined"] = int(((g.imagined_1 + g.imagined_2) > 0).sum())
+            row["imagined_true"] = int((g.imagined_true > 0).sum())
         out.append(row)
     return out
 
@@ -709,4 +737,4 @@ def report(cfg, run, summary) -> None:
 
 
 __all__ = ["Exp5Config", "CONFIG", "train", "load", "evaluate", "report", "run_task", "groups", "tasks",
-           "thesis_claims", "success_route", "success_routes", "summarise"]
+           "thesis_claims", "success_route", "success_routes", "summarise", "routes_available", "imagined_routes"]

@@ -216,23 +216,32 @@ def write_report(cfg, run, summary: dict) -> None:
               "summary.json `routes` holds the same counts for every tool-far group.")
         by = {(r["level"], r["strategy"]): r for r in routes}
         has_avail = all("available" in r for r in routes)
+        has_imag = all("imagined" in r for r in routes)
         if has_avail:
-            rep.p("The last column counts the robots for which the world holds a retrieval of one or two moves "
+            rep.p("The next column counts the robots for which the world holds a retrieval of one or two moves "
                   "with their primitives (individuals.csv `routes_1`, `routes_2`), whether or not they find it: "
                   "what the world offers, against what the learners make of it.")
+        if has_imag:
+            rep.p("The last column counts the robots whose mental images (C3 run backwards from the far "
+                  "situation) show the toy in reach after one or two moves (`imagined_1`, `imagined_2`), and in "
+                  "brackets those with such an imagined route that also works in the world (`imagined_true`): "
+                  "what a planning child can learn in mind.")
         rows = []
         for k, age in zip(e.hp1_levels, e.hp1_ages):
             row = [k, age]
             for strat in ("reactive", "planning"):
                 r = by.get((k, strat))
                 row.append("-" if r is None else f"{r['successes']} of {r['n']}: {r['pull']} / {r['moves_then_pull']} / {r['other']}")
+            r = by.get((k, "reactive")) or by.get((k, "planning"))
             if has_avail:
-                r = by.get((k, "reactive")) or by.get((k, "planning"))
                 row.append("-" if r is None else f"{r['available']} of {r['n']}")
+            if has_imag:
+                row.append("-" if r is None else f"{r['imagined']} ({r['imagined_true']}) of {r['n']}")
             rows.append(row)
         rep.table(["IM detectors", "age (months)", "reactive: successes: pull / moves then pull / other",
                    "planning: successes: pull / moves then pull / other"]
-                  + (["robots with a 1-2 move retrieval"] if has_avail else []), rows)
+                  + (["robots with a 1-2 move retrieval"] if has_avail else [])
+                  + (["robots with an imagined 1-2 move retrieval (true)"] if has_imag else []), rows)
     rep.h("Table 7.1: what the robots discovered")
     rows = []
     for p in range(1, N_POSTURES + 1):
