@@ -377,8 +377,9 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
     t_acq = time.perf_counter() - t0
     rows, film = [], None
     built: dict[tuple, ToolUseBrain] = {}
-    available: dict[tuple, tuple[int, int]] = {}
-    imagined: dict[tuple, tuple[int, int, int]] = {}
+    # per (situation, detectors): routes_1, routes_2 (the world) and imagined_1, imagined_2,
+    # imagined_true (the mental images; C3 does not change in action sequencing)
+    routes: dict[tuple, dict[str, int]] = {}
     for sit in task["situations"]:
         posture = SITUATIONS[sit]
         outcomes = Outcomes(env, {s.name: s for s in lib.skills}, env.perceive)
@@ -387,13 +388,14 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
             enabled = detectors_for(e, grp["detectors"], g_ind)
             sub = lib.subset(enabled)
             key = tuple(enabled)
-            if (sit, key) not in available:
-                available[(sit, key)] = routes_available(outcomes, posture, [s.name for s in sub.skills])
             if key not in built:
                 built[key] = build_brain(env, sub, acq, ToolUseBrain(env.image_shape, seed=seed, **brain_kw),
                                          _gen(seed, 3, r), env.perceive, outcomes=outcomes)
-            if (sit, key) not in imagined:  # C3 does not change in action sequencing
-                imagined[(sit, key)] = imagined_routes(built[key], outcomes, posture, sub.skills)
+            if (sit, key) not in routes:
+                routes[(sit, key)] = dict(
+                    zip(("routes_1", "routes_2"), routes_available(outcomes, posture, [s.name for s in sub.skills])),
+                    **dict(zip(("imagined_1", "imagined_2", "imagined_true"),
+                               imagined_routes(built[key], outcomes, posture, sub.skills))))
             for strategy in STRATEGIES:
                 # only C4 learns in Fig. 7.6: every individual starts from the built brain with a fresh C4
                 brain = built[key]
@@ -420,10 +422,7 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
                     n_skills=len(sub.skills), skills="+".join(s.name for s in sub.skills),
                     train_success_rate=float(np.mean(train_ok)) if train_ok else float("nan"),
                     success=int(test.success), imagined_success=int(test.imagined_success),
-                    test_actions=">".join(test.actions), test_attempts=len(test.actions),
-                    routes_1=available[(sit, key)][0], routes_2=available[(sit, key)][1],
-                    imagined_1=imagined[(sit, key)][0], imagined_2=imagined[(sit, key)][1],
-                    imagined_true=imagined[(sit, key)][2]))
+                    test_actions=">".join(test.actions), test_attempts=len(test.actions), **routes[(sit, key)]))
     timing = dict(task_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0, acquisition_s=t_acq,
                   explore_rollouts=0 if library is not None else lib.explore_rollouts,
                   learn_rollouts=0 if library is not None else lib.learn_rollouts, library_reused=library is not None)
@@ -556,6 +555,11 @@ def _spearman(x, y) -> float | None:
     return float(spearmanr(x, y).statistic)
 
 
+def group_rates(groups: list[dict]) -> dict[tuple, float]:
+    """Success rate of each group of summary.json ``groups``, keyed (hypothesis, level, situation, strategy)."""
+    return {(g["hypothesis"], g["level"], g["situation"], g["strategy"]): g["success_rate"] for g in groups}
+
+
 def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
     """The must-show claims of thesis section 7.1.3, each checked on this run's group rates.
 
@@ -566,7 +570,7 @@ def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
     Spearman's rho of tool far over the HP1 groups >= 0.8; the mean of the trained HP2 groups above
     the untrained group; reactive and planning children within 25 points of each other in every group.
     """
-    rate = {(g["hypothesis"], g["level"], g["situation"], g["strategy"]): g["success_rate"] for g in summary["groups"]}
+    rate = group_rates(summary["groups"])
     out = []
 
     def claim(what, value, holds):
@@ -662,7 +666,7 @@ def summarise(df: pd.DataFrame, e: Exp5Config) -> dict:
         grp_rows.append(dict(hypothesis=h, level=int(lvl), age_months=int(g["age_months"].iloc[0]), situation=sit,
                              strategy=strat, n=int(len(g)), success_rate=round(float(g["success"].mean()), 4),
                              mean_skills=round(float(g["n_skills"].mean()), 3)))
-    rate = {(r["hypothesis"], r["level"], r["situation"], r["strategy"]): r["success_rate"] for r in grp_rows}
+    rate = group_rates(grp_rows)
     checks = {}
     for strat in STRATEGIES + ("pooled",):
         ys = [np.mean([rate.get(("hp1", k, "far", s), np.nan) for s in (STRATEGIES if strat == "pooled" else (strat,))])
@@ -737,4 +741,4 @@ def report(cfg, run, summary) -> None:
 
 
 __all__ = ["Exp5Config", "CONFIG", "train", "load", "evaluate", "report", "run_task", "groups", "tasks",
-           "thesis_claims", "success_route", "success_routes", "summarise", "routes_available", "imagined_routes"]
+           "thesis_claims", "success_route", "success_routes", "summarise", "group_rates", "routes_available", "imagined_routes"]

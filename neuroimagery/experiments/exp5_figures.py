@@ -155,17 +155,11 @@ def group_table(e, h: str, cell) -> tuple[list[str], list[list[str]]]:
     return head, rows
 
 
-def _rate(summary, h, lv, sit, strat):
-    for r in summary["groups"]:
-        if (r["hypothesis"], r["level"], r["situation"], r["strategy"]) == (h, lv, sit, strat):
-            return r["success_rate"]
-    return None
-
-
 def write_report(cfg, run, summary: dict) -> None:
-    from .exp5 import THESIS_TABLE_7_1
+    from .exp5 import THESIS_TABLE_7_1, group_rates
 
     e = cfg.experiment
+    rate = group_rates(summary["groups"])
     rep = Report("Experiment 5: tool-use development in infant robots")
     env_note = ("the pybullet rake-and-toy world (`robot.world.ToolWorld`)" if e.environment == "robot"
                 else f"`{e.environment}` (a STAND-IN environment, not the thesis's robot: these numbers are not results)")
@@ -175,7 +169,7 @@ def write_report(cfg, run, summary: dict) -> None:
         rep.h(f"{h.upper()}: success rate by {xl}")
 
         def cell(h, lv, sit, strat):
-            r = _rate(summary, h, lv, sit, strat)
+            r = rate.get((h, lv, sit, strat))
             return "-" if r is None else f"{100 * r:.0f} %"
 
         rep.table(*group_table(e, h, cell))
@@ -185,9 +179,9 @@ def write_report(cfg, run, summary: dict) -> None:
     c = summary["checks"]
     rep.h("Checks against the thesis")
     rho = c.get("hp1_far_spearman_pooled")
-    far2 = np.mean([_rate(summary, "hp1", e.hp1_levels[0], "far", s) or 0 for s in ("reactive", "planning")])
-    far6 = np.mean([_rate(summary, "hp1", e.hp1_levels[-1], "far", s) or 0 for s in ("reactive", "planning")])
-    beh = [_rate(summary, "hp1", k, "behind", s) for k in e.hp1_levels for s in ("reactive", "planning")]
+    far2 = np.mean([rate.get(("hp1", e.hp1_levels[0], "far", s)) or 0 for s in ("reactive", "planning")])
+    far6 = np.mean([rate.get(("hp1", e.hp1_levels[-1], "far", s)) or 0 for s in ("reactive", "planning")])
+    beh = [rate.get(("hp1", k, "behind", s)) for k in e.hp1_levels for s in ("reactive", "planning")]
     beh = [b for b in beh if b is not None]
     rep.bullets([
         f"HP1 tool behind toy: {100 * min(beh):.0f}-{100 * max(beh):.0f} % over ages and strategies (thesis ~90 %, 100 % at 14 months)." if beh else "HP1 behind: not run",

@@ -26,15 +26,15 @@ from omegaconf import OmegaConf
 
 from ..analysis.report import Report
 from ..errors import UserInputError
-from .exp5 import _ENGINE_KEYS, STRATEGIES, Exp5Config, summarise
+from .exp5 import _ENGINE_KEYS, STRATEGIES, Exp5Config, group_rates, summarise
 from .exp5_figures import group_table
 
 # settings that may differ between pooled runs: how the work was spread, and how many robots
 _FREE_KEYS = _ENGINE_KEYS + ("filmstrip_repetition", "repetitions", "quick_repetitions")
 
 
-def read_run(run_dir: str | Path) -> tuple[Exp5Config, int, pd.DataFrame]:
-    """The experiment settings, seed and individuals of one finished Exp. 5 run directory."""
+def read_config(run_dir: str | Path) -> tuple[Exp5Config, int]:
+    """The experiment settings and seed of one finished Exp. 5 run directory."""
     d = Path(run_dir)
     if not d.is_dir():
         raise UserInputError(f"{d}: no such run directory")
@@ -55,12 +55,19 @@ def read_run(run_dir: str | Path) -> tuple[Exp5Config, int, pd.DataFrame]:
         e = Exp5Config(**exp)
     except ValueError as err:
         raise UserInputError(f"{cfg_path}: {err}") from None
+    return e, int(raw.get("seed", 0))
+
+
+def read_run(run_dir: str | Path) -> tuple[Exp5Config, int, pd.DataFrame]:
+    """The experiment settings, seed and individuals of one finished Exp. 5 run directory."""
+    e, seed = read_config(run_dir)
+    csv_path = Path(run_dir) / "individuals.csv"
     df = pd.read_csv(csv_path)
     need = {"hypothesis", "level", "age_months", "situation", "strategy", "success", "n_skills", "test_actions"}
     missing = sorted(need - set(df.columns))
     if missing:
         raise UserInputError(f"{csv_path}: missing columns {', '.join(missing)}")
-    return e, int(raw.get("seed", 0)), df
+    return e, seed, df
 
 
 def expand(dirs: list[str | Path]) -> list[Path]:
@@ -109,10 +116,6 @@ def pool(run_dirs: list[str | Path]) -> tuple[dict, pd.DataFrame]:
     return out, df
 
 
-def _rates(groups: list[dict]) -> dict:
-    return {(g["hypothesis"], g["level"], g["situation"], g["strategy"]): g["success_rate"] for g in groups}
-
-
 def report(summary: dict, e: Exp5Config) -> Report:
     """The pooled rates beside each run's and the thesis's, and the claims judged on the pool."""
     runs = summary["runs"]
@@ -120,7 +123,7 @@ def report(summary: dict, e: Exp5Config) -> Report:
     rep.p(f"{len(runs)} runs (seeds {', '.join(str(r['seed']) for r in runs)}), "
           f"{sum(r['individuals'] for r in runs)} robots, each tested as a reactive and as a planning child. "
           "Each cell: the pooled rate, then each run's in brackets (run order as listed below).")
-    pooled, per = _rates(summary["groups"]), [_rates(r["groups"]) for r in runs]
+    pooled, per = group_rates(summary["groups"]), [group_rates(r["groups"]) for r in runs]
 
     def cell(h, lv, sit, strat):
         key = (h, lv, sit, strat)
@@ -150,7 +153,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--out", help="write individuals.csv, summary.json and report.md here")
     args = ap.parse_args(argv)
     summary, df = pool(args.runs)
-    e = read_run(summary["runs"][0]["run"])[0]
+    e = read_config(summary["runs"][0]["run"])[0]
     rep = report(summary, e)
     print(rep.text())
     if args.out:
