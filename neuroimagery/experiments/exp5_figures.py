@@ -294,7 +294,8 @@ def write_report(cfg, run, summary: dict) -> None:
     rep.p(f"{cost.get('tasks')} tasks, {summary.get('individuals')} individuals; rollouts {cost.get('rollouts')} "
           f"({cost.get('rollout_s')} s), renders {cost.get('renders')} ({cost.get('render_s')} s); summed task time "
           f"{cost.get('task_s_total')} s (CPU {cost.get('task_cpu_s_total', 'n/a')} s) of which skill acquisition "
-          f"{cost.get('acquisition_s_total')} s. Wall clock of this call: train {rt.get('train')} s"
+          f"{cost.get('acquisition_s_total')} s. Wall clock of this call: "
+          + (f"train {rt['train']} s" if rt.get("train") is not None else "no training (results read from checkpoint=DIR)")
           + (f" ({cost['tasks_read_back']} of the {cost.get('tasks')} tasks read back from an earlier call's "
              "checkpoints; their times are in the sums above)" if cost.get("tasks_read_back") else "")
           + (f"; {cost['libraries_reused']} tasks reused a stored skill library and ran action sequencing only"
