@@ -84,6 +84,10 @@ class Exp5Config:
     pibb_samples: int = 10  # K samples per posture and update (thesis: 10)
     pibb_temperature: float = 0.1  # tau of eq. 7.7 on the 0/1 costs (not given)
     pibb_decay: float = 0.9  # exploration covariance factor per PI^BB update (not given)
+    # a PI^BB update whose K samples all cost the same (none or all achieved the event from that
+    # posture): 'average' = the plain mean of the samples, eq. 7.8 with uniform weights (a random
+    # step) | 'keep' = no information, mean and covariance unchanged. See docs/exp5.md.
+    pibb_flat: str = "average"
     max_epochs: int = 10  # PI^BB epochs at most (thesis: 10)
     competence_tolerance: float = 0.05  # stop when the competence changes by less (thesis: 0.05)
     c1_repeats: int = 10  # C1 updates per PI^BB update (thesis: 10)
@@ -226,7 +230,7 @@ def trained_count(cfg) -> tuple[int, str]:
 
 def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
     return AcquisitionConfig(n_dmps=e.n_dmps, pibb_samples=e.pibb_samples, pibb_temperature=e.pibb_temperature,
-                             pibb_decay=e.pibb_decay, max_epochs=e.max_epochs,
+                             pibb_decay=e.pibb_decay, pibb_flat=e.pibb_flat, max_epochs=e.max_epochs,
                              competence_tolerance=e.competence_tolerance, c1_repeats=e.c1_repeats,
                              c2_repeats=e.c2_repeats, c3_repeats=e.c3_repeats, hip_threshold=e.hip_threshold,
                              explore_batch=e.explore_batch, explore_max_rollouts=e.explore_max_rollouts,
@@ -236,7 +240,7 @@ def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
 _ENV_KEYS = ("environment", "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
              "search_weight_sigma", "goal_frame", "reach_bound", "posture_4", "retrieve_x")
 # the settings a task's skill library depends on (Fig. 7.5); the other keys act only in Fig. 7.6
-_LIBRARY_KEYS = _ENV_KEYS + ("n_dmps", "pibb_samples", "pibb_temperature", "pibb_decay", "max_epochs",
+_LIBRARY_KEYS = _ENV_KEYS + ("n_dmps", "pibb_samples", "pibb_temperature", "pibb_decay", "pibb_flat", "max_epochs",
                              "competence_tolerance", "c1_repeats", "c2_repeats", "c3_repeats", "hip_threshold",
                              "explore_batch", "explore_max_rollouts", "spare_dmps", "c2_eta",
                              "share_library_across_situations")
@@ -452,6 +456,7 @@ def _stored(path: Path) -> dict | None:
         return None
     # written before these keys existed: their values then
     d["config"] = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, "c3_outcomes": "success",
+                   "pibb_flat": "average",
                    **d["config"]}
     return d
 
@@ -687,7 +692,7 @@ def summarise(df: pd.DataFrame, e: Exp5Config) -> dict:
 
 
 def evaluate(cfg, run, trained) -> dict:
-    """individuals.csv, summary (RESULTS.md exp5 layout), figures and TensorBoard scalars."""
+    """individuals.csv, summary (docs/results.md, Experiment 5), figures and TensorBoard scalars."""
     from . import exp5_figures as figs
 
     e = _exp(cfg)

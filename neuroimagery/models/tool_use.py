@@ -53,7 +53,8 @@ N_POSTURES = 4
 # the values each modelling switch of this module accepts (Exp5Config checks the same table)
 CHOICES = {"c3_recall": ("practised", "situation", "joint"), "planning_test": ("act", "plan"),
            "goal_frame": ("relative", "absolute"), "reach_bound": ("path", "goal"),
-           "spare_dmps": ("none", "unmastered"), "c3_outcomes": ("success", "every")}
+           "spare_dmps": ("none", "unmastered"), "c3_outcomes": ("success", "every"),
+           "pibb_flat": ("average", "keep")}
 
 
 def check_choice(key: str, value) -> None:
@@ -364,6 +365,7 @@ class AcquisitionConfig:
     pibb_samples: int = 10
     pibb_temperature: float = 0.1
     pibb_decay: float = 0.9
+    pibb_flat: str = "average"
     max_epochs: int = 10
     competence_tolerance: float = 0.05
     c1_repeats: int = 10
@@ -496,6 +498,8 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionCon
             progress(f"learning {event} on DMP {slot}")
         skill = Skill(event, slot, theta, p0, copy=sum(s.event == event for s in lib.skills))
         _learn_skill(env, skill, cfg, generator, brain, perceive, lib)
+        if brain is not None:
+            brain.acquired[slot] = True
         hip_cache.clear()  # C2 has learnt
         lib.skills.append(skill)
         free.remove(slot)
@@ -549,7 +553,7 @@ def _explore(env, events: Sequence[str], cfg: AcquisitionConfig, generator, lib:
 def _learn_skill(env, skill: Skill, cfg: AcquisitionConfig, generator, brain, perceive, lib: Library) -> None:
     """Part B of Fig. 7.5 for one primitive (PI^BB + competence stopping rule)."""
     pibb = PIBB.from_sigma(skill.theta, env.search_sigma(), n_samples=cfg.pibb_samples,
-                           temperature=cfg.pibb_temperature, decay=cfg.pibb_decay)
+                           temperature=cfg.pibb_temperature, decay=cfg.pibb_decay, flat=cfg.pibb_flat)
     goal = EVENTS.index(skill.event)
     prev = None
     for epoch in range(cfg.max_epochs):
@@ -775,7 +779,7 @@ class ToolWorldEnvironment:
 
     def __init__(self, world_config=None, duration_s: float = 1.5, explore_goal_sigma: float = 0.35,
                  explore_weight_sigma: float = 300.0, search_goal_sigma: float = 0.05,
-                 search_weight_sigma: float = 30.0, goal_frame: str = "relative", reach_bound: str = "goal") -> None:
+                 search_weight_sigma: float = 30.0, goal_frame: str = "absolute", reach_bound: str = "goal") -> None:
         from ..motor.dmp import DMP
         from ..robot.world import ToolWorld
 

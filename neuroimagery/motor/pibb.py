@@ -8,7 +8,9 @@ One iteration, in the numbered steps of the thesis:
 3. weighting      p_k = exp(-J_k / temperature) / sum_l exp(-J_l / temperature)      (eq. 7.7)
 4. averaging      M_{i+1} = sum_k p_k theta_k                                         (eq. 7.8)
 
-and the exploration covariance shrinks by ``decay`` each update.  ``PIBB`` is immutable:
+and the exploration covariance shrinks by ``decay`` each update.  When every sample cost the same
+the weights are uniform and step 4 is the plain mean of the samples (``flat="average"``), or no
+update at all (``flat="keep"``).  ``PIBB`` is immutable:
 ``update`` returns a new distribution and leaves the old one as it was.
 """
 from __future__ import annotations
@@ -32,6 +34,10 @@ class PIBB:
     n_samples: int = 10
     temperature: float = 0.1
     decay: float = 0.9
+    # what an update does when every sample cost the same (the weights of eq. 7.7 are then uniform):
+    # 'average' = move to the plain mean of the samples (eq. 7.8 as written: a random step) |
+    # 'keep' = the samples carry no information, so mean and covariance stay as they are
+    flat: str = "average"
 
     def __post_init__(self) -> None:
         m, C = self.mean, self.covariance
@@ -49,6 +55,8 @@ class PIBB:
             raise ValueError(f"PIBB temperature must be > 0, got {self.temperature}")
         if not 0 < self.decay <= 1:
             raise ValueError(f"PIBB decay must be in (0, 1], got {self.decay}")
+        if self.flat not in ("average", "keep"):
+            raise ValueError(f"PIBB flat must be 'average' or 'keep', got {self.flat!r}")
 
     @classmethod
     def from_sigma(cls, mean: torch.Tensor, sigma: torch.Tensor | float, **kw) -> "PIBB":
@@ -73,13 +81,17 @@ class PIBB:
         return torch.softmax(-(costs - costs.min()) / self.temperature, dim=0)
 
     def update(self, samples: torch.Tensor, costs: torch.Tensor) -> "PIBB":
-        """New distribution: probability-weighted mean of the samples (eq. 7.8), decayed covariance."""
+        """New distribution: probability-weighted mean of the samples (eq. 7.8), decayed covariance
+        (with ``flat="keep"`` and all costs equal: this distribution, unchanged)."""
         if samples.dim() != 2 or samples.shape[1] != len(self.mean):
             raise ValueError(f"samples must be (K, {len(self.mean)}), got {tuple(samples.shape)}")
         if len(costs) != len(samples):
             raise ValueError(f"{len(samples)} samples but {len(costs)} costs")
         if not torch.isfinite(samples).all():
             raise ValueError("samples contain NaN or inf")
+        flat = torch.as_tensor(costs)
+        if self.flat == "keep" and bool((flat == flat[0]).all()):
+            return self
         p = self.weights(costs)
         return replace(self, mean=p @ samples.to(self.mean.dtype), covariance=self.covariance * self.decay)
 
