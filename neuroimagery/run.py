@@ -1,4 +1,4 @@
-"""Run directories (the layout of RESULTS.md) and the train / evaluate entry points.
+"""Run directories (the layout described in docs/results.md) and the train / evaluate entry points.
 
 ``train(cfg)`` and ``evaluate(cfg)`` are plain functions; ``train.py`` and ``evaluate.py`` only
 wrap them with ``@hydra.main``. Tests call them directly with a composed config.
@@ -20,10 +20,10 @@ from .logger import make_logger
 
 
 class RunDir:
-    """Files a run leaves behind (see RESULTS.md).
+    """Files a run leaves behind (see docs/results.md).
 
-    ``root/.hydra/config.yaml``, ``checkpoints/``, ``trials.csv`` or ``individuals.csv``,
-    ``summary.json``, ``report.md``, ``figures/*.png``, ``tb/``.
+    ``root/.hydra/config.yaml``, ``checkpoints/``, ``train.json`` (train.py), ``trials.csv`` or
+    ``individuals.csv``, ``summary.json``, ``report.md``, ``figures/*.png``, ``tb/``.
     """
 
     def __init__(self, root: str | Path, cfg: Config, raw: DictConfig | None = None) -> None:

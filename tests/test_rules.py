@@ -167,3 +167,17 @@ def test_subclass_overriding_delta_is_not_bypassed():
     a.learn(x, y)
     b.learn(x, y)
     assert torch.allclose(a.weight - w0, 2 * (b.weight - w0), atol=1e-6)
+
+
+@pytest.mark.parametrize("rules", [Hebbian(0.1), Delta(0.1), [Hebbian(0.1)]])
+def test_one_to_one_refuses_rules_and_multiplies_element_wise(rules):
+    from neuroimagery.nn import OneToOne
+
+    with pytest.raises(ValueError, match="OneToOne is a fixed element-wise gain; it has no learning rule"):
+        OneToOne(3, participants=2, rules=rules)
+    o = OneToOne(3, participants=2, value=2.0)
+    w = torch.tensor([[[0.5, 2.0, -1.0]], [[3.0, 0.0, 1.5]]])  # (P=2, 1, n=3): one gain per unit
+    o.weight.copy_(w)
+    x = torch.rand(2, 4, 3)
+    assert torch.allclose(o(x), x * w)
+    assert o.learn(x, x) is None and torch.equal(o.weight, w)  # no rule: learning changes nothing

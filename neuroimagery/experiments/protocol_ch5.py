@@ -121,7 +121,7 @@ def load_model(cfg, checkpoint_dir, model_cls, e):
 
 
 def trials_frame(rows: list[dict]) -> pd.DataFrame:
-    """Rows -> the trials table of RESULTS.md (columns in the public order, extras after)."""
+    """Rows -> the trials table of docs/results.md (columns in the public order, extras after)."""
     df = pd.DataFrame(rows)
     for c in TRIAL_COLUMNS:
         if c not in df:

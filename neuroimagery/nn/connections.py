@@ -1,14 +1,18 @@
 """Connections between maps (thesis section 4.3, eq. 4.4) with in-place local learning.
 
-Every connection holds its weights as a buffer of shape ``(P, out, in)`` - one weight matrix per
-simulated participant - and computes ``y = F(W x)`` (eq. 4.4) for activity ``x`` of shape
+A connection holds its weights as a buffer - ``(P, out, in)``, one weight matrix per simulated
+participant, for :class:`AllToAll`; ``(1, out, in)`` shared by all participants for
+:class:`HardWired`; ``(P, 1, n)``, one gain per unit, for :class:`OneToOne` - and computes
+``y = F(W x)`` (eq. 4.4; ``F(w * x)`` element-wise for OneToOne) for activity ``x`` of shape
 ``(P, B, in)``. A 2-D input ``(B, in)`` is treated as one participant and the output is 2-D
 again, so a connection drops into an ordinary torch model: its forward is differentiable with
 respect to its input, while the weights themselves never require grad.
 
 Learning: ``conn.learn(pre=..., post=..., ...)`` asks each attached rule for a change (computed at
 the same weights) and adds their sum in place under ``torch.no_grad()``; it does nothing while the
-module is in ``eval()`` mode.
+module is in ``eval()`` mode or has no rule. Of the classes here only :class:`AllToAll` takes rules:
+:class:`HardWired` has none, and :class:`OneToOne` (a fixed element-wise gain) refuses them with a
+``ValueError``. :class:`GainField` has no weights.
 """
 from __future__ import annotations
 
@@ -147,12 +151,16 @@ class HardWired(Connection):
 class OneToOne(Connection):
     """Unit ``i`` of the input drives unit ``i`` of the output with its own weight ``w_i``.
 
-    Weights are stored as ``(P, 1, n)``; ``y = F(w * x)``.
+    Weights are stored as ``(P, 1, n)``, all starting at ``value``; ``y = F(w * x)``. A fixed
+    element-wise gain: it has no learning rule (the rules compute ``(P, out, in)`` changes), so
+    ``rules`` must be empty and ``learn`` does nothing.
     """
 
     def __init__(self, n: int, participants: int = 1, value: float = 1.0, transfer_fn: str = "identity",
                  rules: Rule | Iterable[Rule] = (), name: str = "") -> None:
-        super().__init__(n, n, torch.full((participants, 1, n), float(value)), transfer_fn, rules, name)
+        if isinstance(rules, Rule) or len(list(rules)) > 0:
+            raise ValueError("OneToOne is a fixed element-wise gain; it has no learning rule")
+        super().__init__(n, n, torch.full((participants, 1, n), float(value)), transfer_fn, (), name)
 
     def net(self, x: torch.Tensor) -> torch.Tensor:
         xb, squeeze = as_batched(x, self.n_in, f"input of {self.name or 'OneToOne'}")

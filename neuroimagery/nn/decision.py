@@ -110,7 +110,10 @@ class LeakyCompetingAccumulator(nn.Module):
         w: mutual inhibition.
         threshold: decision threshold.
         dt: integration step per cycle.
-        noise: standard deviation of Gaussian noise added per cycle (0 = deterministic).
+        noise: amplitude of Gaussian noise per unit time (Euler-Maruyama): each cycle adds
+            ``noise * randn / sqrt(dt)`` to ``dy_i`` before ``y_i += dt * dy_i``, so the noise added
+            to an accumulator in one cycle has standard deviation ``noise * sqrt(dt)``
+            (0 = deterministic).
     """
 
     def __init__(self, n: int = 2, k: float = 0.2, w: float = 0.5, threshold: float = 1.2, dt: float = 0.1,

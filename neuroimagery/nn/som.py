@@ -18,7 +18,10 @@ participants. Two exact implementations of the same online rule are offered:
   touches only the square of units its own truncated neighbourhood reaches, so batching many
   participants does not widen the region updated at each step (:func:`fit_windowed`).
 
-``method='auto'`` picks ``factored`` when there are fewer training patterns than inputs.
+``method='auto'`` picks ``factored`` when ``N < n_in`` and the initial and final learning rates
+(``eta``, ``eta_final``) are below 1, ``online`` otherwise; ``N`` is the number of rows of the
+``patterns`` given to :meth:`SOM.fit`, repeated patterns included (not the number of distinct
+patterns). It never picks ``windowed``.
 """
 from __future__ import annotations
 
@@ -127,7 +130,8 @@ class SOM(nn.Module):
         """One online step (eq. 4.5) with one pattern per participant ``x`` ``(P, in)``.
 
         ``winner`` ``(P,)`` forces the winning unit (supervised, eq. 6.7); otherwise the BMU is
-        used. Returns the winners. Does nothing but return the BMU in ``eval()`` mode.
+        used. Returns the winners. In ``eval()`` mode the weights are left unchanged (the winners
+        are still returned).
         """
         check_tensor("x", x, (self.n_in,))
         xb = x.reshape(self.participants, 1, self.n_in)
@@ -149,7 +153,10 @@ class SOM(nn.Module):
 
         Each iteration every participant draws one pattern at random (its own generator, or the
         given ``order`` ``(P, iterations)`` of indices). ``labels`` ``(N,)`` or ``(P, N)`` are the
-        forced winners of a supervised map. Returns the winners ``(P, iterations)``.
+        forced winners of a supervised map. In ``train()`` mode, returns the winners
+        ``(P, iterations)``. In ``eval()`` mode nothing is trained: the arguments are checked, the
+        pattern order is drawn (or taken from ``order``) and returned, ``(P, iterations)`` pattern
+        indices, not winners.
         """
         if method not in ("auto", "online", "factored", "windowed"):
             raise ValueError(f"method must be 'auto', 'online', 'factored' or 'windowed', got {method!r}")

@@ -3,7 +3,10 @@
 One update = one epoch of Fig. 7.5: from each of the 4 postures, K samples of the DMP's
 parameters are rolled out (their goals bounded to ``WorldConfig.max_goal_offset_rad`` around that
 posture, as in babbling) while the skill's event is watched, the cost of every rollout is read
-from its outcome (``motor.pibb.event_costs``), and one PI^BB update uses all 4K samples.
+from its outcome, and one PI^BB update uses all 4K samples. :func:`learn` scores rollouts with
+``motor.pibb.graded_costs`` by default (``cost="graded"``: 0 when the event fired; a miss costs
+between 0.1 and 1, less the further the toy went the wanted way and the closer the rake came to
+it) or, with ``cost="binary"``, ``motor.pibb.event_costs`` (0 when the event fired, 1 otherwise).
 """
 from __future__ import annotations
 
