@@ -38,7 +38,9 @@ class DMP(torch.nn.Module):
     alpha_v, beta_v: spring-damper gains of eq. 7.2 (``beta_v = alpha_v / 4`` is critical damping).
     alpha_x: decay of the canonical system, eq. 7.5 (``x(tau) = exp(-alpha_x)``).
     The basis centres ``c_i`` are spread evenly in time (so ``c_i = exp(-alpha_x * i / (n-1))``)
-    and the widths ``h_i`` make neighbouring Gaussians cross at about half height.
+    and the widths are ``h_i = 2 ln 2 / (c_i - c_{i+1})^2`` (the last reuses the last gap): each
+    Gaussian has fallen to ``exp(-ln2 / 2) ~ 0.71`` halfway to the next centre. Since the gaps
+    differ, neighbours cross lower where the widths differ (defaults: at 0.42, 0.42 and 0.71).
     max_goal_offset: goals farther than this (rad, per joint) from the start ``y0`` are moved to
     ``y0 +- max_goal_offset`` before integrating; ``None`` leaves them unbounded.
     """
@@ -68,7 +70,7 @@ class DMP(torch.nn.Module):
         if n_basis > 1:
             gaps = (centres[:-1] - centres[1:]).abs()
             gaps = torch.cat([gaps, gaps[-1:]])
-            widths = (2.0 * math.log(2.0)) / gaps**2  # neighbours cross at exp(-ln2 / 2) ~ 0.71
+            widths = (2.0 * math.log(2.0)) / gaps**2  # exp(-ln2 / 2) ~ 0.71 halfway to the next centre
         else:
             widths = torch.ones(1, dtype=torch.float64)
         self.register_buffer("centres", centres.float())
