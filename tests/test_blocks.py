@@ -53,7 +53,8 @@ def test_drop_in_between_linear_layers_with_autograd():
     out.backward()
     assert net[0].weight.grad is not None and net[0].weight.grad.abs().sum() > 0
     assert not net[1].weight.requires_grad
-    assert all(p.requires_grad for p in net.parameters())  # the block adds no trainable parameters
+    # the block adds no parameters: exactly the two Linear layers' weights and biases
+    assert sum(p.numel() for p in net.parameters()) == (6 * 10 + 10) + (4 * 1 + 1)
     assert len(list(net[1].parameters())) == 0
 
 

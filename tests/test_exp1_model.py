@@ -1,8 +1,10 @@
 """Experiment 1: exact Hebbian shortcuts, config checks, and a reduced end-to-end run."""
 import json
+import os
 
 import pytest
 import torch
+from support_runs import reused_run
 
 from neuroimagery.experiments.exp1 import Exp1Config
 from neuroimagery.nn.hebbian_closed_form import hebbian_indexed, hebbian_online, hebbian_shared
@@ -69,13 +71,8 @@ def test_exp1_quick_run_writes_outputs_and_rotates(tmp_path):
 # ------------------------------------------------------------------ the full protocol (thesis 5.1.2)
 @pytest.fixture(scope="module")
 def full_run(tmp_path_factory):
-    """``EXP1_RUN=DIR`` reuses a finished ``evaluate.py experiment=exp1`` run; otherwise one is made."""
-    import os
-    from pathlib import Path
-
-    d = os.environ.get("EXP1_RUN")
-    if d and (Path(d) / "summary.json").exists():
-        return json.loads((Path(d) / "summary.json").read_text())
+    """``EXP1_RUN=DIR`` reuses a finished ``evaluate.py experiment=exp1`` run made with the default
+    settings (refused otherwise); without it one is made."""
     from hydra import compose, initialize_config_dir
 
     from neuroimagery.config import register_configs
@@ -84,6 +81,8 @@ def full_run(tmp_path_factory):
     register_configs()
     with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
         cfg = compose("config", overrides=["experiment=exp1", "progress=false", "logger=none"])
+    if os.environ.get("EXP1_RUN"):
+        return reused_run("EXP1_RUN", cfg)
     return evaluate(cfg, out_dir=tmp_path_factory.mktemp("exp1_full"))
 
 

@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import pytest
 import torch
+from support_runs import reused_run
 
 from neuroimagery.experiments.exp2 import Exp2Config
 from neuroimagery.nn.som import fit_windowed as som_fit_windowed
@@ -41,6 +42,8 @@ def test_babbling_moves_toward_the_desired_posture():
     assert ((b["nxt"] >= 0) & (b["nxt"] <= 6)).all()
     # the action always points from the current to the desired posture, and N2 only when there
     assert torch.equal(b["act"], torch.sign(b["des"] - b["cur"]))
+    # the recorded next posture is the current one moved one 30-deg step by the action
+    assert torch.equal(b["nxt"], b["cur"] + b["act"])
 
 
 def test_m11_som_methods_agree_on_a_shortened_schedule():
@@ -122,13 +125,14 @@ def test_exp2_quick_run_with_a_user_folder_adds_custom_results(tmp_path):
 # ------------------------------------------------------------------ the full protocol (thesis 5.2.2)
 @pytest.fixture(scope="module")
 def full_run(tmp_path_factory):
-    """``EXP2_RUN=DIR`` reuses a finished ``evaluate.py experiment=exp2`` run; otherwise one is made."""
-    d = os.environ.get("EXP2_RUN")
-    if d and (Path(d) / "summary.json").exists():
-        return json.loads((Path(d) / "summary.json").read_text())
+    """``EXP2_RUN=DIR`` reuses a finished ``evaluate.py experiment=exp2`` run made with the default
+    settings (refused otherwise); without it one is made."""
+    cfg = _cfg("logger=none")
+    if os.environ.get("EXP2_RUN"):
+        return reused_run("EXP2_RUN", cfg)
     from neuroimagery.run import evaluate
 
-    return evaluate(_cfg("logger=none"), out_dir=tmp_path_factory.mktemp("exp2_full"))
+    return evaluate(cfg, out_dir=tmp_path_factory.mktemp("exp2_full"))
 
 
 @pytest.mark.slow

@@ -67,9 +67,10 @@ def test_match_tolerance_covers_a_one_unit_shift_only():
     model = exp3._model(cfg, [0])
     img = torch.zeros(32, 32)
     img[10, 5:25] = 1.0
-    shifted, far = torch.roll(img, 1, 0), torch.roll(img, 3, 0)
+    shifted, two, far = torch.roll(img, 1, 0), torch.roll(img, 2, 0), torch.roll(img, 3, 0)
     t = img.reshape(1, 1, -1)
     assert model.uncovered(t, shifted.reshape(1, 1, -1)).sum() == 0
+    assert model.uncovered(t, two.reshape(1, 1, -1)).sum() == img.sum()  # tolerance 2 would cover it
     assert model.uncovered(t, far.reshape(1, 1, -1)).sum() == img.sum()
     model.p.match_tolerance = 0  # the literal one-to-one C8
     assert model.uncovered(t, shifted.reshape(1, 1, -1)).sum() == img.sum()

@@ -112,15 +112,13 @@ def test_kinematic_drive_agrees_with_constraint_drive(world):
         for k, delta in ((1, (-0.16, 0.0, 0.0)), (1, (-0.12, 0.05, 0.0)), (2, (0.0, 0.16, 0.0))):  # posture 2 is level with the toy: a straight sweep west
             traj = _line(world, k, delta)
             a, b = world.rollout(traj, k, None)[0], ref.rollout(traj, k, None)[0]
-            assert np.allclose(a.toy_displacement, b.toy_displacement, atol=0.02), (a, b)
-            assert a.fired("south") == b.fired("south") and a.fired("retrieve") == b.fired("retrieve"), (a, b)
-            # a side event may differ only when the sideways drift is borderline (a graze of the
-            # toy's top, "touch", is too fine a detail to compare)
-            thr = world.cfg.move_threshold
-            for name, d in (("north", b.toy_displacement[0]), ("west", b.toy_displacement[1]),
-                            ("east", -b.toy_displacement[1])):
-                if a.fired(name) != b.fired(name):
-                    assert abs(abs(d) - thr) < 0.015, (name, a, b)
+            # the two drives differ by at most ~0.006 m on these moves; 0.01 m is half the
+            # move threshold (0.02 m), so a drive that lost or added a whole move would fail
+            assert world.cfg.move_threshold == 0.02
+            assert np.allclose(a.toy_displacement, b.toy_displacement, atol=0.01), (a, b)
+            # the final north/west/east displacements here are >= 0.009 m from the 0.02 m threshold
+            # (nearest: 0.029 / 0.032 m east on the first move): the events, touch included, agree
+            assert a.events == b.events, (dict(zip(EVENTS, a.events)), dict(zip(EVENTS, b.events)))
 
 
 def test_quaternion_helpers_match_scipy():

@@ -82,6 +82,10 @@ def test_shapes_are_chiral_and_not_symmetric(name):
         if mirror_app is not None:
             best = max(_mask_iou(_filled(s, o, 0.0, mirror_app), _filled(s, o, a)) for a in range(0, 360, 5))
             assert best < 0.85, (o, best)
+    if mirror_app is None:  # protocol "reference" (set L): the mirror image is the separate object B
+        assert s.protocol == "reference" and s.objects == ["A", "B"]
+        best = max(_mask_iou(_filled(s, "B", 0.0), _filled(s, "A", a)) for a in range(0, 360, 5))
+        assert best < 0.85, best  # about 0.43
 
 
 def test_elongation_matches_the_descriptions():
