@@ -623,3 +623,53 @@ def test_full_run_shows_the_thesis_claims(tmp_path):
     assert len(claims) == 15  # every claim could be judged on a full run
     failed = [f"{c['claim']}: {c['value']}" for c in claims if not c["holds"]]  # every failure is listed
     assert not failed, "claims not shown:\n" + "\n".join(failed)
+
+
+def test_claims_at_their_bounds_are_not_decided_by_rounding():
+    """A rise of exactly 10 points, rho exactly 0.8 (scipy: 0.7999...), a 14-month rate of exactly
+    15 % and a difference of exactly 25 points hold; one robot in 30 less does not."""
+    e = exp5.Exp5Config()
+
+    def summary(far, far_planning=None, behind=28 / 30):
+        groups = []
+        for strat, rates in (("reactive", far), ("planning", far_planning or far)):
+            for k, r in zip(e.hp1_levels, rates):
+                groups += [dict(hypothesis="hp1", level=k, situation="far", strategy=strat, success_rate=round(r, 4)),
+                           dict(hypothesis="hp1", level=k, situation="behind", strategy=strat, success_rate=behind)]
+        s = {"groups": groups, "checks": {}}
+        for strat, rates in (("reactive", far), ("planning", far_planning or far)):
+            s["checks"][f"hp1_far_spearman_{strat}"] = exp5._spearman(e.hp1_levels, [round(r, 4) for r in rates])
+        diffs = [abs(a - b) for a, b in zip(far, far_planning or far)]
+        s["checks"]["reactive_planning_max_abs_diff"] = round(max(diffs), 4)
+        return {c["claim"]: c["holds"] for c in exp5.thesis_claims(s, e)}
+
+    # ranks 2, 1, 4, 3, 5: squared rank differences sum to 4, rho = 1 - 6 * 4 / 120 = 0.8 exactly;
+    # mean before 18 months 3/30, from 18 months 6/30: a rise of exactly 10 points
+    at_bound = [4 / 30, 2 / 30, 6 / 30, 5 / 30, 7 / 30]
+    assert abs(exp5._spearman(e.hp1_levels, at_bound) - 0.8) < 1e-12
+    held = summary(at_bound)
+    assert held["HP1 tool far rises with skills, Spearman rho >= 0.8 (reactive)"]
+    assert held["HP1 tool far appears from 18 months (reactive)"]
+    below = [4 / 30, 3 / 30, 6 / 30, 5 / 30, 7 / 30]  # one robot more at 16 months: a rise of 8.3 points
+    assert not summary(below)["HP1 tool far appears from 18 months (reactive)"]
+    assert summary([4.5 / 30, 5 / 30, 6 / 30, 7 / 30, 9 / 30])["HP1 tool far near zero at 14 months (reactive)"]
+    assert not summary([5 / 30, 5 / 30, 6 / 30, 7 / 30, 9 / 30])["HP1 tool far near zero at 14 months (reactive)"]
+    alike = "reactive and planning children alike (largest difference <= 25 points)"
+    assert summary([0.1, 0.2, 0.3, 0.4, 0.5], [0.1, 0.2, 0.3, 0.4, 0.25])[alike]
+    assert not summary([0.1, 0.2, 0.3, 0.4, 0.5], [0.1, 0.2, 0.3, 0.4, 0.5 - 8 / 30])[alike]
+
+
+def test_eye_reads_a_toy_on_either_side_of_the_reachable_border():
+    """The reward read from an image agrees with the toy's true place 0.5 mm either side of the
+    border (without taking off the reader's bias, about 1.4 mm, a toy 0.5 mm inside reads as out of
+    reach, as a retrieving pull that stops just after the border often leaves it)."""
+    from neuroimagery.models.tool_use import State, ToolWorldEnvironment
+
+    env = ToolWorldEnvironment()
+    bx = env.world.cfg.retrieve_x
+    assert 0.0005 < env.reader_bias() < 0.003
+    for y in (-0.08, 0.0, 0.06):
+        for p in (1, 4):
+            inside, outside = env.perceive(State(p, None, (bx - 0.0005, y))), env.perceive(State(p, None, (bx + 0.0005, y)))
+            assert env.reward(inside) == 1.0 and env.reward(outside) == 0.0, (y, p)
+            assert abs(env._toy_x(inside[0]) - env.reader_bias() - (bx - 0.0005)) < 0.0004

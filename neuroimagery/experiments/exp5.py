@@ -577,6 +577,10 @@ def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
     """
     rate = group_rates(summary["groups"])
     out = []
+    # group rates are stored rounded to 4 decimals and are multiples of 1 / n (n = 30 robots per
+    # run): a claim at its bound (rho exactly 0.8, a rise of exactly 10 points) must not be decided
+    # by rounding, so every comparison allows TOL (0.1 point), far less than one robot in 90
+    tol = CLAIM_TOL
 
     def claim(what, value, holds):
         out.append(dict(claim=what, value=value, holds=bool(holds)))
@@ -589,22 +593,22 @@ def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
         behind = [rate.get(("hp1", k, "behind", strat)) for k in e.hp1_levels]
         far = [rate.get(("hp1", k, "far", strat)) for k in e.hp1_levels]
         if None not in behind:
-            claim(f"HP1 tool behind high at every age ({strat})", pct(behind), min(behind) >= 0.75)
+            claim(f"HP1 tool behind high at every age ({strat})", pct(behind), min(behind) >= 0.75 - tol)
         if None in far:
             continue
-        claim(f"HP1 tool far near zero at {e.hp1_ages[0]} months ({strat})", pct(far[:1]), far[0] <= 0.15)
+        claim(f"HP1 tool far near zero at {e.hp1_ages[0]} months ({strat})", pct(far[:1]), far[0] <= 0.15 + tol)
         if None not in behind and young:
             claim(f"HP1 tool far low before 18 months against tool behind ({strat})",
                   f"{pct([far[i] for i in young])} against >= {100 * min(behind):.0f} %",
-                  max(far[i] for i in young) < min(behind))
+                  max(far[i] for i in young) < min(behind) - tol)
         old = [i for i in range(len(far)) if i not in young]
         if young and old:
             before, after = np.mean([far[i] for i in young]), np.mean([far[i] for i in old])
             claim(f"HP1 tool far appears from 18 months ({strat})",
-                  f"{100 * before:.0f} % before, {100 * after:.0f} % after", after - before >= 0.10)
+                  f"{100 * before:.0f} % before, {100 * after:.0f} % after", after - before >= 0.10 - tol)
         rho = summary["checks"].get(f"hp1_far_spearman_{strat}")
         claim(f"HP1 tool far rises with skills, Spearman rho >= 0.8 ({strat})",
-              f"{pct(far)}; rho {rho:.2f}" if rho is not None else pct(far), rho is not None and rho >= 0.8)
+              f"{pct(far)}; rho {rho:.2f}" if rho is not None else pct(far), rho is not None and rho >= 0.8 - tol)
     for strat in STRATEGIES:
         for sit in e.situations:
             hp2 = [rate.get(("hp2", t, sit, strat)) for t in e.hp2_trials]
@@ -612,14 +616,15 @@ def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
                 continue
             trained = float(np.mean(hp2[1:]))
             claim(f"HP2 tool {sit} improves with training ({strat})", f"{pct(hp2)}; trained mean {100 * trained:.0f} %",
-                  trained > hp2[0])
+                  trained > hp2[0] + tol)
     diff = summary["checks"].get("reactive_planning_max_abs_diff")
     if diff is not None:
         claim("reactive and planning children alike (largest difference <= 25 points)", f"{100 * diff:.0f} points",
-              diff <= 0.25)
+              diff <= 0.25 + tol)
     return out
 
 
+CLAIM_TOL = 1e-3  # slack of every claim's comparison (rates are rounded to 4 decimals)
 ROUTES = ("pull", "moves_then_pull", "other")
 
 
