@@ -45,7 +45,9 @@ class Config:
     vision: VisionConfig = field(default_factory=VisionConfig)
     stimuli: StimuliConfig = field(default_factory=StimuliConfig)
     logger: LoggerConfig = field(default_factory=LoggerConfig)
-    seed: int = 0  # fixes every random draw
+    # fixes every random draw of training and testing, except the eye's image noise (off by default),
+    # which has its own seed, vision.seed, and is the same whatever this seed (see docs/stimuli.md)
+    seed: int = 0
     participants: int = 10  # simulated participants (independent weights), trained as one batch
     preset: str = "full"  # full protocol, or 'quick' for a first look (each experiment says what it shrinks)
     checkpoint: Optional[str] = None  # evaluate.py: a training run's directory; None trains first

@@ -92,3 +92,45 @@ def test_full_run_rotates_and_rt_rises_with_disparity(full_run):
     assert full_run["participants"] == 10 and rec["n_trials"] == 10 * 52 and gen["n_trials"] == 10 * 96
     assert rec["rotation_success_rate"] >= 0.9 and gen["rotation_success_rate"] >= 0.9
     assert rec["rt_r"] >= 0.9
+
+
+def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
+    """With checkpoint=DIR the loaded model's participants are tested, whatever `participants` says."""
+    from hydra import compose, initialize_config_dir
+
+    from neuroimagery.config import register_configs
+    from neuroimagery.run import evaluate, train
+
+    register_configs()
+
+    def cfg(n, *more):
+        with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
+            return compose("config", overrides=["experiment=exp1", f"participants={n}", "preset=quick", "progress=false",
+                                                "logger=none", "experiment.som_iterations=50", *more])
+
+    train(cfg(1), out_dir=tmp_path / "tr")
+    s = evaluate(cfg(3, f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev")
+    assert s["participants"] == 1 and s["tests"]["recognition/none"]["n_trials"] == 52
+
+
+@pytest.mark.parametrize("centred_at", [1, 4, 10, None])
+def test_rotation_makes_up_to_max_cycles_image_updates(centred_at):
+    """Thesis 5.1.2: at most 10 rotation cycles (C1 then C2), each one image update; the rotation
+    stops at the first cycle whose posture cluster is at the centre."""
+    from neuroimagery.models.rotation_affordance import AffordanceRotationModel
+
+    e = Exp1Config(som_iterations=1)
+    m = AffordanceRotationModel(e, 1, 0)
+    calls = []
+
+    def select_posture(pc):  # column 52 is 0 deg (the centre), column 0 is -90 deg
+        calls.append(1)
+        col = torch.full(pc.shape[:2], 52 if len(calls) == centred_at else 0, dtype=torch.long)
+        return torch.zeros_like(col), col, torch.full_like(col, 7), None
+
+    m.select_posture = select_posture
+    out = m.trial(torch.zeros(1, 1, 1024), torch.zeros(1, 1, 1024))
+    n = e.max_cycles if centred_at is None else centred_at - 1
+    assert len(calls) == min(e.max_cycles, centred_at or e.max_cycles)
+    assert int(out["steps"]) == n and bool(out["rotated_ok"]) == (centred_at is not None)
+    assert int(out["rt"]) >= 7 * len(calls)

@@ -239,3 +239,18 @@ def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path):
     torch.save({"state_dict": ref, "participants": 2}, path)  # the full form of earlier checkpoints
     loaded = load_model(SimpleNamespace(seed=0), tmp_path, MotorRotationModel, e).state_dict()
     assert all(torch.equal(loaded[k], v) for k, v in ref.items())
+
+
+def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
+    """With checkpoint=DIR the loaded model's participants are tested, whatever `participants` says."""
+    from neuroimagery.run import evaluate
+
+    small = ("experiment.som_iterations=30", "experiment.hebb_steps=60", "experiment.c5_epochs=1", "logger=none")
+    e = Exp2Config(som_iterations=30, hebb_steps=60, c5_epochs=1)
+    g = torch.Generator().manual_seed(3)
+    m = MotorRotationModel(e, 1, 0)
+    m.fit({(o, a): (torch.rand(1024, generator=g) > 0.8).float() for o in (0, 1) for a in ANGLES})
+    (tmp_path / "tr" / "checkpoints").mkdir(parents=True)
+    torch.save(m.compact_state(), tmp_path / "tr" / "checkpoints" / "model.pt")
+    s = evaluate(_cfg("participants=3", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
+    assert s["participants"] == 1 and s["tests"]["all/none"]["n_trials"] == 196

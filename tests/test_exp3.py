@@ -116,3 +116,35 @@ def test_full_protocol(tmp_path):
         assert t["gen2/none"]["rt_by_disparity"][d] < t["recog/none"]["rt_by_disparity"][d]
     # no set is answered at chance
     assert max(t["recog/none"]["error_rate"], t["gen1/none"]["error_rate"]) < 0.35
+
+
+def test_rotated_ok_compares_orientations_modulo_360():
+    """A rotation that ends aligned after turning the long way round counts as rotated."""
+    import numpy as np
+    import pandas as pd
+
+    assert pc.angle_aligned([315.0, -45.0, 360.0, 405.0, 0.0, 45.0, 180.0], [-45.0, 315.0, 0.0, 45.0, 0.0, -45.0, -180.0]).tolist() \
+        == [True, True, True, True, True, False, True]
+    table = pd.DataFrame({"test": "recog", "condition": "none", "target_object": "o", "target_angle": [-45.0, -45.0, 90.0],
+                          "target_appearance": "basic", "rotated_object": "o", "rotated_angle": [90.0, 90.0, 90.0],
+                          "rotated_appearance": "basic", "same": True, "disparity": [135, 135, 0],
+                          "target_row": 0, "rotated_row": 0})
+    out = {"answer": torch.zeros(1, 3, dtype=torch.long), "rt": torch.tensor([[5.0, 3.0, 0.0]]),
+           "rotation_steps": torch.tensor([[5, 3, 0]]),
+           "rotation_deg": torch.tensor([[225.0, -135.0, 0.0]])}  # 90 + 225 = 315 = -45 (mod 360)
+    df = pc.trial_rows(table, out, [0])
+    assert df["rotated_ok"].tolist() == [True, True, True]
+    out["rotation_deg"] = torch.tensor([[180.0, -90.0, 45.0]])
+    assert not pc.trial_rows(table, out, [0])["rotated_ok"].any()
+    assert np.issubdtype(df["rotated_ok"].dtype, np.bool_)
+
+
+def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
+    from neuroimagery.run import train
+
+    small = ("logger=none", "logger.sample_trials=0", "experiment.quick_fm_images=300", "experiment.posture_iterations=100")
+    train(_cfg("participants=2", *small), out_dir=tmp_path / "tr")
+    s = evaluate(_cfg("participants=5", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
+    assert s["participants"] == 2
+    assert s["tests"]["recog/none"]["n_trials"] == 2 * 64
+    assert (tmp_path / "ev" / "report.md").read_text().count("2 simulated participants") == 1

@@ -209,3 +209,27 @@ def test_object_axis_flip_is_the_mirror_appearance():
     good = iou(m.flipped_about_object_axis(tgt, ang)[0].view(-1, 32, 32), mir.view(-1, 32, 32))
     bad = iou(m.flipped_about_object_axis(tgt, ang + 30.0)[0].view(-1, 32, 32), mir.view(-1, 32, 32))
     assert good.mean() > 0.6 and bad.mean() < good.mean() - 0.3
+
+
+def test_rt_by_required_steps_groups_by_disparity_not_by_steps_made():
+    df = pd.DataFrame({"test": ["recog"] * 5 + ["gen1"] * 2, "condition": ["none"] * 4 + ["match", "none", "none"],
+                       "decided": [True, True, True, False, True, True, True],
+                       "disparity": [0, 60, 60, 60, 60, 30, 60], "rotation_steps": [0, 2, 4, 19, 2, 3, 2],
+                       "rt": [5, 23, 44, 200, 25, 38, 27]})
+    req = exp4._rt_vs_required_steps(df, 30.0)
+    # undecided trials and other conditions are left out; the detour trial (4 steps for a 60-deg pair) counts at n = 2
+    assert req["all"] == {"0": 5.0, "1": 38.0, "2": round((23 + 44 + 27) / 3, 2)}
+    assert req["recog"] == {"0": 5.0, "2": 33.5} and req["gen1"] == {"1": 38.0, "2": 27.0}
+    assert exp4._rt_vs_steps(df) == {"0": 5.0, "2": 25.0, "3": 38.0, "4": 44.0}
+
+
+def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
+    from neuroimagery.run import train
+
+    small = ("logger=none", "experiment.quick_fm_images=300", "experiment.posture_iterations=100", "experiment.noise_tests=[]",
+             "logger.sample_trials=0")
+    train(_cfg("participants=1", *small), out_dir=tmp_path / "tr")
+    s = evaluate(_cfg("participants=3", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
+    assert s["participants"] == 1
+    assert "rt_by_required_steps" in s and "all" in s["rt_by_required_steps"]
+    assert "n steps required" in (tmp_path / "ev" / "report.md").read_text()

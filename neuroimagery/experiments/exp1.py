@@ -191,7 +191,8 @@ def evaluate(cfg, run, trained) -> dict:
         tests[key]["rotation_failures"] = _failures(sub)
         tests[key]["correct_rate_rotated_ok"] = round(float(sub[sub["rotated_ok"]]["correct"].mean()), 4) if sub["rotated_ok"].any() else None
     both = df[df["test"].isin(["recognition", "generalisation"])]
-    summary = {"experiment": "exp1", "participants": cfg.participants, "tests": tests,
+    # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
+    summary = {"experiment": "exp1", "participants": int(df["participant"].nunique()), "tests": tests,
                "overall_rotation_success_rate": round(float(both["rotated_ok"].mean()), 4),
                "targets": TARGETS}
     # figures: Fig. 5.4 a/b (a success, a failure, participant 0) and Fig. 5.5 a/b (RT profiles)

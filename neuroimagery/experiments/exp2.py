@@ -1,6 +1,8 @@
 """Experiment 2 (thesis 5.2): mental rotation through motor models, with wrist proprioception.
 
-Training follows Table 5.1 and the motor babbling procedure (a)-(g). The test shows all 196 pairs
+Training follows Table 5.1 and the motor babbling procedure (a)-(g), with two departures: C2 learns
+on the 1,960 babbling steps of C9 and C10 (Table 5.1: 84 cycles), and C9, C10, C2 learn after the
+SOM M1_1 has finished rather than step by step beside it (docs/exp2.md). The test shows all 196 pairs
 (14 images x 14 images: objects A/B at -90..90 deg in 30-deg steps) to each of ``participants``
 simulated robots, once per proprioception condition (``none``, ``match``, ``mismatch``).
 """
@@ -27,7 +29,9 @@ class Exp2Config:
     init_high: float = 0.1  # initial weights U[0, init_high] (thesis: 0.1)
     hebb_eta: float = 0.3  # outstar Hebbian rate of every Hebbian connection (not given)
     c1_epochs: int = 6  # passes over the 14 images for C1 and C6 (Table 5.1: 84 cycles = 6 x 14)
-    hebb_steps: int = 1960  # babbling steps that train C9, C10 and C2 (Table 5.1: 1,960)
+    # babbling steps that train C9, C10 and C2, after the SOM M1_1 has finished (Table 5.1: 1,960 for C9 and
+    # C10; it gives C2 14 patterns x 84 cycles, here C2 learns on these same steps; see docs/exp2.md)
+    hebb_steps: int = 1960
     c5_epochs: int = 6  # passes over the 196 pairs for C5 (Table 5.1: 1,176 = 6 x 196)
     som_iterations: int = 10000  # training steps of the SOMs M1_1 and PFC_2 (Table 5.1: 10,000)
     som_eta: float = 0.1  # SOM initial rate (eq. 4.5)
@@ -157,7 +161,8 @@ def evaluate(cfg, run, trained) -> dict:
                 "p": float(t.pvalue), "n_pairs": int(len(a))}
 
     f = stats.f_oneway(*[g["rt"].values for _, g in base.groupby("pair_type")])
-    summary = {"experiment": "exp2", "participants": cfg.participants, "tests": tests,
+    # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
+    summary = {"experiment": "exp2", "participants": int(df["participant"].nunique()), "tests": tests,
                "proprioception": {"rt_mismatch_vs_none_paired": paired(mis, base),
                                   "rt_match_vs_none_paired": paired(mat, base),
                                   "rt_mismatch_vs_none": compare_rt(mis["rt"], base["rt"]),

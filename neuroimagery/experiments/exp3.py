@@ -160,7 +160,8 @@ def evaluate(cfg, run, trained) -> dict:
     iou = {t: pc.generalisation_iou(lambda x: trained.forward_step(x.expand(P, -1, -1) if x.shape[0] == 1 else x,
                                                                    torch.full((P, x.shape[1]), 2, dtype=torch.long)),
                                     b, e.step_deg, 3, e.map_size) for t, b in banks.items()}
-    summary = {"experiment": "exp3", "participants": int(cfg.participants), "tests": tests,
+    # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
+    summary = {"experiment": "exp3", "participants": int(df["participant"].nunique()), "tests": tests,
                "targets": {k: {"error_rate": v} for k, v in THESIS.items()}, "forward_model_iou": iou}
     for key, hist in histories.items():
         pc.log_history(run.logger, hist, key)

@@ -249,9 +249,28 @@ def _stats_by_disparity(df: pd.DataFrame) -> dict:
 
 
 def _rt_vs_steps(df: pd.DataFrame) -> dict:
+    """Mean RT of the decided trials of condition none, grouped by the rotation steps each trial
+    itself made. RT counts 10 accumulator cycles per step and the decision falls within the last
+    step's 10 cycles, so every group lies in (10 n, 10 n + 10] by construction: a check of the
+    bookkeeping, not of the model's performance."""
     d = df[(df["condition"] == "none") & df["decided"]]
     g = d.groupby("rotation_steps")["rt"].mean()
     return {str(int(n)): round(float(v), 2) for n, v in g.items()}
+
+
+def _rt_vs_required_steps(df: pd.DataFrame, step_deg: float) -> dict:
+    """The thesis's measure (Fig. 6.9a, 6.2.2): mean RT of the decided trials of condition none,
+    grouped by the number n of ``step_deg`` rotation steps the pair's disparity requires
+    (disparity / step_deg, rounded). A model that always rotates straight to the target and decides
+    at once has RT just above 10 n; detours, stops at a wrong angle and slow decisions raise it.
+    Returns ``{"all": {n: RT}, "<test>": {n: RT}, ...}``."""
+    d = df[(df["condition"] == "none") & df["decided"]]
+    n = (d["disparity"].astype(float) / float(step_deg)).round().astype(int)
+    per = lambda x, k: {str(int(a)): round(float(v), 2) for a, v in x["rt"].groupby(k).mean().items()}  # noqa: E731
+    out = {"all": per(d, n)}
+    for test, g in d.groupby("test", sort=False):
+        out[str(test)] = per(g, n[g.index])
+    return out
 
 
 def evaluate(cfg, run, trained) -> dict:
@@ -260,10 +279,12 @@ def evaluate(cfg, run, trained) -> dict:
     df, histories, banks = run_tests(cfg, trained, eye, record=cfg.logger.sample_trials)
     run.write_csv("trials.csv", df)
     tests = summarise_trials(df)
-    summary = {"experiment": "exp4", "participants": int(cfg.participants), "tests": tests,
+    # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
+    summary = {"experiment": "exp4", "participants": int(df["participant"].nunique()), "tests": tests,
                "targets": {k: {"correct_rate": v} for k, v in THESIS.items()},
                "statistics": _stats(df), "statistics_by_disparity": _stats_by_disparity(df),
-               "rt_by_rotation_steps": _rt_vs_steps(df)}
+               "rt_by_rotation_steps": _rt_vs_steps(df),
+               "rt_by_required_steps": _rt_vs_required_steps(df, e.step_deg)}
     # generalisation of the three-dot forward models to the test shapes
     iou = {}
     for test, bank in banks.items():
@@ -332,7 +353,17 @@ def report(cfg, run, summary) -> None:
             [[k, v["n_trials"], f"{100 * v['correct_rate']:.1f} %", f"{100 * v['rotation_success_rate']:.1f} %",
               v["rt_mean"], v["rt_slope_per_deg"], v["rt_r"]] for k, v in t.items()])
     r.h("RT against the number of rotation steps (thesis: slightly above 10 n)")
-    r.table(["rotation steps n", "mean RT", "10 n"], [[n, v, 10 * int(n)] for n, v in summary["rt_by_rotation_steps"].items()])
+    req = summary.get("rt_by_required_steps", {})
+    tests_req = [k for k in req if k != "all"]
+    r.p("Decided trials of condition none. *Required*: grouped by the steps of "
+        f"{cfg.experiment.step_deg:g} deg the pair's disparity requires (disparity / step), the thesis's "
+        "measure, overall and per test. *Made*: grouped by the steps the trial itself made; RT counts 10 "
+        "cycles per step, so this column lies in (10 n, 10 n + 10] by construction.")
+    ns = sorted({int(n) for n in summary["rt_by_rotation_steps"]} | {int(n) for n in req.get("all", {})})
+    dash = lambda d, n: d.get(str(n), "-")  # noqa: E731
+    r.table(["n", "10 n", "RT, n steps required"] + [f"required, {k}" for k in tests_req] + ["RT, n steps made"],
+            [[n, 10 * n, dash(req.get("all", {}), n)] + [dash(req[k], n) for k in tests_req]
+             + [dash(summary["rt_by_rotation_steps"], n)] for n in ns])
     r.h("Embodiment statistics")
     r.table(["comparison", "RT a", "RT b", "RT p (Welch)", "correct a", "correct b", "correct p"],
             [[k, v["rt"]["mean_a"], v["rt"]["mean_b"], f"{v['rt']['p']:.3g}" if v["rt"]["p"] is not None else "-",

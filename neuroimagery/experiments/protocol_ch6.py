@@ -101,8 +101,19 @@ def trial_table(bank: StimulusBank, test: str, condition: str) -> pd.DataFrame:
     return df
 
 
+def angle_aligned(final, target, atol: float = 1e-6) -> np.ndarray:
+    """Whether orientations ``final`` and ``target`` (deg) coincide on the circle: their difference
+    modulo 360 is 0, so an image turned the long way round (e.g. -45 deg reached as 315 deg) counts
+    as aligned."""
+    diff = np.asarray(final, dtype=float) - np.asarray(target, dtype=float)
+    return np.abs((diff + 180.0) % 360.0 - 180.0) <= atol
+
+
 def trial_rows(table: pd.DataFrame, out: dict, participants: Sequence[int]) -> pd.DataFrame:
-    """``trials.csv`` rows of a batched run: ``out`` holds ``(P, B)`` tensors from a model."""
+    """``trials.csv`` rows of a batched run: ``out`` holds ``(P, B)`` tensors from a model.
+
+    ``rotated_ok``: the seen object's orientation plus the model's total rotation equals the
+    target's orientation modulo 360 deg."""
     frames = []
     for k, p in enumerate(participants):
         df = table.drop(columns=["target_row", "rotated_row"]).copy()
@@ -111,7 +122,7 @@ def trial_rows(table: pd.DataFrame, out: dict, participants: Sequence[int]) -> p
         df["answer"] = np.where(out["answer"][k].numpy() == 0, "yes", "no")
         df["correct"] = (df["answer"] == "yes") == df["same"].astype(bool)
         df["rotation_steps"] = out["rotation_steps"][k].numpy().astype(int)
-        df["rotated_ok"] = np.isclose(final, df["target_angle"].to_numpy())
+        df["rotated_ok"] = angle_aligned(final, df["target_angle"].to_numpy())
         df["rt"] = out["rt"][k].numpy()
         for extra in ("decided", "rotations"):
             if extra in out:

@@ -153,6 +153,12 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
     def trial(self, pc0: torch.Tensor, pfc1: torch.Tensor, record: int = 0) -> dict:
         """Rotate the images ``pc0`` ``(P, B, 1024)`` towards upright and answer against ``pfc1``.
 
+        A rotation cycle is C1 (image -> posture cluster, the PMC_1 competition) then, unless the
+        cluster is at the centre, C2 (posture -> image one step closer to upright). At most
+        ``max_cycles`` cycles, so at most ``max_cycles`` image updates (thesis 5.1.2: "the maximum
+        number of rotation cycles is set to 10"); a trial still off centre after them has failed
+        to rotate and is matched with its last image.
+
         Returns ``(P, B)`` tensors: ``steps`` (C2 applications), ``rotated_ok`` (posture cluster at
         the centre within the cycle budget), ``yes``, ``rt`` (competition cycles), and for the first
         ``record`` trials of participant 0 the maps of every cycle (``frames``).
@@ -166,25 +172,22 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         ok = torch.zeros(P, B, dtype=torch.bool)
         frames = [[] for _ in range(record)]
         col_angle = self.pmc1.coords[:105, 1]
-        for cycle in range(e.max_cycles):
+        for _ in range(e.max_cycles):
             row, col, cyc, s = self.select_posture(pc)
             rt += torch.where(live, cyc, torch.zeros_like(cyc))
             centred = col_angle[col].abs() <= e.centre_tolerance_deg
             ok |= live & centred
-            stop = live & centred
-            go = live & ~centred
             cluster = self.pmc1.flat(self.pmc1.encode(torch.stack([self.pmc1.coords[row * 105, 0], col_angle[col]], -1)))
             for k in range(record):
                 frames[k].append({"PC": pc[0, k].reshape(32, 32).clone(), "PMC_1": cluster[0, k].reshape(31, 105).clone()})
-            live = go
-            if not live.any() or cycle == e.max_cycles - 1:
+            live = live & ~centred
+            if not live.any():
                 break
-            img = self.c2.net(cluster)
+            img = self.c2.net(cluster)  # the forward model: this cycle's image update
             img = img / img.amax(-1, keepdim=True).clamp_min(1e-9)
             img = (img >= e.image_threshold).float()
             pc = torch.where(live.unsqueeze(-1), img, pc)
             steps += live.long()
-            del stop
         act, bmu = self.pfc2_activity(pc, pfc1)
         a = self.c5.net(act)
         a = a / a.amax(-1, keepdim=True).clamp_min(1e-9)

@@ -10,7 +10,12 @@ proprioception: columns = wrist angle -90..90, rows = the held object, A upper b
 Connections: C1 PP->PMC_1 (pre-activates the 7 postures at 0.2), C6 PFC_1->PMC_1 (selects one at
 1.0), C7/C8 -> M1_1 (SOM), C9 M1_1->M1_2, C10 M1_1->SS (forward model), C2 SS->PP (image of the
 predicted posture), C3/C4 -> PFC_2 (SOM), C5 PFC_2->PMC_2; every Hebbian one is outstar Oja
-(eq. 4.2-4.3), initial weights U[0, 0.1]. Training cycles follow Table 5.1.
+(eq. 4.2-4.3), initial weights U[0, 0.1]. Training cycles follow Table 5.1 for C1, C6, C5, C9,
+C10 and the two SOMs. Two departures from the thesis: C2 (Table 5.1: 14 patterns, 84 cycles) is
+trained on the same first ``hebb_steps`` (1,960) babbling steps as C9 and C10, as the pairs (next
+SS posture, its image); and C9, C10 and C2 learn after the SOM M1_1 has finished all its steps
+(C9 and C10 from the clusters of the trained map), whereas the babbling procedure (e)-(g) of
+5.2.1 D trains them at the end of each babbling step alongside the SOM.
 
 The competition inside SS (forward prediction + weaker proprioception, which also pre-activates
 the field) and inside PMC_2 is a dynamic field run to threshold; the SS field runs along the
@@ -162,7 +167,8 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
 
     @torch.no_grad()
     def fit(self, images: dict[tuple[int, float], torch.Tensor]) -> dict:
-        """Train every connection (Table 5.1). ``images[(obj, angle)]``: 1024-vector edge maps."""
+        """Train every connection; the budgets, and where they and the training order depart from
+        Table 5.1, are in the module docstring. ``images[(obj, angle)]``: 1024-vector edge maps."""
         e = self.e
         P = self.c1.participants
         ang = torch.tensor(ANGLES)
@@ -179,7 +185,9 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         own = self.pmc1_code(torch.tensor([a for _, a in items]), e.bias)
         self.c6.weight.copy_(hebbian_shared(self.c6.weight, img[seq], own[seq], e.hebb_eta))
         fx["c6.weight"] = {"kind": "hebbian_shared", "pre": img[seq], "post": own[seq], "eta": e.hebb_eta}
-        # babbling stream: SOM M1_1 (C7, C8), then C9, C10, C2 on its first hebb_steps steps
+        # babbling stream: the SOM M1_1 (C7, C8) first, over all som_iterations steps; then C9, C10 and
+        # C2 on the first hebb_steps steps of the same stream, C9 and C10 from the trained M1_1's clusters
+        # (the thesis trains them step by step alongside the SOM; Table 5.1 gives C2 84 cycles, not 1,960)
         T = max(e.som_iterations, e.hebb_steps)
         b = self.babble(T)
         ai = lambda a: (a + 0).long()  # noqa: E731  (index 0..6)
@@ -206,11 +214,14 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         nxt_idx = b["obj"][:, :Th] * 7 + b["nxt"][:, :Th]
         ss_set = self.ss_code(torch.tensor([o for o, _ in items]), torch.tensor([a for _, a in items]))  # (14, 3100)
         # C9 and C10 see the same M1_1 sequence (participant p: m_act[p, pat[p, :Th]], Th x 4096)
+        # of the finished SOM; C9: M1_1 cluster -> executed command, C10: M1_1 cluster -> next SS posture
         hf = []  # factors of C9, C10, C2, C5 in that order
         w9, w10 = hebbian_indexed_many(lambda p: m_act[p, pat[p, :Th]], [(self.c9.weight, b["act"][:, :Th] + 1, acts),
                                                                          (self.c10.weight, nxt_idx, ss_set)], e.hebb_eta, hf)
         self.c9.weight.copy_(w9)
         self.c10.weight.copy_(w10)
+        # C2: next SS posture -> its image, on the same hebb_steps babbling steps (1,960 presentations of
+        # the 14 posture/image pairs; Table 5.1 lists C2 with 14 patterns and 84 cycles, as C1 and C6)
         (w2,) = hebbian_indexed_many(lambda p: ss_set[nxt_idx[p]], [(self.c2.weight, nxt_idx, img)], e.hebb_eta, hf)
         self.c2.weight.copy_(w2)
         # C5: PFC_2's cluster to the answer clusters

@@ -35,6 +35,14 @@ class Eye:
 
     def __init__(self, cfg: VisionConfig):
         self.cfg = cfg
+        # The photometric noise (luminance jitter, sensor noise, gaze jitter) comes from this
+        # generator, seeded from ``vision.seed`` only: not from the run's ``seed`` nor from the
+        # participant (all participants see the same maps). Every new eye replays the same stream,
+        # so the k-th image an eye sees gets the same noise draw in every eye. The experiments make
+        # a fresh eye per phase (Exp. 3-4: training, then testing; Exp. 1-2: every batch of edge
+        # maps), so with the noise on, a test batch that shows the training stimuli in the training
+        # order (the Recog set of Exp. 3-4, the 14 images of Exp. 2) gets exactly the training
+        # images, noise included. The noise is off by default (luminance_jitter = noise_std = 0).
         self.rng = np.random.default_rng(cfg.seed)
 
     # --------------------------------------------------------------- photometry

@@ -122,8 +122,10 @@ BUILTIN_GRIDS: dict[str, dict[str, str]] = {
     "exp3-c": {"c1": "##.#/.###/##../..#.", "c2": "####/.#.#/.#.#/.#..", "c3": "###./####/.#../.#.."},
     # Exp. 4 set A (training, Recog): long bars with one feature -> clear main axis.
     "exp4-A": {"A1": "##/#./#./#./#./#.", "A2": ".#/.#/##/#./#./#.", "A3": "#./##/.#/.#/.#"},
-    # Exp. 4 set B (Gen1): long bars with three side features each -> more features, clear axis
-    # (six-cell bars three cells wide, so less elongated than set A: axis ratio 2.5-2.9).
+    # Exp. 4 set B (Gen1): bars with side features -> more features than set A, clear axis
+    # (B1 a five-cell bar with a two-cell and two one-cell features, B2 a six-cell bar with two
+    # one-cell features, B3 a six-cell bar with three; three cells wide, so less elongated than
+    # set A: axis ratio 2.5-2.9).
     "exp4-B": {"B1": "#../##./.#./.##/.#./##.", "B2": ".#./##./.#./.##/.#./.#.",
                "B3": ".#./.##/##./.#./.##/.#."},
     # Alternative Gen1 set (experiment.gen1_set=exp4-B-long): eight-cell bars with three one-cell side
