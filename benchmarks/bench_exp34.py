@@ -5,6 +5,7 @@ and the ratio against running the participants one at a time.
 """
 import sys
 import time
+from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 
@@ -14,7 +15,7 @@ from neuroimagery.experiments import exp3, exp4
 
 def _cfg(name, participants, preset):
     register_configs()
-    with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
+    with initialize_config_dir(config_dir=str(Path(__file__).resolve().parents[1] / "conf"), version_base="1.3"):
         cfg = validate(compose("config", overrides=[f"experiment={name}", f"participants={participants}", "logger=none"]))
     cfg.preset = preset
     return cfg

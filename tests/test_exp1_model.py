@@ -4,6 +4,7 @@ import os
 
 import pytest
 import torch
+from conftest import make_cfg
 from support_runs import reused_run
 
 from neuroimagery.experiments.exp1 import Exp1Config
@@ -40,14 +41,9 @@ def test_config_rejects_bad_values(key, value):
 
 
 def test_exp1_quick_run_writes_outputs_and_rotates(tmp_path):
-    from hydra import compose, initialize_config_dir
-
-    from neuroimagery.config import register_configs
     from neuroimagery.run import evaluate, train
 
-    register_configs()
-    with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
-        cfg = compose("config", overrides=["experiment=exp1", "participants=2", "preset=quick", "progress=false"])
+    cfg = make_cfg("experiment=exp1", "participants=2", "preset=quick", "progress=false")
     s = evaluate(cfg, out_dir=tmp_path / "ev")
     for f in ("trials.csv", "summary.json", "report.md"):
         assert (tmp_path / "ev" / f).exists()
@@ -61,9 +57,8 @@ def test_exp1_quick_run_writes_outputs_and_rotates(tmp_path):
     assert rec["rotation_success_rate"] >= 0.9
     # checkpoints load back and give the same answers
     train(cfg, out_dir=tmp_path / "tr")
-    with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
-        cfg2 = compose("config", overrides=["experiment=exp1", "participants=2", "preset=quick", "progress=false",
-                                            f"checkpoint={tmp_path / 'tr'}", "logger=none"])
+    cfg2 = make_cfg("experiment=exp1", "participants=2", "preset=quick", "progress=false",
+                    f"checkpoint={tmp_path / 'tr'}", "logger=none")
     s2 = evaluate(cfg2, out_dir=tmp_path / "ev2")
     assert s2["tests"]["recognition/none"]["rt_by_disparity"] == rec["rt_by_disparity"]
 
@@ -73,14 +68,9 @@ def test_exp1_quick_run_writes_outputs_and_rotates(tmp_path):
 def full_run(tmp_path_factory):
     """``EXP1_RUN=DIR`` reuses a finished ``evaluate.py experiment=exp1`` run made with the default
     settings (refused otherwise); without it one is made."""
-    from hydra import compose, initialize_config_dir
-
-    from neuroimagery.config import register_configs
     from neuroimagery.run import evaluate
 
-    register_configs()
-    with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
-        cfg = compose("config", overrides=["experiment=exp1", "progress=false", "logger=none"])
+    cfg = make_cfg("experiment=exp1", "progress=false", "logger=none")
     if os.environ.get("EXP1_RUN"):
         return reused_run("EXP1_RUN", cfg)
     return evaluate(cfg, out_dir=tmp_path_factory.mktemp("exp1_full"))
@@ -96,17 +86,11 @@ def test_full_run_rotates_and_rt_rises_with_disparity(full_run):
 
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     """With checkpoint=DIR the loaded model's participants are tested, whatever `participants` says."""
-    from hydra import compose, initialize_config_dir
-
-    from neuroimagery.config import register_configs
     from neuroimagery.run import evaluate, train
 
-    register_configs()
-
     def cfg(n, *more):
-        with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
-            return compose("config", overrides=["experiment=exp1", f"participants={n}", "preset=quick", "progress=false",
-                                                "logger=none", "experiment.som_iterations=50", *more])
+        return make_cfg("experiment=exp1", f"participants={n}", "preset=quick", "progress=false", "logger=none",
+                        "experiment.som_iterations=50", *more)
 
     train(cfg(1), out_dir=tmp_path / "tr")
     s = evaluate(cfg(3, f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev")

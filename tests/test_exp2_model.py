@@ -1,13 +1,12 @@
 """Experiment 2: config checks, babbling, SOM equivalence, the SS competition, quick and full runs."""
-import json
 import os
 from dataclasses import replace
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 import torch
+from conftest import make_cfg
 from support_runs import reused_run
 
 from neuroimagery.experiments.exp2 import Exp2Config
@@ -15,17 +14,8 @@ from neuroimagery.nn.som import fit_windowed as som_fit_windowed
 from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
 from neuroimagery.nn import SOM, participant_generators
 
-CONF = str(Path(__file__).resolve().parents[1] / "conf")
-
-
 def _cfg(*overrides):
-    from hydra import compose, initialize_config_dir
-
-    from neuroimagery.config import register_configs
-
-    register_configs()
-    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
-        return compose("config", overrides=["experiment=exp2", "progress=false", *overrides])
+    return make_cfg("experiment=exp2", "progress=false", *overrides)
 
 
 @pytest.mark.parametrize("key,value", [("proprio_gain", 1.5), ("som_iterations", 0), ("som_method", "x"),

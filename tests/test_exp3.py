@@ -3,18 +3,16 @@ import json
 
 import pytest
 import torch
-from hydra import compose, initialize_config_dir
+from conftest import make_cfg
 
-from neuroimagery.config import register_configs, validate
+from neuroimagery.config import validate
 from neuroimagery.experiments import exp3, protocol_ch6 as pc
 from neuroimagery.nn import seeding
 from neuroimagery.run import evaluate
 
 
 def _cfg(*overrides, quick=True):
-    register_configs()
-    with initialize_config_dir(config_dir="/work/main/conf", version_base="1.3"):
-        cfg = validate(compose("config", overrides=["experiment=exp3", *overrides]))
+    cfg = validate(make_cfg("experiment=exp3", *overrides))
     cfg.preset = "quick" if quick else "full"
     return cfg
 

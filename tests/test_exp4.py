@@ -4,20 +4,16 @@ import json
 import pandas as pd
 import pytest
 import torch
-from hydra import compose, initialize_config_dir
+from conftest import make_cfg
 
-from neuroimagery.config import register_configs, validate
+from neuroimagery.config import validate
 from neuroimagery.experiments import exp4, protocol_ch6 as pc
 from neuroimagery.nn import AllToAll, Delta
 from neuroimagery.run import evaluate
 
-CONF = "/work/main/conf"
-
 
 def _cfg(*overrides, quick=True):
-    register_configs()
-    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
-        cfg = validate(compose("config", overrides=["experiment=exp4", *overrides]))
+    cfg = validate(make_cfg("experiment=exp4", *overrides))
     cfg.preset = "quick" if quick else "full"
     return cfg
 

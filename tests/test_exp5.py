@@ -16,23 +16,17 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).parent))
 from support_tool_env import StandInToolEnv  # noqa: E402
+from conftest import make_cfg  # noqa: E402
 
 from neuroimagery.experiments import exp5  # noqa: E402
 from neuroimagery.models.tool_use import (EVENTS, AcquisitionConfig, Library, Outcomes, Result, ToolUseBrain,  # noqa: E402
                                           acquire_skills, build_brain, sequence_trial)
 
-CONF = str(Path(__file__).resolve().parents[1] / "conf")
 STANDIN = "support_tool_env:StandInToolEnv"
 
 
 def compose(*overrides):
-    from hydra import compose as hcompose, initialize_config_dir
-
-    from neuroimagery.config import register_configs
-
-    register_configs()
-    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
-        return hcompose("config", overrides=["experiment=exp5", *overrides])
+    return make_cfg("experiment=exp5", *overrides)
 
 
 def small_acq(**kw):
