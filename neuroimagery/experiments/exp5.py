@@ -24,7 +24,6 @@ and reports.
 from __future__ import annotations
 
 import importlib
-import json
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -396,10 +395,9 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
                 built[key] = build_brain(env, sub, acq, ToolUseBrain(env.image_shape, seed=seed, **brain_kw),
                                          _gen(seed, 3, r), env.perceive, outcomes=outcomes)
             if (sit, key) not in routes:
-                routes[(sit, key)] = dict(
-                    zip(("routes_1", "routes_2"), routes_available(outcomes, posture, [s.name for s in sub.skills])),
-                    **dict(zip(("imagined_1", "imagined_2", "imagined_true"),
-                               imagined_routes(built[key], outcomes, posture, sub.skills))))
+                r1, r2 = routes_available(outcomes, posture, [s.name for s in sub.skills])
+                i1, i2, i_true = imagined_routes(built[key], outcomes, posture, sub.skills)
+                routes[(sit, key)] = dict(routes_1=r1, routes_2=r2, imagined_1=i1, imagined_2=i2, imagined_true=i_true)
             for strategy in STRATEGIES:
                 # only C4 learns in Fig. 7.6: every individual starts from the built brain with a fresh C4
                 brain = built[key]
@@ -467,9 +465,10 @@ def _same(stored: dict, e: Exp5Config, keys=None) -> bool:
     return all(stored.get(k) == now[k] for k in keys)
 
 
-def _finished(d: dict | None, e: Exp5Config, seed: int) -> bool:
-    """Whether the stored task ``d`` was computed with this configuration and seed."""
-    return d is not None and d.get("seed") == seed and _same(d["config"], e)
+def _finished(d: dict | None, e: Exp5Config, seed: int, keys=None) -> bool:
+    """Whether the stored task ``d`` was computed with this seed and this configuration (or, with
+    ``keys``, these settings of it)."""
+    return d is not None and d.get("seed") == seed and _same(d["config"], e, keys)
 
 
 def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
@@ -481,9 +480,7 @@ def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
 def _library_of(d: dict | None, e: Exp5Config, seed: int) -> dict | None:
     """The skill library of the stored task ``d`` if it was acquired with this task's acquisition
     settings and seed."""
-    if d is not None and d.get("seed") == seed and "library" in d and _same(d["config"], e, _LIBRARY_KEYS):
-        return d["library"]
-    return None
+    return d["library"] if _finished(d, e, seed, _LIBRARY_KEYS) and "library" in d else None
 
 
 def train(cfg, run) -> dict:
@@ -565,6 +562,12 @@ def group_rates(groups: list[dict]) -> dict[tuple, float]:
     return {(g["hypothesis"], g["level"], g["situation"], g["strategy"]): g["success_rate"] for g in groups}
 
 
+# Slack of every claim's comparison. Group rates are stored rounded to 4 decimals and are multiples
+# of 1 / n (n = 30 robots per run): a claim at its bound (rho exactly 0.8, a rise of exactly 10
+# points) must not be decided by rounding. 0.1 point is far less than one robot in 90.
+CLAIM_TOL = 1e-3
+
+
 def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
     """The must-show claims of thesis section 7.1.3, each checked on this run's group rates.
 
@@ -577,9 +580,6 @@ def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
     """
     rate = group_rates(summary["groups"])
     out = []
-    # group rates are stored rounded to 4 decimals and are multiples of 1 / n (n = 30 robots per
-    # run): a claim at its bound (rho exactly 0.8, a rise of exactly 10 points) must not be decided
-    # by rounding, so every comparison allows TOL (0.1 point), far less than one robot in 90
     tol = CLAIM_TOL
 
     def claim(what, value, holds):
@@ -624,7 +624,6 @@ def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
     return out
 
 
-CLAIM_TOL = 1e-3  # slack of every claim's comparison (rates are rounded to 4 decimals)
 ROUTES = ("pull", "moves_then_pull", "other")
 
 

@@ -89,9 +89,10 @@ class PIBB:
             raise ValueError(f"{len(samples)} samples but {len(costs)} costs")
         if not torch.isfinite(samples).all():
             raise ValueError("samples contain NaN or inf")
-        flat = torch.as_tensor(costs)
-        if self.flat == "keep" and bool((flat == flat[0]).all()):
-            return self
+        if self.flat == "keep":
+            c = torch.as_tensor(costs)
+            if bool((c == c[0]).all()):  # no sample better than another: nothing to learn
+                return self
         p = self.weights(costs)
         return replace(self, mean=p @ samples.to(self.mean.dtype), covariance=self.covariance * self.decay)
 
