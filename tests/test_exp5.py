@@ -17,6 +17,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).parent))
 from support_tool_env import StandInToolEnv  # noqa: E402
 from conftest import make_cfg  # noqa: E402
+from support_runs import reused_run  # noqa: E402
 
 from neuroimagery.experiments import exp5  # noqa: E402
 from neuroimagery.models.tool_use import (EVENTS, AcquisitionConfig, Library, Outcomes, Result, ToolUseBrain,  # noqa: E402
@@ -603,16 +604,19 @@ def test_direct_brain_updates_equal_the_generic_connections():
 def test_full_run_shows_the_thesis_claims(tmp_path):
     """The must-show claims of section 7.1.3 on a full run (30 repetitions x 2 situations per group).
 
-    Set ``EXP5_FULL_RUN`` to a finished (or interrupted) full run's directory to check it without
-    recomputing (finished tasks are read back); otherwise the whole reproduction runs here.
+    ``EXP5_FULL_RUN=DIR`` checks a finished ``evaluate.py experiment=exp5`` run made with the default
+    settings (its summary.json is read, nothing in DIR is written; a run made with other settings
+    is refused); without it the whole reproduction runs here.
     """
     import os
 
     import neuroimagery.run as R
 
-    out = Path(os.environ.get("EXP5_FULL_RUN", tmp_path))
     cfg = compose("logger=none", "progress=false")
-    s = R.evaluate(cfg, out_dir=out)
+    if os.environ.get("EXP5_FULL_RUN"):
+        s = reused_run("EXP5_FULL_RUN", cfg)
+    else:
+        s = R.evaluate(cfg, out_dir=tmp_path)
     claims = exp5.thesis_claims(s, cfg.experiment)
     assert len(claims) == 15  # every claim could be judged on a full run
     failed = [f"{c['claim']}: {c['value']}" for c in claims if not c["holds"]]  # every failure is listed
@@ -667,3 +671,25 @@ def test_eye_reads_a_toy_on_either_side_of_the_reachable_border():
             inside, outside = env.perceive(State(p, None, (bx - 0.0005, y))), env.perceive(State(p, None, (bx + 0.0005, y)))
             assert env.reward(inside) == 1.0 and env.reward(outside) == 0.0, (y, p)
             assert abs(env._toy_x(inside[0]) - env.reader_bias() - (bx - 0.0005)) < 0.0004
+
+
+@pytest.mark.parametrize("toy_turn", ["keep", "reset"])
+def test_a_scene_between_moves_keeps_the_toy_turn_when_asked(toy_turn):
+    """With ``toy_turn: keep`` the scene after a move holds the toy's turn, the next move starts
+    from it and the eye sees it; with ``reset`` the toy is square again at the same place."""
+    from neuroimagery.models.tool_use import State, ToolWorldEnvironment
+
+    env = ToolWorldEnvironment(toy_turn=toy_turn)
+    q4 = env.world.initial_posture(4)
+    still = env.dmp.pack(q4[None], torch.zeros(1, 7, env.dmp.n_basis))  # the arm stays where it is
+    turned = State(4, tuple(q4.tolist()), (0.57, 0.01), 0.4)
+    after = env.execute(still, turned, None)[0].next_state
+    assert after.toy_xy == pytest.approx((0.57, 0.01), abs=0.002)
+    if toy_turn == "keep":
+        assert after.toy_yaw == pytest.approx(0.4, abs=0.005)
+        square = State(4, tuple(q4.tolist()), (0.57, 0.01))
+        assert int((env.perceive(after)[0] != env.perceive(square)[0]).sum()) > 20
+    else:
+        assert after.toy_yaw is None
+    with pytest.raises(ValueError, match="toy_turn"):
+        ToolWorldEnvironment(toy_turn="spin")

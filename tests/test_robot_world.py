@@ -9,7 +9,7 @@ from neuroimagery.errors import UserInputError
 from neuroimagery.motor.dmp import DMP
 from neuroimagery.robot.babble import BabbleConfig, random_thetas, trajectories
 from neuroimagery.robot.config import WorldConfig
-from neuroimagery.robot.world import EVENTS, ToolWorld
+from neuroimagery.robot.world import EVENTS, ToolWorld, toy_yaw_of
 
 
 @pytest.fixture(scope="module")
@@ -119,6 +119,24 @@ def test_kinematic_drive_agrees_with_constraint_drive(world):
             # the final north/west/east displacements here are >= 0.009 m from the 0.02 m threshold
             # (nearest: 0.029 / 0.032 m east on the first move): the events, touch included, agree
             assert a.events == b.events, (dict(zip(EVENTS, a.events)), dict(zip(EVENTS, b.events)))
+
+
+def test_toy_turn_is_placed_read_back_and_reported(world):
+    """A scene can start with the toy turned; its turn is read back folded to a quarter turn (a
+    uniform cube), and a rollout reports the turn it leaves."""
+    quarter = np.pi / 2
+    for yaw in (0.3, -0.6, 0.3 + quarter, -0.3 - 2 * quarter):
+        q = (0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2))
+        assert np.isclose(toy_yaw_of(q), (yaw + quarter / 2) % quarter - quarter / 2), yaw
+    world.reset(4, toy_xy=(0.57, 0.01), toy_yaw=0.3)
+    assert np.isclose(world.toy_yaw(), 0.3, atol=0.005) and np.allclose(world.toy_xy(), (0.57, 0.01), atol=0.002)
+    turned = world.observe(posture=4, toy_xy=(0.57, 0.01), toy_yaw=0.6)["toy"]
+    square = world.observe(posture=4, toy_xy=(0.57, 0.01))["toy"]
+    assert int((turned != square).sum()) > 20  # the eye sees the turn
+    # a sweep west from posture 2 turns the cube it pushes; the outcome reports the world's turn
+    out = world.rollout(_line(world, 2, (0.0, 0.16, 0.0)), 2, None)[0]
+    assert np.isclose(out.final_toy_yaw, world.toy_yaw())
+    assert abs(out.final_toy_yaw) > 0.02, out
 
 
 def test_quaternion_helpers_match_scipy():

@@ -134,6 +134,9 @@ class Exp5Config:
     # only where it achieved its event (Fig. 7.5) | 'every' = also its outcome from the other initial
     # situations (the learnt movement performed there). Acts in the brain only. docs/exp5.md.
     c3_outcomes: str = "success"
+    # whether a scene between moves keeps the toy's turn about the vertical: 'keep' = as the last
+    # move left it | 'reset' = square again (its place is kept either way). See docs/exp5.md.
+    toy_turn: str = "keep"
     # --- engine
     environment: str = "robot"  # 'robot' (pybullet ToolWorld) or 'module:Class' of another Environment
     share_library_across_situations: bool = False  # one library per repetition for both situations
@@ -237,7 +240,7 @@ def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
 
 
 _ENV_KEYS = ("environment", "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
-             "search_weight_sigma", "goal_frame", "reach_bound", "posture_4", "retrieve_x")
+             "search_weight_sigma", "goal_frame", "reach_bound", "posture_4", "retrieve_x", "toy_turn")
 # the settings a task's skill library depends on (Fig. 7.5); the other keys act only in Fig. 7.6
 _LIBRARY_KEYS = _ENV_KEYS + ("n_dmps", "pibb_samples", "pibb_temperature", "pibb_decay", "pibb_flat", "max_epochs",
                              "competence_tolerance", "c1_repeats", "c2_repeats", "c3_repeats", "hip_threshold",
@@ -274,7 +277,7 @@ def make_environment(e: Exp5Config):
         return ToolWorldEnvironment(WorldConfig(posture_4=e.posture_4, retrieve_x=e.retrieve_x), duration_s=e.duration_s, explore_goal_sigma=e.explore_goal_sigma,
                                     explore_weight_sigma=e.explore_weight_sigma,
                                     search_goal_sigma=e.search_goal_sigma, search_weight_sigma=e.search_weight_sigma,
-                                    goal_frame=e.goal_frame, reach_bound=e.reach_bound)
+                                    goal_frame=e.goal_frame, reach_bound=e.reach_bound, toy_turn=e.toy_turn)
     mod, _, cls = e.environment.partition(":")
     try:
         return getattr(importlib.import_module(mod), cls)()
@@ -454,7 +457,7 @@ def _stored(path: Path) -> dict | None:
         return None
     # written before these keys existed: their values then
     d["config"] = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, "c3_outcomes": "success",
-                   "pibb_flat": "average",
+                   "pibb_flat": "average", "toy_turn": "reset",
                    **d["config"]}
     return d
 

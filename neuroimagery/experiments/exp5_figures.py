@@ -286,9 +286,11 @@ def write_report(cfg, run, summary: dict) -> None:
         "enabled detectors (its C1-C3 training replayed for those skills only), so groups of one repetition are "
         "paired rather than independent samples.",
         "The physics is deterministic, so the outcome of a given skill sequence from a posture is computed once; "
-        "the thesis notes run-to-run variation of tool-toy contacts that this world does not have. A scene "
-        "between moves keeps where the toy is but not how a move turned it: the next move starts from the toy "
-        "set square at that place (docs/exp5.md).",
+        "the thesis notes run-to-run variation of tool-toy contacts that this world does not have. "
+        + ("A scene between moves keeps the toy where a move left it, turned as it left it (`toy_turn: keep`)."
+           if e.toy_turn == "keep" else
+           "A scene between moves keeps where the toy is but not how a move turned it (`toy_turn: reset`): the "
+           "next move starts from the toy set square at that place (docs/exp5.md)."),
     ])
     cost = summary.get("cost", {})
     rt = summary.get("runtime_s", {})

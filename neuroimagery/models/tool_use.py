@@ -54,7 +54,7 @@ N_POSTURES = 4
 CHOICES = {"c3_recall": ("practised", "situation", "joint"), "planning_test": ("act", "plan"),
            "goal_frame": ("relative", "absolute"), "reach_bound": ("path", "goal"),
            "spare_dmps": ("none", "unmastered"), "c3_outcomes": ("success", "every"),
-           "pibb_flat": ("average", "keep")}
+           "pibb_flat": ("average", "keep"), "toy_turn": ("keep", "reset")}
 
 
 def check_choice(key: str, value) -> None:
@@ -68,12 +68,14 @@ def check_choice(key: str, value) -> None:
 class State:
     """A scene: the initial posture it started from, and (after moves) the arm and toy state.
 
-    ``q`` / ``toy_xy`` are None for the untouched initial situation of ``posture``.
+    ``q`` / ``toy_xy`` are None for the untouched initial situation of ``posture``; ``toy_yaw`` is
+    the toy's turn about the vertical (rad), None when it is square (or not tracked).
     """
 
     posture: int
     q: tuple[float, ...] | None = None
     toy_xy: tuple[float, float] | None = None
+    toy_yaw: float | None = None
 
 
 @dataclass(frozen=True)
@@ -442,7 +444,7 @@ class Library:
 
 
 def _state_tuple(s: State) -> tuple:
-    return (s.posture, s.q, s.toy_xy)
+    return (s.posture, s.q, s.toy_xy, s.toy_yaw)
 
 
 def _new_event(result: Result, wanted: Sequence[str]) -> str | None:
@@ -758,7 +760,11 @@ class ToolWorldEnvironment:
 
     Primitives are DMPs (``motor.dmp.DMP``, 7 goals + 28 shape weights) rolled out from the
     arm's current joints. A scene after earlier moves (arm elsewhere, toy displaced) is restored
-    through ``ToolWorld.reset(q=..., toy_xy=...)`` before the next rollout.
+    through ``ToolWorld.reset(q=..., toy_xy=..., toy_yaw=...)`` before the next rollout.
+
+    ``toy_turn`` says whether a scene keeps the toy's turn about the vertical: ``"keep"`` (the toy
+    is put back as the last move left it, the default) or ``"reset"`` (square again; the toy's
+    place is kept either way). A rollout from an initial situation is the same under both.
 
     ``goal_frame`` says what the 7 goal numbers of a primitive mean:
 
@@ -782,7 +788,8 @@ class ToolWorldEnvironment:
 
     def __init__(self, world_config=None, duration_s: float = 1.5, explore_goal_sigma: float = 0.35,
                  explore_weight_sigma: float = 300.0, search_goal_sigma: float = 0.05,
-                 search_weight_sigma: float = 30.0, goal_frame: str = "absolute", reach_bound: str = "goal") -> None:
+                 search_weight_sigma: float = 30.0, goal_frame: str = "absolute", reach_bound: str = "goal",
+                 toy_turn: str = "keep") -> None:
         from ..motor.dmp import DMP
         from ..robot.world import ToolWorld
 
@@ -791,14 +798,15 @@ class ToolWorldEnvironment:
 
             start_state: tuple | None = None
 
-            def reset(self, posture, q=None, toy_xy=None):
+            def reset(self, posture, q=None, toy_xy=None, toy_yaw=None):
                 if q is None and toy_xy is None and self.start_state is not None:
-                    q, toy_xy = self.start_state
-                super().reset(posture, q=q, toy_xy=toy_xy)
+                    q, toy_xy, toy_yaw = self.start_state
+                super().reset(posture, q=q, toy_xy=toy_xy, toy_yaw=toy_yaw)
 
         check_choice("goal_frame", goal_frame)
         check_choice("reach_bound", reach_bound)
-        self.goal_frame, self.reach_bound = goal_frame, reach_bound
+        check_choice("toy_turn", toy_turn)
+        self.goal_frame, self.reach_bound, self.toy_turn = goal_frame, reach_bound, toy_turn
         self.world = _World(world_config)
         self.dmp = DMP()
         self.n_params = self.dmp.n_params
@@ -859,8 +867,8 @@ class ToolWorldEnvironment:
         t0 = time.perf_counter()
         q0 = self._q(state)
         traj = self.bounded(self.dmp.rollout(self.joint_params(params, q0), q0, self.duration_s, self.dt), q0)
-        fresh = state.q is None and state.toy_xy is None
-        self.world.start_state = None if fresh else (q0, state.toy_xy)
+        fresh = state.q is None and state.toy_xy is None and state.toy_yaw is None
+        self.world.start_state = None if fresh else (q0, state.toy_xy, state.toy_yaw)
         try:
             outs = self.world.rollout(traj, state.posture, watched=watched, use_filter=fresh)
         finally:
@@ -869,7 +877,9 @@ class ToolWorldEnvironment:
         for n, o in enumerate(outs):
             q_end = tuple(round(float(v), 6) for v in traj[n, o.stop_step])
             toy = tuple(round(float(v), 6) for v in o.final_toy_xy)
-            res.append(Result(tuple(bool(e) for e in o.events), State(state.posture, q_end, toy), o.fired_first))
+            yaw = round(float(o.final_toy_yaw), 6) if self.toy_turn == "keep" else 0.0
+            res.append(Result(tuple(bool(e) for e in o.events), State(state.posture, q_end, toy, yaw or None),
+                              o.fired_first))
         self.timing["rollout_s"] += time.perf_counter() - t0
         self.timing["rollouts"] += len(outs)
         return res
@@ -880,7 +890,7 @@ class ToolWorldEnvironment:
         if state not in self._images:
             t0 = time.perf_counter()
             q = None if state.q is None else torch.tensor(state.q)
-            obs = self.world.observe(posture=state.posture, q=q, toy_xy=state.toy_xy)
+            obs = self.world.observe(posture=state.posture, q=q, toy_xy=state.toy_xy, toy_yaw=state.toy_yaw)
             self._images[state] = torch.stack([obs["toy"], obs["rake"]]).to(torch.uint8)
             self.timing["render_s"] += time.perf_counter() - t0
             self.timing["renders"] += 1
@@ -889,7 +899,7 @@ class ToolWorldEnvironment:
     def eye_image(self, state: State) -> np.ndarray:
         """The RGB image the eye sees in ``state`` (for figures)."""
         q = None if state.q is None else torch.tensor(state.q)
-        return self.world.observe(posture=state.posture, q=q, toy_xy=state.toy_xy)["image"]
+        return self.world.observe(posture=state.posture, q=q, toy_xy=state.toy_xy, toy_yaw=state.toy_yaw)["image"]
 
     def _table_point(self, u: float, v: float) -> tuple[float, float]:
         """Where the ray through pixel (u, v) meets the plane of the toy's centre (world x, y)."""

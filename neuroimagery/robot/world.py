@@ -68,6 +68,8 @@ class Outcome:
     toy_displacement: (dx, dy) of the toy's centre between the start and the stop, metres.
     stop_step: index of the last trajectory point executed.
     final_toy_xy: the toy's centre at the stop.
+    final_toy_yaw: the toy's turn about the vertical at the stop (rad in [-pi/4, pi/4): the cube
+        looks the same every quarter turn).
     blew_up: the physics produced an absurd toy state (too fast or flying); events are then all
         False, so a blow-up is never counted as an event.
     simulated: False when the FK filter showed the rake never came near the toy and the
@@ -82,6 +84,7 @@ class Outcome:
     blew_up: bool = False
     simulated: bool = True
     min_gap: float = float("nan")  # closest the rake came to the toy's start box (m, FK; NaN if unknown)
+    final_toy_yaw: float = 0.0  # the toy's turn about the vertical at the stop (rad, folded by toy_yaw_of)
 
     def fired(self, name: str) -> bool:
         return self.events[event_index(name)]
@@ -212,18 +215,22 @@ class ToolWorld:
             self.constraint, jointChildPivot=pos, jointChildFrameOrientation=orn, maxForce=self.cfg.rake_max_force
         )
 
-    def reset(self, posture: int, q: torch.Tensor | None = None, toy_xy: tuple[float, float] | None = None) -> None:
-        """Put the arm (and so the rake) at ``posture`` (or joint vector ``q``) and the toy at its start."""
+    def reset(self, posture: int, q: torch.Tensor | None = None, toy_xy: tuple[float, float] | None = None,
+              toy_yaw: float | None = None) -> None:
+        """Put the arm (and so the rake) at ``posture`` (or joint vector ``q``) and the toy at its
+        start (or at ``toy_xy``, turned by ``toy_yaw`` rad about the vertical)."""
         q0 = self.initial_posture(posture) if q is None else q
         start = self._toy_start()
         if toy_xy is not None:
             start[:2] = [float(toy_xy[0]), float(toy_xy[1])]
+        yaw = float(toy_yaw or 0.0)
+        toy_orn = [0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)]
         c = self.client
         if self.constraint is not None:
             self.kin.check_limits(q0)
             T = self.kin.rake_pose(q0).detach().double().numpy()
             self._set_rake(T, teleport=True)
-            c.resetBasePositionAndOrientation(self.toy, start, [0, 0, 0, 1])
+            c.resetBasePositionAndOrientation(self.toy, start, toy_orn)
             c.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
             for _ in range(self.cfg.settle_steps):
                 c.stepSimulation()
@@ -242,16 +249,16 @@ class ToolWorld:
         # the rake is put in place, at rest.  Settling is deterministic, so the settled pose of
         # the toy at each start point is computed once and then reused.
         c.resetBasePositionAndOrientation(self.rake, [0.0, 0.0, 2.0], [0, 0, 0, 1])
-        settled = self._settled.get((start[0], start[1]))
+        settled = self._settled.get((start[0], start[1], yaw))
         if settled is None:
-            c.resetBasePositionAndOrientation(self.toy, start, [0, 0, 0, 1])
+            c.resetBasePositionAndOrientation(self.toy, start, toy_orn)
             c.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
             for _ in range(self.cfg.settle_steps):
                 c.stepSimulation()
             settled = c.getBasePositionAndOrientation(self.toy)
             if len(self._settled) > 256:
                 self._settled.clear()
-            self._settled[(start[0], start[1])] = settled
+            self._settled[(start[0], start[1], yaw)] = settled
         c.resetBasePositionAndOrientation(self.toy, settled[0], settled[1])
         c.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
         c.resetBasePositionAndOrientation(self.rake, pose[0], pose[1])
@@ -260,6 +267,10 @@ class ToolWorld:
     def toy_xy(self) -> tuple[float, float]:
         pos, _ = self.client.getBasePositionAndOrientation(self.toy)
         return float(pos[0]), float(pos[1])
+
+    def toy_yaw(self) -> float:
+        """The toy's present turn about the vertical (rad, folded by :func:`toy_yaw_of`)."""
+        return toy_yaw_of(self.client.getBasePositionAndOrientation(self.toy)[1])
 
     # ------------------------------------------------------------------ checks
     def check_trajectories(self, trajectories: torch.Tensor) -> None:
@@ -426,8 +437,8 @@ class ToolWorld:
         cfg, p, cid = self.cfg, self.p, self._cid
         T = len(plan["pos"])
         self.reset(posture)
-        start_pos = p.getBasePositionAndOrientation(self.toy, physicsClientId=cid)[0]
-        start = (start_pos[0], start_pos[1])
+        start_pos, start_orn = p.getBasePositionAndOrientation(self.toy, physicsClientId=cid)
+        start, start_yaw = (start_pos[0], start_pos[1]), toy_yaw_of(start_orn)
         if math.hypot(start[0] - self.cfg.toy_xy[0], start[1] - self.cfg.toy_xy[1]) < 1e-4:
             start = tuple(self.cfg.toy_xy)  # settled at its start (gaps to it are already known)
         top = cfg.table_top + cfg.toy_size
@@ -487,18 +498,20 @@ class ToolWorld:
             last = T - 1
         self.steps_simulated += n_sim
         self.steps_total += T
-        final = get_pose(toy, physicsClientId=cid)[0]
+        final, final_orn = get_pose(toy, physicsClientId=cid)
         if blew_up:
-            return Outcome((False,) * 6, None, (0.0, 0.0), last, (float(start[0]), float(start[1])), True)
+            return Outcome((False,) * 6, None, (0.0, 0.0), last, (float(start[0]), float(start[1])), True,
+                           final_toy_yaw=start_yaw)
         disp = (final[0] - float(start[0]), final[1] - float(start[1]))
-        return Outcome(tuple(fired), first, disp, last, (float(final[0]), float(final[1])), False)
+        return Outcome(tuple(fired), first, disp, last, (float(final[0]), float(final[1])), False,
+                       final_toy_yaw=toy_yaw_of(final_orn))
 
     # ---------------------------------------------------------------- constraint drive (reference)
     def _simulate_constraint(self, poses: np.ndarray, posture: int, q0: torch.Tensor, watched: str | None) -> Outcome:
         """Every control step simulated, the rake dragged to its pose by a constraint."""
         cfg, c = self.cfg, self.client
         self.reset(posture)
-        start = np.array(self.toy_xy())
+        start, start_yaw = np.array(self.toy_xy()), self.toy_yaw()
         top = cfg.table_top + cfg.toy_size
         fired = [False] * 6
         first: str | None = None
@@ -534,9 +547,10 @@ class ToolWorld:
                 break
         final = self.toy_xy()
         if blew_up:
-            return Outcome((False,) * 6, None, (0.0, 0.0), step, tuple(float(v) for v in start), True)
+            return Outcome((False,) * 6, None, (0.0, 0.0), step, tuple(float(v) for v in start), True,
+                           final_toy_yaw=start_yaw)
         disp = (final[0] - float(start[0]), final[1] - float(start[1]))
-        return Outcome(tuple(fired), first, disp, step, final, False)
+        return Outcome(tuple(fired), first, disp, step, final, False, final_toy_yaw=self.toy_yaw())
 
     # ------------------------------------------------------------------ camera
     def camera(self) -> tuple[list[float], list[float], list[float]]:
@@ -551,17 +565,18 @@ class ToolWorld:
         posture: int | None = None,
         q: torch.Tensor | None = None,
         toy_xy: tuple[float, float] | None = None,
+        toy_yaw: float | None = None,
     ) -> dict[str, np.ndarray | torch.Tensor]:
         """Render the eye camera; return the image and the colour-filtered toy and rake maps.
 
-        With ``posture``/``q``/``toy_xy`` given the scene is reset to that state first; otherwise
+        With ``posture``/``q``/``toy_xy``/``toy_yaw`` given the scene is reset to that state first; otherwise
         the current state is rendered.  Returns ``image`` (H, W, 3) uint8, ``toy`` and ``rake``
         (H, W) float32 masks in {0, 1} (torch tensors).
         """
         import time
 
         if posture is not None or q is not None:
-            self.reset(posture or 1, q=q, toy_xy=toy_xy)
+            self.reset(posture or 1, q=q, toy_xy=toy_xy, toy_yaw=toy_yaw)
         t0 = time.perf_counter()
         cfg, c = self.cfg, self.client
         eye, target, up = self.camera()
@@ -574,6 +589,15 @@ class ToolWorld:
         toy, rake = colour_masks(image)
         self.timing["render_s"] += time.perf_counter() - t0
         return {"image": image, "toy": toy, "rake": rake}
+
+
+def toy_yaw_of(quaternion) -> float:
+    """The turn about the vertical (rad) of a pybullet quaternion (x, y, z, w), folded into
+    [-pi/4, pi/4): the toy is a uniform cube, which looks and behaves the same every quarter turn."""
+    x, y, z, w = quaternion
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    quarter = math.pi / 2
+    return (yaw + quarter / 2) % quarter - quarter / 2
 
 
 def _latch_events(now: list, fired: list, first: str | None, top: float, cfg: WorldConfig,
