@@ -926,8 +926,9 @@ class ToolWorldEnvironment:
         m = float(toy.sum())
         if m < 1.0:
             return None
-        vs, us = torch.meshgrid(torch.arange(toy.shape[0]), torch.arange(toy.shape[1]), indexing="ij")
-        u, v = float((us * toy).sum()) / m, float((vs * toy).sum()) / m
+        cols, rows = toy.sum(0), toy.sum(1)  # the blob's centre from its two marginals
+        u = float((torch.arange(len(cols), dtype=cols.dtype) * cols).sum()) / m
+        v = float((torch.arange(len(rows), dtype=rows.dtype) * rows).sum()) / m
         return self._table_point(u, v)[0]
 
     def reader_bias(self) -> float:
