@@ -464,6 +464,9 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
     del d["config"]["c3_outcomes"]
     torch.save(d, path)
     assert exp5._valid(path, e, 0) is not None
+    del d["config"]["toy_turn"]  # one written before toy_turn existed squared the toy between moves
+    torch.save(d, path)
+    assert exp5._valid(path, e, 0) is None and exp5._valid(path, dataclasses.replace(e, toy_turn="reset"), 0) is not None
     with pytest.raises(ValueError, match="reuse_libraries"):
         dataclasses.replace(e, reuse_libraries=str(tmp_path / "nowhere"))
 
