@@ -884,13 +884,17 @@ class ToolWorldEnvironment:
         self.timing["rollouts"] += len(outs)
         return res
 
+    def _observe(self, state: State) -> dict:
+        """The eye's view of ``state`` (``ToolWorld.observe`` after setting the scene up)."""
+        q = None if state.q is None else torch.tensor(state.q)
+        return self.world.observe(posture=state.posture, q=q, toy_xy=state.toy_xy, toy_yaw=state.toy_yaw)
+
     def perceive(self, state: State) -> torch.Tensor:
         import time
 
         if state not in self._images:
             t0 = time.perf_counter()
-            q = None if state.q is None else torch.tensor(state.q)
-            obs = self.world.observe(posture=state.posture, q=q, toy_xy=state.toy_xy, toy_yaw=state.toy_yaw)
+            obs = self._observe(state)
             self._images[state] = torch.stack([obs["toy"], obs["rake"]]).to(torch.uint8)
             self.timing["render_s"] += time.perf_counter() - t0
             self.timing["renders"] += 1
@@ -898,8 +902,7 @@ class ToolWorldEnvironment:
 
     def eye_image(self, state: State) -> np.ndarray:
         """The RGB image the eye sees in ``state`` (for figures)."""
-        q = None if state.q is None else torch.tensor(state.q)
-        return self.world.observe(posture=state.posture, q=q, toy_xy=state.toy_xy, toy_yaw=state.toy_yaw)["image"]
+        return self._observe(state)["image"]
 
     def _table_point(self, u: float, v: float) -> tuple[float, float]:
         """Where the ray through pixel (u, v) meets the plane of the toy's centre (world x, y)."""
