@@ -321,6 +321,35 @@ def test_planning_test_acts_from_the_real_scene_each_attempt(acquired):
         sequence_trial(brain, outcomes, lib.skills, 1, "planning", False, 5, 0.1, g, planning_test="dream")
 
 
+def test_active_threshold_lets_only_afforded_units_compete(acquired):
+    """Fig. 7.6 "select one active neuron of PMC": with a threshold, a unit whose PMC activity is at
+    or below it is never chosen, and a child with no active unit does not move."""
+    env, _, lib = acquired
+    brain = build_brain(env, lib, small_acq(), ToolUseBrain(env.image_shape), torch.Generator().manual_seed(0))
+    outcomes = Outcomes(env, {s.name: s for s in lib.skills}, env.perceive)
+    units = torch.tensor([s.unit for s in lib.skills])
+    x0 = outcomes.image(1, ())
+    act = brain.pmc(x0)[units]
+    assert act.max() > act.min(), "the stand-in's situation 1 should afford some primitives more than others"
+    threshold = float((act.max() + act.min()) / 2)
+    active = {s.name for s, a in zip(lib.skills, act) if a > threshold}
+    g = torch.Generator().manual_seed(7)
+    firsts = {sequence_trial(brain, outcomes, lib.skills, 1, "reactive", False, 1, 10.0, g,
+                             active_threshold=threshold).actions[0] for _ in range(40)}
+    assert firsts <= active  # even at a high temperature, only active units are drawn
+    everything = {sequence_trial(brain, outcomes, lib.skills, 1, "reactive", False, 1, 10.0, g).actions[0]
+                  for _ in range(40)}
+    assert everything - active, "without the threshold, unafforded units are drawn too"
+    c4 = brain.c4.weight.clone()
+    for strategy in ("reactive", "planning"):
+        idle = sequence_trial(brain, outcomes, lib.skills, 1, strategy, True, 5, 0.1, g,
+                              active_threshold=float(act.max()))
+        assert idle.actions == [] and not idle.success and not idle.imagined_success
+    assert torch.equal(c4, brain.c4.weight)  # no move, no reward, no learning
+    with pytest.raises(ValueError, match="active_threshold"):
+        exp5.Exp5Config(active_threshold=1.0)
+
+
 # ---------------------------------------------------------------------------------- the run
 def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
     import neuroimagery.run as R
@@ -467,6 +496,12 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
     del d["config"]["toy_turn"]  # one written before toy_turn existed squared the toy between moves
     torch.save(d, path)
     assert exp5._valid(path, e, 0) is None and exp5._valid(path, dataclasses.replace(e, toy_turn="reset"), 0) is not None
+    e_old = dataclasses.replace(e, toy_turn="reset")  # ... and one written before active_threshold let every unit compete
+    del d["config"]["active_threshold"]
+    torch.save(d, path)
+    assert exp5._valid(path, e_old, 0) is None
+    assert exp5._valid(path, dataclasses.replace(e_old, active_threshold=0.0), 0) is not None
+    assert exp5._library_of(exp5._stored(path), e_old, 0) is not None  # its skill library still serves
     with pytest.raises(ValueError, match="reuse_libraries"):
         dataclasses.replace(e, reuse_libraries=str(tmp_path / "nowhere"))
 

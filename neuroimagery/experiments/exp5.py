@@ -78,6 +78,11 @@ class Exp5Config:
     # real scene with the C4 learnt in mind, imagines, performs and looks again | 'plan' = the whole
     # plan is made in mind from the initial image, then performed. See docs/exp5.md.
     planning_test: str = "act"
+    # Fig. 7.6 "select one active neuron of PMC": only units whose PMC activity (C1 + C4) exceeds
+    # this are candidates for the softmax, and a child with none does not move. 0.1 is C1's
+    # smallest teaching signal (one success in ten PI^BB samples, Fig. 7.5 B) | 0 = every acquired
+    # unit is a candidate (the version before this key). See docs/exp5.md.
+    active_threshold: float = 0.1
     # --- skill acquisition (Fig. 7.5, eq. 7.6-7.8)
     n_dmps: int = 10  # M1 / PMC units (thesis: 10)
     pibb_samples: int = 10  # K samples per posture and update (thesis: 10)
@@ -176,6 +181,8 @@ class Exp5Config:
             bad("pibb_decay", "must be in (0, 1]")
         if not 0 <= self.competence_tolerance <= 1:
             bad("competence_tolerance", "must be in [0, 1]")
+        if not 0 <= self.active_threshold < 1:
+            bad("active_threshold", "must be in [0, 1)")
         if not 0 <= self.hip_threshold <= 1:
             bad("hip_threshold", "must be in [0, 1]")
         for key in ("temperature", "test_temperature", "pibb_temperature", "c3_sigma", "c3_action_gain",
@@ -408,12 +415,13 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
                 train_ok = []
                 for _ in range(grp["trials"]):
                     rec = sequence_trial(brain, outcomes, sub.skills, posture, strategy, True, e.attempts,
-                                         e.temperature, g_ind, planning_test=e.planning_test)
+                                         e.temperature, g_ind, planning_test=e.planning_test,
+                                         active_threshold=e.active_threshold)
                     train_ok.append(rec.success if strategy == "reactive" else rec.imagined_success)
                 filming = (film is None and r == e.filmstrip_repetition and strategy == "planning")
                 test = sequence_trial(brain, outcomes, sub.skills, posture, strategy, False, e.attempts,
                                       e.test_temperature, g_ind, record_frames=filming,
-                                      planning_test=e.planning_test)
+                                      planning_test=e.planning_test, active_threshold=e.active_threshold)
                 if filming and test.success and (sit == "far" or gi == len(groups(e)) - 1):
                     film = dict(situation=sit, hypothesis=grp["hypothesis"], level=grp["level"],
                                 strategy=strategy, start=_pack(outcomes.image(posture, ())),
@@ -457,7 +465,7 @@ def _stored(path: Path) -> dict | None:
         return None
     # written before these keys existed: their values then
     d["config"] = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, "c3_outcomes": "success",
-                   "pibb_flat": "average", "toy_turn": "reset",
+                   "pibb_flat": "average", "toy_turn": "reset", "active_threshold": 0.0,
                    **d["config"]}
     return d
 
@@ -660,6 +668,8 @@ def success_routes(df: pd.DataFrame) -> list[dict]:
         counts = won.map(success_route).value_counts()
         row = dict(hypothesis=h, level=int(lvl), situation="far", strategy=strat, n=int(len(g)),
                    successes=int(len(won)), **{k: int(counts.get(k, 0)) for k in ROUTES})
+        if "test_attempts" in g.columns:  # tests in which no PMC unit was active: the child did not move
+            row["no_move"] = int((g.test_attempts == 0).sum())
         if {"routes_1", "routes_2"} <= set(g.columns):  # robots for which the world holds a 1-2 move retrieval
             row["available"] = int(((g.routes_1 + g.routes_2) > 0).sum())
         if {"imagined_1", "imagined_2", "imagined_true"} <= set(g.columns):  # ... and their mental images

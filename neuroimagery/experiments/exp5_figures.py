@@ -211,6 +211,7 @@ def write_report(cfg, run, summary: dict) -> None:
         by = {(r["level"], r["strategy"]): r for r in routes}
         has_avail = all("available" in r for r in routes)
         has_imag = all("imagined" in r for r in routes)
+        has_still = any(r.get("no_move") for r in routes)
         if has_avail:
             rep.p("The next column counts the robots for which the world holds a retrieval of one or two moves "
                   "with their primitives (individuals.csv `routes_1`, `routes_2`), whether or not they find it: "
@@ -220,6 +221,10 @@ def write_report(cfg, run, summary: dict) -> None:
                   "situation) show the toy in reach after one or two moves (`imagined_1`, `imagined_2`), and in "
                   "brackets those with such an imagined route that also works in the world (`imagined_true`): "
                   "what a planning child can learn in mind.")
+        if has_still:
+            rep.p(f"With `active_threshold: {e.active_threshold}` a child moves only a primitive whose PMC activity "
+                  "(C1 + C4) exceeds it (Fig. 7.6 draws among the *active* PMC units); the column \"did not move\" counts "
+                  "the tests, reactive / planning, in which nothing was active in the far situation.")
         rows = []
         for k, age in zip(e.hp1_levels, e.hp1_ages):
             row = [k, age]
@@ -231,11 +236,15 @@ def write_report(cfg, run, summary: dict) -> None:
                 row.append("-" if r is None else f"{r['available']} of {r['n']}")
             if has_imag:
                 row.append("-" if r is None else f"{r['imagined']} ({r['imagined_true']}) of {r['n']}")
+            if has_still:
+                row.append(" / ".join(str(by[(k, st)].get("no_move", 0)) if (k, st) in by else "-"
+                                      for st in ("reactive", "planning")))
             rows.append(row)
         rep.table(["IM detectors", "age (months)", "reactive: successes: pull / moves then pull / other",
                    "planning: successes: pull / moves then pull / other"]
                   + (["robots with a 1-2 move retrieval"] if has_avail else [])
-                  + (["robots with an imagined 1-2 move retrieval (true)"] if has_imag else []), rows)
+                  + (["robots with an imagined 1-2 move retrieval (true)"] if has_imag else [])
+                  + (["did not move, reactive / planning"] if has_still else []), rows)
     rep.h("Table 7.1: what the robots discovered")
     rows = []
     for p in range(1, N_POSTURES + 1):

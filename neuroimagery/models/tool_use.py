@@ -683,7 +683,8 @@ class Outcomes:
 
 def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Skill], posture: int, strategy: str,
                    training: bool, attempts: int, temperature: float, generator: torch.Generator,
-                   record_frames: bool = False, planning_test: str = "act") -> TrialRecord:
+                   record_frames: bool = False, planning_test: str = "act",
+                   active_threshold: float = 0.0) -> TrialRecord:
     """One trial of Fig. 7.6 from initial posture ``posture``.
 
     Each attempt: feed the current PC image through C1 and C4, pick one acquired PMC unit with
@@ -701,6 +702,10 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
       toy in reach) is made in mind from the initial image, then performed for real.
 
     Test success is always the real retrieval.
+
+    ``active_threshold``: Fig. 7.6 selects "one active neuron of PMC"; with a threshold above 0
+    only the acquired units whose PMC activity (C1 + C4) exceeds it are candidates, and a child
+    with no active unit does not move (the trial ends). 0: every acquired unit is a candidate.
     """
     if strategy not in ("reactive", "planning"):
         raise ValueError(f"strategy must be 'reactive' or 'planning', got {strategy!r}")
@@ -718,6 +723,10 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     imagining = strategy == "planning"
     for _ in range(attempts):
         act = brain.pmc(x0)[units]
+        if active_threshold > 0:
+            act = act.masked_fill(act <= active_threshold, float("-inf"))
+            if not torch.isfinite(act).any():
+                break  # nothing afforded here: the child does not move
         k = int(softmax_select(act.view(1, -1), temperature, generators=[generator])[0])
         skill = by_unit[int(units[k])]
         done_events = done_events + (skill.name,)
