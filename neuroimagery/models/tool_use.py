@@ -688,8 +688,8 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     """One trial of Fig. 7.6 from initial posture ``posture``.
 
     Each attempt: feed the current PC image through C1 and C4, pick one acquired PMC unit with
-    softmax, then a reactive child performs the primitive (the real scene is perceived next)
-    while a planning child imagines it through C3 (the mental image becomes the next input). The
+    softmax (among the active ones, ``active_threshold``), then a reactive child performs the
+    primitive (the real scene is perceived next) while a planning child imagines it through C3 (the mental image becomes the next input). The
     toy-related reward is read from that next image (reactive: the retrieve detector). In
     training mode C4 learns by eq. 7.1; a planning child trains in mind only.
 
@@ -703,9 +703,10 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
 
     Test success is always the real retrieval.
 
-    ``active_threshold``: Fig. 7.6 selects "one active neuron of PMC"; with a threshold above 0
+    ``active_threshold``: Fig. 7.6 draws among the *active* PMC units; with a threshold above 0
     only the acquired units whose PMC activity (C1 + C4) exceeds it are candidates, and a child
-    with no active unit does not move (the trial ends). 0: every acquired unit is a candidate.
+    with no active unit does not move (the trial ends). 0 (this function's default): every
+    acquired unit is a candidate; Experiment 5 uses ``Exp5Config.active_threshold`` (0.1).
     """
     if strategy not in ("reactive", "planning"):
         raise ValueError(f"strategy must be 'reactive' or 'planning', got {strategy!r}")
