@@ -689,9 +689,10 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
 
     Each attempt: feed the current PC image through C1 and C4, pick one acquired PMC unit with
     softmax (among the active ones, ``active_threshold``), then a reactive child performs the
-    primitive (the real scene is perceived next) while a planning child imagines it through C3 (the mental image becomes the next input). The
-    toy-related reward is read from that next image (reactive: the retrieve detector). In
-    training mode C4 learns by eq. 7.1; a planning child trains in mind only.
+    primitive (the real scene is perceived next) while a planning child imagines it through C3
+    (the mental image becomes the next input). The toy-related reward is read from that next
+    image (reactive: the retrieve detector). In training mode C4 learns by eq. 7.1; a planning
+    child trains in mind only.
 
     The test (``training`` False) of a planning child, ``planning_test``:
 
@@ -725,9 +726,10 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     for _ in range(attempts):
         act = brain.pmc(x0)[units]
         if active_threshold > 0:
-            act = act.masked_fill(act <= active_threshold, float("-inf"))
-            if not torch.isfinite(act).any():
+            active = act > active_threshold
+            if not bool(active.any()):
                 break  # nothing afforded here: the child does not move
+            act = act.masked_fill(~active, float("-inf"))
         k = int(softmax_select(act.view(1, -1), temperature, generators=[generator])[0])
         skill = by_unit[int(units[k])]
         done_events = done_events + (skill.name,)
