@@ -3,11 +3,12 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
-from neuroimagery.cli import friendly_errors
+from neuroimagery.cli import friendly_errors, plain_hydra_errors
 from neuroimagery.config import register_configs
 from neuroimagery.run import evaluate
 
 register_configs()
+plain_hydra_errors()
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")

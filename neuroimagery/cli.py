@@ -1,4 +1,9 @@
-"""Command-line wrappers: a user's mistake becomes one line on stderr and exit status 2."""
+"""Command-line wrappers: a user's mistake becomes one line on stderr and exit status 2.
+
+:func:`friendly_errors` wraps a task function; :func:`plain_hydra_errors` makes Hydra's own
+refusals (a misspelt key, a value of the wrong type, a run directory that cannot be made) the
+same kind of line instead of Hydra's few lines or traceback.
+"""
 from __future__ import annotations
 
 import functools
@@ -7,18 +12,75 @@ import sys
 from .errors import UserInputError
 
 
+def _fail(message: str) -> None:
+    print(f"error: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
+def os_error_message(err: OSError) -> str:
+    where = f"{err.filename}: " if getattr(err, "filename", None) else ""
+    return f"{where}{err.strerror or err}"
+
+
 def friendly_errors(fn):
-    """Run ``fn``; print a :class:`UserInputError` as ``error: ...`` and exit 2 (tracebacks stay for bugs)."""
+    """Run ``fn``; print a :class:`UserInputError` or an ``OSError`` as ``error: ...`` and exit 2
+    (tracebacks stay for bugs)."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         try:
             return fn(*args, **kwargs)
         except UserInputError as e:
-            print(f"error: {e}", file=sys.stderr)
-            sys.exit(2)
+            _fail(str(e))
+        except OSError as e:
+            _fail(os_error_message(e))
         except KeyboardInterrupt:
             print("interrupted: files already written in the run directory are kept", file=sys.stderr)
             sys.exit(130)
 
     return wrapper
+
+
+def _one_line(ex: BaseException) -> str:
+    """Hydra's and OmegaConf's multi-line messages as one line: what was given, then why."""
+    parts = []
+    for e in (ex, ex.__cause__):
+        if e is None:
+            continue
+        for line in str(e).splitlines():
+            line = line.strip()
+            if line and not line.startswith(("object_type=", "Set the environment variable")) and line not in parts:
+                parts.append(line)
+    return "; ".join(parts) or type(ex).__name__
+
+
+def plain_hydra_errors() -> None:
+    """Make Hydra report a configuration it cannot compose, or a run directory it cannot create,
+    as one ``error:`` line with exit status 2 (``HYDRA_FULL_ERROR=1`` still shows Hydra's own)."""
+    import os
+
+    from hydra._internal import utils as hydra_utils
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    original = getattr(hydra_utils.run_and_report, "__wrapped__", hydra_utils.run_and_report)
+
+    @functools.wraps(original)
+    def run_and_report(func):
+        if os.environ.get("HYDRA_FULL_ERROR") == "1":
+            return original(func)
+        try:
+            return func()
+        except UserInputError as ex:
+            _fail(str(ex))
+        except (HydraException, OmegaConfBaseException) as ex:
+            _fail(_one_line(ex))
+        except OSError as ex:
+            _fail(os_error_message(ex))
+        except Exception as ex:  # a bug: Hydra prints it as usual, without running anything again
+            def again():
+                raise ex
+
+            return original(again)
+
+    hydra_utils.run_and_report = run_and_report

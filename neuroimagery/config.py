@@ -17,6 +17,7 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from .errors import UserInputError
+from .validation import check_finite
 from .vision.config import StimuliConfig, VisionConfig
 
 EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "demo")
@@ -53,6 +54,7 @@ class Config:
     checkpoint: Optional[str] = None  # evaluate.py: a training run's directory; None trains first
     progress: bool = True  # progress bars on long loops
     threads: int = 0  # torch intra-op threads (0 = torch's default)
+    overwrite: bool = False  # write into a run directory that holds a run with other settings
 
     def __post_init__(self) -> None:
         if self.seed < 0:
@@ -104,12 +106,14 @@ def _unknown_keys(node: DictConfig, path: str = "") -> list[str]:
 def validate(cfg: DictConfig | Config) -> Config:
     """Turn a composed config into checked objects; a bad value raises :class:`UserInputError`."""
     if isinstance(cfg, Config):
+        check_finite(cfg)
         return cfg
     if not isinstance(cfg.get("experiment"), DictConfig):
         raise UserInputError("invalid configuration: choose an experiment, e.g. experiment=exp4")
     unknown = [k for k in _unknown_keys(cfg) if not k.startswith("hydra")]
     if unknown:
         raise UserInputError(f"invalid configuration: unknown key(s) {', '.join(unknown)}")
+    check_finite(cfg)
     try:
         obj = OmegaConf.to_object(cfg)
     except (ValueError, OmegaConfBaseException) as e:

@@ -7,16 +7,25 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
+import sys
+import tempfile
 import time
+import zipfile
 from pathlib import Path
 from typing import Any
 
 import torch
 from omegaconf import DictConfig, OmegaConf
 
+from . import manifest as mf
 from .config import Config, experiment_module, validate
 from .errors import UserInputError
 from .logger import make_logger
+from .validation import check_run
+
+# files whose presence means a directory already holds a run
+RUN_FILES = ("manifest.json", "train.json", "summary.json", "trials.csv", "individuals.csv", "report.md")
 
 
 class RunDir:
@@ -26,17 +35,72 @@ class RunDir:
     ``individuals.csv``, ``summary.json``, ``report.md``, ``figures/*.png``, ``tb/``.
     """
 
-    def __init__(self, root: str | Path, cfg: Config, raw: DictConfig | None = None) -> None:
+    def __init__(self, root: str | Path, cfg: Config, raw: DictConfig | None = None,
+                 manifest: dict | None = None) -> None:
         self.root = Path(root)
         self.cfg = cfg
-        for d in (self.root, self.checkpoints, self.figures):
-            d.mkdir(parents=True, exist_ok=True)
-        hydra_cfg = self.root / ".hydra" / "config.yaml"
-        if raw is not None and not hydra_cfg.exists():
-            hydra_cfg.parent.mkdir(parents=True, exist_ok=True)
-            hydra_cfg.write_text(OmegaConf.to_yaml(raw, resolve=True))
+        self.manifest = manifest
+        try:
+            for d in (self.root, self.checkpoints, self.figures):
+                d.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise UserInputError(f"cannot create the run directory {self.root}: {err.strerror or err}") from None
+        if manifest is not None:
+            self._claim(manifest, getattr(cfg, "overwrite", False))
+        if raw is not None:  # Hydra's record, written once the directory is ours (hydra.output_subdir is null)
+            hydra_dir = self.root / ".hydra"
+            hydra_dir.mkdir(exist_ok=True)
+            self._atomic(hydra_dir / "config.yaml", lambda p: p.write_text(OmegaConf.to_yaml(raw, resolve=True)))
+            overrides = _hydra_overrides()
+            if overrides is not None:
+                self._atomic(hydra_dir / "overrides.yaml", lambda p: p.write_text(OmegaConf.to_yaml(overrides)))
         self.logger = make_logger(cfg, self.tb)
         self.timings: dict[str, float] = {}
+
+    def _claim(self, manifest: dict, overwrite: bool) -> None:
+        """Refuse a directory that holds another run (unless ``overwrite``), then write our manifest."""
+        path = self.root / "manifest.json"
+        held = [n for n in RUN_FILES if (self.root / n).exists()] + sorted(p.name for p in self.checkpoints.glob("*.pt"))
+        if held and not overwrite:
+            if not path.exists():
+                raise UserInputError(f"{self.root} already holds a run without a manifest ({', '.join(held[:3])}; an "
+                                     "older version's, or not a run): choose another directory or set overwrite=true")
+            old = read_json(path, "run manifest")
+            diff = mf.differences(manifest["settings"], old.get("settings", {}))
+            if old.get("experiment") != manifest["experiment"]:
+                diff.insert(0, f"experiment {old.get('experiment')!r} (stored) vs {manifest['experiment']!r} (this run)")
+            if diff:
+                raise UserInputError(f"{self.root} holds another run ({'; '.join(diff[:4])}"
+                                     f"{'; ...' if len(diff) > 4 else ''}): choose another directory or set overwrite=true")
+            if old.get("package") != manifest["package"]:
+                print(f"note: {self.root} holds a run of version {old.get('package')} (this is {manifest['package']})",
+                      file=sys.stderr)
+            print(f"note: {self.root} holds a run with the same settings: "
+                  + ("finished tasks are kept and the run resumes" if manifest["experiment"] == "exp5" else "rewriting it"),
+                  file=sys.stderr)
+        self.write_json("manifest.json", manifest)
+
+    def _atomic(self, path: Path, write) -> Path:
+        """``write(tmp)`` then rename onto ``path``; an ``OSError`` leaves no temporary file behind and
+        becomes a :class:`UserInputError` naming ``path``."""
+        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+        try:
+            write(tmp)
+            os.replace(tmp, path)
+        except OSError as err:
+            tmp.unlink(missing_ok=True)
+            raise UserInputError(f"cannot write {path}: {err.strerror or err}{self._rescue(path, write)}") from None
+        return path
+
+    @staticmethod
+    def _rescue(path: Path, write) -> str:
+        """Try to keep what could not be written in a temporary folder; say where (or that it failed)."""
+        try:
+            spare = Path(tempfile.mkdtemp(prefix="neuroimagery-")) / path.name
+            write(spare)
+            return f"; kept in {spare}"
+        except Exception:  # the fallback is best effort: the error above is the one that matters
+            return ""
 
     checkpoints = property(lambda self: self.root / "checkpoints")
     figures = property(lambda self: self.root / "figures")
@@ -45,29 +109,30 @@ class RunDir:
     report_path = property(lambda self: self.root / "report.md")
 
     def save_checkpoint(self, name: str, state: dict) -> Path:
-        """``torch.save`` into ``checkpoints/<name>.pt`` atomically (write, then rename)."""
-        path = self.checkpoints / f"{name}.pt"
-        tmp = path.with_suffix(".pt.tmp")
-        torch.save(state, tmp)
-        os.replace(tmp, path)
-        return path
+        """``torch.save`` into ``checkpoints/<name>.pt`` atomically (write, then rename), with the
+        run's manifest and a hash of the stored tensors under ``"manifest"``."""
+        if self.manifest is not None:
+            state = {**state, "manifest": {**self.manifest, "tensor_hash": mf.tensor_hash(state)}}
+        return self._atomic(self.checkpoints / f"{name}.pt", lambda p: torch.save(state, p))
 
     def write_json(self, name: str, data: Any) -> Path:
-        path = self.root / name
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        tmp.write_text(json.dumps(data, indent=2, sort_keys=False, default=_json_default) + "\n")
-        os.replace(tmp, path)
-        return path
+        text = json.dumps(data, indent=2, sort_keys=False, default=_json_default) + "\n"
+        return self._atomic(self.root / name, lambda p: p.write_text(text))
 
     def write_csv(self, name: str, frame) -> Path:
-        path = self.root / name
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        frame.to_csv(tmp, index=False, float_format="%.6g")
-        os.replace(tmp, path)
-        return path
+        return self._atomic(self.root / name, lambda p: frame.to_csv(p, index=False, float_format="%.6g"))
 
     def close(self) -> None:
         self.logger.close()
+
+
+def _hydra_overrides():
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        return list(HydraConfig.get().overrides.task)
+    except Exception:  # not under @hydra.main
+        return None
 
 
 def _json_default(o):
@@ -78,12 +143,68 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
+def read_json(path: Path, what: str) -> dict:
+    """A JSON object from ``path``; a missing, unreadable or corrupt file is a :class:`UserInputError`."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        raise UserInputError(f"{what} {path}: cannot be read ({getattr(err, 'strerror', None) or err})") from None
+    if not isinstance(data, dict):
+        raise UserInputError(f"{what} {path}: not a JSON object")
+    return data
+
+
+def safe_load(path: str | Path) -> Any:
+    """``torch.load`` with ``weights_only=True``: tensors and plain containers only, so nothing in
+    the file is executed. A file that is not such a checkpoint is a :class:`UserInputError`."""
+    path = Path(path)
+    try:
+        return torch.load(path, map_location="cpu", weights_only=True)
+    except (pickle.UnpicklingError, RuntimeError, EOFError, zipfile.BadZipFile, ValueError, TypeError,
+            AttributeError, ImportError, IndexError, KeyError) as err:
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise UserInputError(f"checkpoint {path}: not a checkpoint this package wrote, or corrupt; "
+                             f"nothing in it was run ({first[:200]})") from None
+    except OSError as err:
+        raise UserInputError(f"checkpoint {path}: cannot be read ({err.strerror or err})") from None
+
+
 def load_checkpoint(checkpoint: str | Path, name: str) -> dict:
     """Read ``checkpoints/<name>.pt`` of a training run's directory, with a clear error if absent."""
     path = Path(checkpoint) / "checkpoints" / f"{name}.pt"
     if not path.exists():
         raise UserInputError(f"checkpoint: no {path} (is {checkpoint} the directory of a training run of this experiment?)")
-    return torch.load(path, map_location="cpu", weights_only=False)
+    state = safe_load(path)
+    if not isinstance(state, dict):
+        raise UserInputError(f"checkpoint {path}: holds a {type(state).__name__}, not a checkpoint of this package")
+    state.pop("manifest", None)
+    return state
+
+
+def verify_checkpoint(checkpoint: str | Path, name: str, manifest: dict) -> None:
+    """Check ``checkpoints/<name>.pt`` against this run's ``manifest``: the tensors are those it
+    stored (hash), and it was trained with the same settings; every differing key is named."""
+    path = Path(checkpoint) / "checkpoints" / f"{name}.pt"
+    if not path.exists():
+        raise UserInputError(f"checkpoint: no {path} (is {checkpoint} the directory of a training run of "
+                             f"{manifest['experiment']}?)")
+    state = safe_load(path)
+    stored = state.pop("manifest", None) if isinstance(state, dict) else None
+    if not isinstance(stored, dict):
+        raise UserInputError(f"checkpoint {path}: has no manifest (written by an older version, or not by this "
+                             "package): train it again")
+    if stored.get("tensor_hash") != mf.tensor_hash(state):
+        raise UserInputError(f"checkpoint {path}: its tensors do not match the hash it stores (altered or corrupt)")
+    if stored.get("experiment") != manifest["experiment"]:
+        raise UserInputError(f"checkpoint: {checkpoint} was trained for {stored.get('experiment')}, "
+                             f"not {manifest['experiment']}")
+    diff = mf.differences(manifest["training"], stored.get("training", {}))
+    if diff:
+        raise UserInputError(f"checkpoint {path} was trained with other settings: {'; '.join(diff)} "
+                             "(set them as in training, or train again)")
+    if stored.get("package") != manifest["package"]:
+        print(f"note: checkpoint {path} was written by version {stored.get('package')} (this is "
+              f"{manifest['package']})", file=sys.stderr)
 
 
 def _output_dir(out_dir: str | Path | None) -> Path:
@@ -97,26 +218,26 @@ def _output_dir(out_dir: str | Path | None) -> Path:
         return Path("outputs") / time.strftime("%Y-%m-%d_%H-%M-%S")
 
 
-def _prepare(cfg: DictConfig | Config, out_dir):
+def _prepare(cfg: DictConfig | Config, out_dir, checkpoint: bool = False):
+    """Validate everything (config, stimulus folder, the checkpoint named) before any work, then
+    claim the run directory."""
     raw = cfg if isinstance(cfg, DictConfig) else None
     conf = validate(cfg)
+    module = experiment_module(conf.experiment.name)
+    check_run(conf, module)
+    manifest = mf.build(conf, module)
+    if conf.checkpoint and not checkpoint:
+        raise UserInputError("checkpoint= has no effect in training: it names a trained run for evaluate.py")
+    if checkpoint and conf.checkpoint:
+        ck = Path(conf.checkpoint)
+        if not ck.is_dir():
+            raise UserInputError(f"checkpoint: {ck} is not a directory")
+        for name in getattr(module, "CHECKPOINTS", ("model",)):
+            verify_checkpoint(ck, name, manifest)
     if conf.threads:
         torch.set_num_threads(conf.threads)
-    module = experiment_module(conf.experiment.name)
-    run = RunDir(_output_dir(out_dir), conf, raw)
+    run = RunDir(_output_dir(out_dir), conf, raw, manifest)
     return conf, module, run
-
-
-def _check_checkpoint(conf: Config) -> Path:
-    ck = Path(conf.checkpoint)
-    if not ck.is_dir():
-        raise UserInputError(f"checkpoint: {ck} is not a directory")
-    saved = ck / ".hydra" / "config.yaml"
-    if saved.exists():
-        name = OmegaConf.load(saved).get("experiment", {}).get("name")
-        if name is not None and name != conf.experiment.name:
-            raise UserInputError(f"checkpoint: {ck} was trained for {name}, not {conf.experiment.name}")
-    return ck
 
 
 def train(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
@@ -141,14 +262,14 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
 
     Writes ``trials.csv`` / ``individuals.csv``, ``summary.json``, ``report.md``, ``figures/``, ``tb/``.
     """
-    conf, module, run = _prepare(cfg, out_dir)
+    conf, module, run = _prepare(cfg, out_dir, checkpoint=True)
     try:
         if conf.checkpoint:
-            ck = _check_checkpoint(conf)
+            ck = Path(conf.checkpoint)
             trained = module.load(conf, ck)
             tj = ck / "train.json"
             if tj.exists():
-                run.timings.update(json.loads(tj.read_text()).get("runtime_s", {}))
+                run.timings.update(read_json(tj, "training record").get("runtime_s", {}))
         else:
             t0 = time.perf_counter()
             trained = module.train(conf, run)

@@ -85,7 +85,8 @@ def test_full_run_rotates_and_rt_rises_with_disparity(full_run):
 
 
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
-    """With checkpoint=DIR the loaded model's participants are tested, whatever `participants` says."""
+    """checkpoint=DIR tests the loaded model's participants; another `participants` is refused by name."""
+    from neuroimagery.errors import UserInputError
     from neuroimagery.run import evaluate, train
 
     def cfg(n, *more):
@@ -93,7 +94,9 @@ def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
                         "experiment.som_iterations=50", *more)
 
     train(cfg(1), out_dir=tmp_path / "tr")
-    s = evaluate(cfg(3, f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev")
+    with pytest.raises(UserInputError, match="participants 1 \\(stored\\) vs 3"):
+        evaluate(cfg(3, f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev")
+    s = evaluate(cfg(1, f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev")
     assert s["participants"] == 1 and s["tests"]["recognition/none"]["n_trials"] == 52
 
 

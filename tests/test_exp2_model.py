@@ -232,15 +232,21 @@ def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path):
 
 
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
-    """With checkpoint=DIR the loaded model's participants are tested, whatever `participants` says."""
-    from neuroimagery.run import evaluate
+    """checkpoint=DIR tests the loaded model's participants; another `participants` is refused by name."""
+    from neuroimagery import manifest as mf
+    from neuroimagery.config import validate
+    from neuroimagery.errors import UserInputError
+    from neuroimagery.experiments import exp2
+    from neuroimagery.run import RunDir, evaluate
 
     small = ("experiment.som_iterations=30", "experiment.hebb_steps=60", "experiment.c5_epochs=1", "logger=none")
     e = Exp2Config(som_iterations=30, hebb_steps=60, c5_epochs=1)
     g = torch.Generator().manual_seed(3)
     m = MotorRotationModel(e, 1, 0)
     m.fit({(o, a): (torch.rand(1024, generator=g) > 0.8).float() for o in (0, 1) for a in ANGLES})
-    (tmp_path / "tr" / "checkpoints").mkdir(parents=True)
-    torch.save(m.compact_state(), tmp_path / "tr" / "checkpoints" / "model.pt")
-    s = evaluate(_cfg("participants=3", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
+    conf = validate(_cfg("participants=1", *small))
+    RunDir(tmp_path / "tr", conf, manifest=mf.build(conf, exp2)).save_checkpoint("model", m.compact_state())
+    with pytest.raises(UserInputError, match="participants 1 \\(stored\\) vs 3"):
+        evaluate(_cfg("participants=3", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
+    s = evaluate(_cfg("participants=1", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
     assert s["participants"] == 1 and s["tests"]["all/none"]["n_trials"] == 196

@@ -138,11 +138,14 @@ def test_rotated_ok_compares_orientations_modulo_360():
 
 
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
+    from neuroimagery.errors import UserInputError
     from neuroimagery.run import train
 
-    small = ("logger=none", "logger.sample_trials=0", "experiment.quick_fm_images=300", "experiment.posture_iterations=100")
+    small = ("logger=none", "experiment.quick_fm_images=300", "experiment.posture_iterations=100")
     train(_cfg("participants=2", *small), out_dir=tmp_path / "tr")
-    s = evaluate(_cfg("participants=5", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
+    with pytest.raises(UserInputError, match="participants 2 \\(stored\\) vs 5"):
+        evaluate(_cfg("participants=5", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
+    s = evaluate(_cfg("participants=2", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
     assert s["participants"] == 2
     assert s["tests"]["recog/none"]["n_trials"] == 2 * 64
     assert (tmp_path / "ev" / "report.md").read_text().count("2 simulated participants") == 1

@@ -222,12 +222,14 @@ def test_rt_by_required_steps_groups_by_disparity_not_by_steps_made():
 # one tiny participant: the condition comparisons run on nearly equal RTs, which scipy warns about
 @pytest.mark.filterwarnings("ignore:Precision loss occurred in moment calculation:RuntimeWarning")
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
+    from neuroimagery.errors import UserInputError
     from neuroimagery.run import train
 
-    small = ("logger=none", "experiment.quick_fm_images=300", "experiment.posture_iterations=100", "experiment.noise_tests=[]",
-             "logger.sample_trials=0")
+    small = ("logger=none", "experiment.quick_fm_images=300", "experiment.posture_iterations=100", "experiment.noise_tests=[]")
     train(_cfg("participants=1", *small), out_dir=tmp_path / "tr")
-    s = evaluate(_cfg("participants=3", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
+    with pytest.raises(UserInputError, match="participants 1 \\(stored\\) vs 3"):
+        evaluate(_cfg("participants=3", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
+    s = evaluate(_cfg("participants=1", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
     assert s["participants"] == 1
     assert "rt_by_required_steps" in s and "all" in s["rt_by_required_steps"]
     assert "n steps required" in (tmp_path / "ev" / "report.md").read_text()

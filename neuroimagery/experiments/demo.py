@@ -50,6 +50,11 @@ class DemoConfig:
 
 CONFIG = DemoConfig
 
+# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.manifest)
+INPUTS = ()
+CHECKPOINTS = ("model",)
+TEST_KEYS = ("max_steps", "cycles_per_step", "noise", "sharpen")  # read by the test only
+
 
 class AngleRotationModel(torch.nn.Module):
     def __init__(self, e: DemoConfig, participants: int, seed: int) -> None:

@@ -79,11 +79,29 @@ class Exp1Config:
         for k in ("som_threads", "auto_threads"):
             if getattr(self, k) < 1:
                 raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
+        field_bounds(self)
         if 90 % self.step_deg != 0:
             raise ValueError(f"experiment.step_deg must divide 90, got {self.step_deg!r}")
 
 
+
+def field_bounds(e) -> None:
+    """The dynamic fields' parameters within the bounds :class:`DynamicField` enforces (one source)."""
+    from ..nn.decision import DynamicField
+    from ..nn.functional import check_bounds
+
+    keys = ("tau", "h", "a_exc", "sigma_exc", "a_inh", "threshold")
+    check_bounds(DynamicField.BOUNDS, {k: getattr(e, f"field_{k}") for k in keys}, {k: f"experiment.field_{k}" for k in keys})
+
+
 CONFIG = Exp1Config
+
+# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.manifest)
+INPUTS = ("vision", "stimuli")
+MIN_OBJECTS = 2  # a user folder must hold a shape and its mirror
+CHECKPOINTS = ("model",)
+RUNTIME_KEYS = ("som_threads", "auto_threads")  # thread counts: speed only
+TEST_KEYS = ()  # the model is built from every key, so each one counts as a training setting
 
 TARGETS = {
     # thesis 5.1.2: A rotated in 51 of 52 recognition trials, B in all 52 -> (51 + 52) / 104 overall

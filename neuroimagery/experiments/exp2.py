@@ -79,11 +79,29 @@ class Exp2Config:
             raise ValueError("experiment.hebb_eta, som_eta must be <= 1 and experiment.image_threshold < 1")
         if self.som_method not in ("windowed", "factored", "online"):
             raise ValueError(f"experiment.som_method must be 'windowed', 'factored' or 'online', got {self.som_method!r}")
+        field_bounds(self)
         if not 0 <= self.som_cutoff < 1:
             raise ValueError(f"experiment.som_cutoff must be in [0, 1), got {self.som_cutoff!r}")
 
 
+
+def field_bounds(e) -> None:
+    """The dynamic fields' parameters within the bounds :class:`DynamicField` enforces (one source)."""
+    from ..nn.decision import DynamicField
+    from ..nn.functional import check_bounds
+
+    keys = ("tau", "h", "a_exc", "sigma_exc", "a_inh", "threshold")
+    check_bounds(DynamicField.BOUNDS, {k: getattr(e, f"field_{k}") for k in keys}, {k: f"experiment.field_{k}" for k in keys})
+
+
 CONFIG = Exp2Config
+
+# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.manifest)
+INPUTS = ("vision", "stimuli")
+MIN_OBJECTS = 2  # a user folder must hold a shape and its mirror
+CHECKPOINTS = ("model",)
+RUNTIME_KEYS = ("som_threads", "auto_threads")  # thread counts: speed only
+TEST_KEYS = ()  # the model is built from every key, so each one counts as a training setting
 CONDITIONS = ("none", "match", "mismatch")
 TARGETS = {"all/none": {"rotation_success_rate": 192 / 196, "correct_rate": 168 / 196}}
 

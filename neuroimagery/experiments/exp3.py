@@ -97,6 +97,23 @@ class Exp3Config:
 
 CONFIG = Exp3Config
 
+# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.manifest)
+INPUTS = ("vision", "stimuli")
+CHECKPOINTS = ("exp3",)
+# read only by the tests: a trained model (forward model C6, posture maps C2/C3) does not depend on them
+TEST_KEYS = ("fm_threshold", "recog_set", "gen1_set", "gen2_set", "m1_sigma", "m1_readout", "m1_centre_sigma",
+             "match_threshold", "match_tolerance", "max_steps", "posture_code_sigma", "quick_objects", "softmax_tau")
+
+
+def ineffective_keys(cfg) -> dict[str, str]:
+    e, out = cfg.experiment, {}
+    out["m1_centre_sigma" if e.m1_readout == "pattern" else "m1_sigma"] = f"not read with m1_readout={e.m1_readout}"
+    if cfg.stimuli.kind == "folder":
+        out.update({k: "stimuli=folder tests the user's folder only" for k in ("gen1_set", "gen2_set")})
+    if cfg.preset == "quick":
+        out["fm_images"] = "preset=quick trains on quick_fm_images"
+    return {f"experiment.{k}": v for k, v in out.items()}
+
 
 def _model(cfg, ids):
     from ..models.rotation_generalising import RotationGeneralising

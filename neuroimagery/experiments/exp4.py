@@ -100,8 +100,12 @@ class Exp4Config:
             raise ValueError(f"experiment.map_size must be >= 8, got {self.map_size}")
         if not (1 <= self.dot_inner <= self.map_size - 2):
             raise ValueError(f"experiment.dot_inner must lie in [1, map_size - 2], got {self.dot_inner}")
-        if self.lca_dt > 1.0:
-            raise ValueError(f"experiment.lca_dt must be <= 1, got {self.lca_dt}")
+        from ..nn.decision import LeakyCompetingAccumulator
+        from ..nn.functional import check_bounds
+
+        lca = ("k", "w", "threshold", "dt")  # within the bounds the accumulator enforces (one source)
+        check_bounds({k: LeakyCompetingAccumulator.BOUNDS[k] for k in lca}, {k: getattr(self, f"lca_{k}") for k in lca},
+                     {k: f"experiment.lca_{k}" for k in lca})
         if len(self.ppc_angles) < 2 or list(self.ppc_angles) != sorted(self.ppc_angles):
             raise ValueError(f"experiment.ppc_angles must be >= 2 increasing angles, got {list(self.ppc_angles)}")
         if self.flip_axis not in ("object", "ppct"):
@@ -115,6 +119,26 @@ class Exp4Config:
 
 CONFIG = Exp4Config
 
+
+
+# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.manifest)
+INPUTS = ("vision", "stimuli")
+CHECKPOINTS = ("exp4",)
+# read only by the tests: a trained model (forward models, posture maps C16/C17) does not depend on them
+TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "flip_axis", "posture_tau", "ppc_sigma", "softmax_tau", "lca_k",
+             "lca_w", "lca_threshold", "lca_dt", "lca_cycles", "lca_input_gain", "max_steps", "proprio_gain",
+             "proprio_stage", "noise_amplitude", "noise_tests", "quick_objects")
+
+
+def ineffective_keys(cfg) -> dict[str, str]:
+    e, out = cfg.experiment, {}
+    if cfg.stimuli.kind == "folder":
+        out.update({k: "stimuli=folder tests the user's folder only" for k in ("gen1_set", "gen2_set", "noise_tests")})
+    elif not e.noise_tests:
+        out["noise_amplitude"] = "noise_tests is empty"
+    if cfg.preset == "quick":
+        out["fm_images"] = "preset=quick trains on quick_fm_images"
+    return {f"experiment.{k}": v for k, v in out.items()}
 
 def _ids(cfg) -> list[int]:
     return list(range(cfg.participants))

@@ -217,6 +217,19 @@ class Exp5Config:
 
 
 CONFIG = Exp5Config
+
+# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.manifest)
+INPUTS = ()  # the robot's eye is part of the world (neuroimagery.robot), not the vision group
+CHECKPOINTS = ("exp5_index",)
+RUNTIME_KEYS = ("n_jobs", "reuse_libraries", "filmstrip_repetition")  # speed, reuse and which robot is filmed
+TEST_KEYS = ()
+
+
+def ineffective_keys(cfg) -> dict[str, str]:
+    out = {"participants": "exp5 simulates experiment.repetitions robots per group and situation"}
+    if cfg.preset == "quick":
+        out["experiment.repetitions"] = "preset=quick runs experiment.quick_repetitions"
+    return out
 STRATEGIES = ("reactive", "planning")
 
 

@@ -5,13 +5,14 @@ One cycle of either dynamics is one simulated millisecond of response time (thes
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Sequence
 
 import torch
 from torch import nn
 
-from .functional import check_rate, check_tensor, softmax_probabilities, softmax_select  # noqa: F401
+from .functional import check_bounds, check_rate, check_tensor, softmax_probabilities, softmax_select  # noqa: F401
 from .som import grid_coords
 
 
@@ -48,16 +49,18 @@ class DynamicField(nn.Module):
         threshold: activity a unit must reach to win.
     """
 
+    # bounds of the parameters (keyword arguments of nn.functional.check_rate); schemas check with these
+    BOUNDS = {"tau": dict(low=1.0), "h": dict(low=-math.inf), "a_exc": {}, "sigma_exc": dict(open_low=True),
+              "a_inh": {}, "threshold": dict(open_low=True)}
+
     def __init__(self, shape: Sequence[int], tau: float = 10.0, h: float = 0.0, a_exc: float = 0.6,
                  sigma_exc: float = 1.5, a_inh: float = 0.15, threshold: float = 0.9, name: str = "") -> None:
         super().__init__()
         self.shape = tuple(int(s) for s in shape)
-        self.tau = check_rate("tau", tau, low=1.0)
-        self.h = float(h)
-        self.a_exc = check_rate("a_exc", a_exc)
-        self.sigma_exc = check_rate("sigma_exc", sigma_exc, open_low=True)
-        self.a_inh = check_rate("a_inh", a_inh)
-        self.threshold = check_rate("threshold", threshold, open_low=True)
+        ok = check_bounds(self.BOUNDS, dict(tau=tau, h=h, a_exc=a_exc, sigma_exc=sigma_exc, a_inh=a_inh,
+                                            threshold=threshold))
+        self.tau, self.h, self.a_exc = ok["tau"], ok["h"], ok["a_exc"]
+        self.sigma_exc, self.a_inh, self.threshold = ok["sigma_exc"], ok["a_inh"], ok["threshold"]
         self.name = name
         g = grid_coords(self.shape)
         d2 = ((g.unsqueeze(0) - g.unsqueeze(1)) ** 2).sum(-1)
@@ -116,17 +119,16 @@ class LeakyCompetingAccumulator(nn.Module):
             (0 = deterministic).
     """
 
+    BOUNDS = {"k": {}, "w": {}, "threshold": dict(open_low=True), "dt": dict(open_low=True, high=1.0), "noise": {}}
+
     def __init__(self, n: int = 2, k: float = 0.2, w: float = 0.5, threshold: float = 1.2, dt: float = 0.1,
                  noise: float = 0.0, name: str = "") -> None:
         super().__init__()
         if n < 2:
             raise ValueError(f"n must be >= 2 options, got {n}")
         self.n = int(n)
-        self.k = check_rate("k", k)
-        self.w = check_rate("w", w)
-        self.threshold = check_rate("threshold", threshold, open_low=True)
-        self.dt = check_rate("dt", dt, open_low=True, high=1.0)
-        self.noise = check_rate("noise", noise)
+        ok = check_bounds(self.BOUNDS, dict(k=k, w=w, threshold=threshold, dt=dt, noise=noise))
+        self.k, self.w, self.threshold, self.dt, self.noise = (ok[n] for n in ("k", "w", "threshold", "dt", "noise"))
         self.name = name
 
     def initial_state(self, batch: Sequence[int]) -> torch.Tensor:

@@ -36,6 +36,20 @@ def check_rate(name: str, value: float, low: float = 0.0, high: float | None = N
     return v
 
 
+def check_bounds(bounds: dict, values: dict, names: dict | None = None) -> dict:
+    """:func:`check_rate` of each of ``values`` with its entry of ``bounds`` (keyword arguments of
+    :func:`check_rate`); an error names ``names[key]`` (e.g. the config key a block's parameter
+    comes from), so a schema and the block it feeds share one set of bounds."""
+    names = names or {}
+    out = {}
+    for key, value in values.items():
+        try:
+            out[key] = check_rate(names.get(key, key), value, **bounds[key])
+        except TypeError:
+            raise ValueError(f"{names.get(key, key)} must be a number, got {value!r}") from None
+    return out
+
+
 def check_tensor(name: str, x: torch.Tensor, last_dims: Sequence[int] | None = None, finite: bool = True) -> torch.Tensor:
     """Raise ValueError naming ``name`` if ``x`` is not a tensor, has the wrong trailing shape or NaNs."""
     if not isinstance(x, torch.Tensor):

@@ -1,0 +1,166 @@
+"""Checks a run's whole configuration before any work starts.
+
+:func:`check_run` refuses, with one :class:`~neuroimagery.errors.UserInputError` naming the key or
+the file,
+
+- a number that is not finite (``nan`` slips through every range check written as a
+  comparison, ``inf`` through every lower bound);
+- a key set to something other than its default that has no effect in this experiment or with
+  these options (:func:`ineffective`), so a misplaced setting never passes silently;
+- a stimulus folder that cannot be used (unreadable or oversized images, no shape found, too
+  few objects), before any training.
+
+Whether a key was "set" is judged against the schema's defaults (the dataclasses), so a run
+composed by Hydra and a :class:`~neuroimagery.config.Config` built in Python are checked alike.
+An experiment module may add its own rules with ``ineffective_keys(conf) -> {key: reason}`` and
+declare ``INPUTS`` (the groups of what it sees: ``vision``, ``stimuli``) and ``MIN_OBJECTS``
+(how many shapes a user folder must hold).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any
+
+from .errors import UserInputError
+from .manifest import flatten
+
+MAX_IMAGE_SIDE = 4096  # pixels: a larger user image is refused by name (decoding it costs memory)
+MAX_FOLDER_IMAGES = 500  # images in one user stimulus folder
+CAMERA_KEYS = ("robot_model", "eye", "image_width", "image_height", "fov_deg", "screen_distance",
+               "object_width", "gaze_jitter_deg")
+
+
+def check_finite(conf: Any) -> None:
+    """Every float of ``conf`` (a dataclass, mapping or DictConfig) is finite."""
+    for key, value in _leaves(conf):
+        for v in value if isinstance(value, list) else [value]:
+            if isinstance(v, float) and not math.isfinite(v):
+                raise UserInputError(f"{key} must be a finite number, got {v}")
+
+
+def _leaves(conf: Any):
+    try:
+        from omegaconf import DictConfig, OmegaConf
+
+        if isinstance(conf, DictConfig):
+            conf = OmegaConf.to_container(conf, resolve=False, throw_on_missing=False)
+            conf.pop("hydra", None)
+    except ImportError:  # pragma: no cover
+        pass
+    return flatten(conf).items()
+
+
+def _defaults(obj: Any, prefix: str) -> dict[str, Any]:
+    out = {}
+    for f in dataclasses.fields(obj):
+        if f.default is not dataclasses.MISSING:
+            d = f.default
+        elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
+            d = f.default_factory()  # type: ignore[misc]
+        else:
+            continue
+        if dataclasses.is_dataclass(d):
+            out.update(_defaults(d, f"{prefix}{f.name}."))
+        else:
+            out[f"{prefix}{f.name}"] = d
+    return out
+
+
+def user_set(conf) -> dict[str, Any]:
+    """The keys of ``conf`` whose values differ from the schema's defaults."""
+    from .config import Config
+
+    defaults = _defaults(Config(experiment=None), "")  # type: ignore[arg-type]
+    defaults.pop("experiment", None)
+    defaults.update(_defaults(conf.experiment, "experiment."))
+    values = flatten(conf)
+    return {k: v for k, v in values.items() if k in defaults and _differs(v, defaults[k])}
+
+
+def _differs(a: Any, b: Any) -> bool:
+    if isinstance(a, (list, tuple)) or isinstance(b, (list, tuple)):
+        return list(a) != list(b)
+    return a != b
+
+
+def ineffective(conf, module) -> dict[str, str]:
+    """``{key: why it has no effect}`` for every key of this run that does nothing here."""
+    name = conf.experiment.name
+    inputs = getattr(module, "INPUTS", ())
+    out: dict[str, str] = {}
+    if "vision" not in inputs:
+        out.update({f"vision.{f.name}": f"{name} does not see through the eye"
+                    for f in dataclasses.fields(conf.vision)})
+    else:
+        out["vision.size"] = (f"{name} sets the size of its edge maps itself"
+                              + (" (experiment.map_size)" if hasattr(conf.experiment, "map_size") else " (32)"))
+        if conf.vision.kind == "direct":
+            out.update({f"vision.{k}": "it acts on the camera path only (vision=camera)" for k in CAMERA_KEYS})
+    if "stimuli" not in inputs:
+        out.update({f"stimuli.{f.name}": f"{name} has no stimulus sets" for f in dataclasses.fields(conf.stimuli)})
+    elif conf.stimuli.kind == "builtin":
+        out["stimuli.path"] = "it is read with stimuli=folder only"
+    if conf.logger.kind == "none":
+        out["logger.map_images"] = "logger=none writes no TensorBoard files"  # sample_trials also feeds figures
+    if conf.preset == "full":
+        out.update({f"experiment.{f.name}": "it acts with preset=quick only"
+                    for f in dataclasses.fields(conf.experiment) if f.name.startswith("quick_")})
+    if conf.threads and hasattr(conf.experiment, "auto_threads"):
+        out["experiment.auto_threads"] = "it acts only when threads=0"
+    extra = getattr(module, "ineffective_keys", None)
+    if extra is not None:
+        out.update(extra(conf))
+    return out
+
+
+def check_ineffective(conf, module) -> None:
+    """Refuse every key set away from its default that has no effect in this run."""
+    bad = ineffective(conf, module)
+    hits = [f"{k}={v!r} has no effect: {bad[k]}" for k, v in user_set(conf).items() if k in bad]
+    if hits:
+        raise UserInputError("; ".join(hits))
+
+
+def check_stimulus_folder(conf, module) -> None:
+    """Load a user stimulus folder now, so a bad one is refused before any training."""
+    if "stimuli" not in getattr(module, "INPUTS", ()) or conf.stimuli.kind != "folder":
+        return
+    from .vision.stimulus_sets import IMAGE_SUFFIXES, load_folder
+
+    folder = Path(conf.stimuli.path)
+    if not folder.is_dir():
+        raise UserInputError(f"stimuli.path {str(folder)!r} is not a folder")
+    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+    if len(files) > MAX_FOLDER_IMAGES:
+        raise UserInputError(f"stimulus folder {folder} holds {len(files)} images; at most {MAX_FOLDER_IMAGES}")
+    for f in files:
+        w, h = image_size(f)
+        if max(w, h) > MAX_IMAGE_SIDE:
+            raise UserInputError(f"image {f} is {w} x {h} pixels; at most {MAX_IMAGE_SIDE} x {MAX_IMAGE_SIDE}")
+    sset = load_folder(folder)
+    need = getattr(module, "MIN_OBJECTS", 1)
+    if len(sset.objects) < need:
+        raise UserInputError(f"stimulus folder {folder} holds {len(sset.objects)} shape(s); "
+                             f"{conf.experiment.name} needs at least {need} (a shape and its mirror)")
+
+
+def image_size(path: Path) -> tuple[int, int]:
+    """Width and height of an image from its header alone (nothing is decoded)."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as im:
+            return im.size
+    except (UnidentifiedImageError, OSError, ValueError) as err:
+        raise UserInputError(f"cannot read image {path}: not a valid PNG or JPEG file ({err})") from None
+    except Image.DecompressionBombError:
+        raise UserInputError(f"image {path} is too large to decode") from None
+
+
+def check_run(conf, module) -> None:
+    """Every check of this module, cheapest first."""
+    check_finite(conf)
+    check_ineffective(conf, module)
+    check_stimulus_folder(conf, module)
