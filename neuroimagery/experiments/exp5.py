@@ -38,6 +38,7 @@ from ..models.tool_use import (CHOICES, EVENTS, N_POSTURES, AcquisitionConfig, L
                                build_brain, sequence_trial)
 from ..nn.seeding import participant_seed
 from ..robot.config import POSTURE_4, WorldConfig
+from . import exp5_tasks as task_files
 
 SITUATIONS = {"behind": 1, "far": 4}  # thesis: posture 1 = tool behind toy, posture 4 = tool far from toy
 THESIS = {  # read off Fig. 7.9-7.10 and the text of section 7.1.3 (approximate)
@@ -442,9 +443,7 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
     timing.update({k: v for k, v in getattr(env, "timing", {}).items()})
     out = dict(task=task, rows=rows, library=lib.to_state(), film=film, timing=timing, config=asdict(e), seed=seed)
     if path is not None:
-        tmp = Path(str(path) + ".tmp")
-        torch.save(out, tmp)
-        tmp.replace(path)
+        task_files.save(out, path)
     return out
 
 
@@ -455,13 +454,10 @@ def _task_path(run_or_dir, key: str) -> Path:
 
 
 def _stored(path: Path) -> dict | None:
-    if not path.exists():
-        return None
-    try:
-        d = torch.load(path, map_location="cpu", weights_only=False)
-    except Exception:
-        return None
-    if not isinstance(d.get("config"), dict):
+    """The task file at ``path`` (None if absent); one that is not plain data or not a task file
+    is refused (:func:`exp5_tasks.read_task`)."""
+    d = task_files.read_task(path)
+    if d is None:
         return None
     # written before these keys existed: their values then
     d["config"] = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, "c3_outcomes": "success",
@@ -522,7 +518,7 @@ def train(cfg, run) -> dict:
             run.logger.scalar("train/task_s", res["timing"]["task_s"], len(done))
     bar.close()
     done.sort(key=lambda d: d["task"]["key"])
-    run.save_checkpoint("exp5_index", {"keys": [d["task"]["key"] for d in done], "seed": cfg.seed})
+    task_files.save({"keys": [d["task"]["key"] for d in done], "seed": cfg.seed}, run.checkpoints / "exp5_index.pt")
     return {"results": done, "read_back": read_back,
             "libraries_reused": sum(v is not None for v in libraries.values())}
 
