@@ -123,3 +123,92 @@ def test_a_failed_write_names_the_path_and_keeps_the_tasks_finished_before(tmp_p
     assert one_error_line(capsys) == f"error: cannot write {second}: No space left on device\n"
     assert exp5_tasks.read_task(first)["task"]["key"] == "rep000_behind" and not second.exists()
     assert not list((tmp_path / "checkpoints").glob("*.tmp"))  # the temporary name is cleared
+
+
+# ---------------------------------------------------------------------------------- interrupts
+def test_only_temporary_files_of_finished_writers_are_removed(tmp_path):
+    gone = subprocess.Popen([sys.executable, "-c", ""])
+    gone.wait()
+    stale = tmp_path / f"exp5_rep000_far.pt.{gone.pid}.tmp"
+    live = exp5_tasks.tmp_path(tmp_path / "exp5_rep001_far.pt")  # this process's: still being written
+    other = tmp_path / f"notes.txt.{gone.pid}.tmp"  # not a task file
+    for p in (stale, live, other):
+        p.write_bytes(b"x")
+    assert exp5_tasks.remove_stale(tmp_path) == [stale]
+    assert live.exists() and other.exists() and not stale.exists()
+
+
+def test_sigterm_becomes_a_keyboard_interrupt_and_the_handler_is_restored(capsys):
+    def stopped_by_sigterm():
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)
+        pytest.fail("SIGTERM did not interrupt")
+
+    before = signal.getsignal(signal.SIGTERM)
+    with pytest.raises(SystemExit) as ex:
+        friendly_errors(stopped_by_sigterm)()
+    assert ex.value.code == 130 and capsys.readouterr().err.startswith("interrupted:")
+    assert signal.getsignal(signal.SIGTERM) is before
+
+
+def _loky_workers() -> list[int]:
+    """Pids of this process's children that are joblib (loky) workers."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            ppid = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+            cmd = (stat.parent / "cmdline").read_bytes()
+        except (OSError, IndexError, ValueError):
+            continue
+        if ppid == os.getpid() and b"popen_loky" in cmd:
+            out.append(int(stat.parent.name))
+    return out
+
+
+@pytest.fixture(scope="module")
+def two_rep_reference(tmp_path_factory):
+    """individuals.csv of an uninterrupted run of 4 tasks (2 repetitions x 2 situations)."""
+    d = tmp_path_factory.mktemp("ref")
+    R.evaluate(compose("experiment.quick_repetitions=2"), out_dir=d)
+    return pd.read_csv(d / "individuals.csv")
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads child processes from /proc")
+@pytest.mark.parametrize("how", ["sigterm", "interrupt in the result loop"])
+def test_an_interrupted_run_stops_its_workers_and_the_rerun_gives_the_same_rows(tmp_path, monkeypatch, how,
+                                                                                 two_rep_reference):
+    ck = tmp_path / "checkpoints"
+    parallel = compose("experiment.quick_repetitions=2", "experiment.n_jobs=2")
+    if how == "sigterm":  # once the first task is on disk, as `kill -TERM <pid>` would
+        def terminate():
+            deadline = time.monotonic() + 120
+            while not any(ck.glob("exp5_rep*.pt")) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            os.kill(os.getpid(), signal.SIGTERM)
+
+        threading.Thread(target=terminate, daemon=True).start()
+        with pytest.raises(SystemExit) as ex:
+            friendly_errors(R.evaluate)(parallel, out_dir=tmp_path)
+        assert ex.value.code == 130
+    else:  # the interrupt lands while the main process handles the first result
+        import tqdm.auto
+
+        class Bar(tqdm.auto.tqdm):
+            def update(self, n=1):
+                raise KeyboardInterrupt
+
+        monkeypatch.setattr(tqdm.auto, "tqdm", Bar)
+        # the caught exception keeps train's frame alive: the workers must not wait for its
+        # Parallel generator to be garbage-collected
+        with pytest.raises(KeyboardInterrupt) as ex:
+            R.evaluate(parallel, out_dir=tmp_path)
+        monkeypatch.undo()
+    deadline = time.monotonic() + 3
+    while _loky_workers() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _loky_workers() == [] and ex.value is not None
+    kept = sorted(ck.glob("exp5_rep*.pt"))
+    assert 1 <= len(kept) < 4 and not list(ck.glob("*.tmp"))
+    again = R.evaluate(compose("experiment.quick_repetitions=2"), out_dir=tmp_path)
+    assert again["cost"]["tasks_read_back"] == len(kept)
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "individuals.csv"), two_rep_reference)

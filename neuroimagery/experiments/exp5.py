@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import importlib
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -496,6 +497,7 @@ def train(cfg, run) -> dict:
     from tqdm.auto import tqdm
 
     e = _exp(cfg)
+    task_files.remove_stale(run.checkpoints)  # left by workers stopped while writing
     todo, done, libraries = [], [], {}
     for t in tasks(cfg):
         d = _stored(_task_path(run, t["key"]))  # each checkpoint is read once
@@ -512,10 +514,17 @@ def train(cfg, run) -> dict:
     if todo:
         jobs = (delayed(run_task)(e, cfg.seed, t, str(_task_path(run, t["key"])), libraries[t["key"]]) for t in todo)
         results = Parallel(n_jobs=min(e.n_jobs, len(todo)), return_as="generator_unordered")(jobs)
-        for res in results:
-            done.append(res)
-            bar.update(1)
-            run.logger.scalar("train/task_s", res["timing"]["task_s"], len(done))
+        try:
+            for res in results:
+                done.append(res)
+                bar.update(1)
+                run.logger.scalar("train/task_s", res["timing"]["task_s"], len(done))
+        except BaseException:  # an interrupt (SIGINT, SIGTERM) or a failed task: finished tasks stay on disk
+            with warnings.catch_warnings():  # joblib's note on the tasks it cancels
+                warnings.simplefilter("ignore", UserWarning)
+                results.close()  # joblib kills the workers still running (loky: terminate(kill_workers=True))
+            task_files.remove_stale(run.checkpoints)
+            raise
     bar.close()
     done.sort(key=lambda d: d["task"]["key"])
     task_files.save({"keys": [d["task"]["key"] for d in done], "seed": cfg.seed}, run.checkpoints / "exp5_index.pt")
