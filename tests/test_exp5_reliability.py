@@ -212,3 +212,52 @@ def test_an_interrupted_run_stops_its_workers_and_the_rerun_gives_the_same_rows(
     again = R.evaluate(compose("experiment.quick_repetitions=2"), out_dir=tmp_path)
     assert again["cost"]["tasks_read_back"] == len(kept)
     pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "individuals.csv"), two_rep_reference)
+
+
+# ---------------------------------------------------------------------------------- pooling broken runs
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory):
+    d = tmp_path_factory.mktemp("run")
+    R.evaluate(compose(), out_dir=d)
+    return d
+
+
+def _cut_rows(text: str) -> str:
+    return "".join(text.splitlines(keepends=True)[:-3])
+
+
+@pytest.mark.parametrize("damage, why", [
+    (lambda text: text.splitlines(keepends=True)[0], "no rows (header only)"),
+    (_cut_rows, "rows, but summary.json counts"),
+    (lambda text: text[:-20], "cut short"),
+    (lambda text: text.replace(",reactive,", ",planning,", 1), "group hp1 2 behind"),
+    (lambda text: text.replace(",far,", ",behind,"), "rows, success rate"),
+    (b"\x80PK\x03\x04 binary\x00\xff\n", "not a readable CSV file"),
+    ("", "empty file"),
+], ids=["header only", "rows cut", "last line cut", "group changed", "situation changed", "not CSV", "empty"])
+def test_pool_refuses_rows_that_do_not_match_the_summary(tmp_path, capsys, finished_run, damage, why):
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    csv = run / "individuals.csv"
+    if isinstance(damage, bytes):
+        csv.write_bytes(damage)
+    else:
+        csv.write_text(damage if isinstance(damage, str) else damage(csv.read_text()))
+    with pytest.raises(SystemExit) as ex:
+        friendly_errors(exp5_pool.main)([str(run)])
+    assert ex.value.code == 2
+    err = one_error_line(capsys)
+    assert err.startswith(f"error: {csv}: ") and why in err
+
+
+def test_pool_accepts_a_whole_run_and_refuses_one_without_its_summary(tmp_path, capsys, finished_run):
+    summary, df = exp5_pool.pool([finished_run])
+    assert len(df) == sum(g["n"] for g in summary["groups"]) == 2 * 2 * 4
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    (run / "summary.json").unlink()
+    with pytest.raises(UserInputError, match="no summary.json"):
+        exp5_pool.pool([run])
+    (run / "summary.json").write_text("{not json")
+    with pytest.raises(UserInputError, match="summary.json: cannot read its groups"):
+        exp5_pool.pool([run])
