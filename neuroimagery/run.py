@@ -113,7 +113,7 @@ class RunDir:
         run's manifest and a hash of the stored tensors under ``"manifest"``."""
         if self.manifest is not None:
             state = {**state, "manifest": {**self.manifest, "tensor_hash": mf.tensor_hash(state)}}
-        return self._atomic(self.checkpoints / f"{name}.pt", lambda p: torch.save(state, p))
+        return self._atomic(self.checkpoints / f"{name}.pt", lambda p: _torch_save(state, p))
 
     def write_json(self, name: str, data: Any) -> Path:
         text = json.dumps(data, indent=2, sort_keys=False, default=_json_default) + "\n"
@@ -124,6 +124,12 @@ class RunDir:
 
     def close(self) -> None:
         self.logger.close()
+
+
+def _torch_save(state, path: Path) -> None:
+    # a file opened here: torch.save given a path reports a failed write as RuntimeError, not OSError
+    with open(path, "wb") as f:
+        torch.save(state, f)
 
 
 def _hydra_overrides():

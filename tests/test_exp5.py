@@ -363,7 +363,7 @@ def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
     tb = EventAccumulator(str(tmp_path / "tb"), size_guidance={"images": 0}).Reload()
     images = tb.Tags()["images"]
     film = torch.load(next(p for p in (tmp_path / "checkpoints").glob("exp5_rep*.pt")
-                           if torch.load(p, weights_only=False).get("film")), weights_only=False)["film"]
+                           if torch.load(p, weights_only=True).get("film")), weights_only=True)["film"]
     assert len(tb.Images("film/real")) == len(film["frames"]) + 1 and len(tb.Images("film/imagined")) == len(film["frames"])
     assert {f"brain/{k}" for k in film["maps"]} <= set(images)
     assert any(t.startswith("brain/C3/") for t in images) and "brain/C1/retrieve" in images
@@ -489,7 +489,7 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
     path = exp5._task_path(tmp_path / "a", "rep000_far")
     assert exp5._valid(path, dataclasses.replace(e, n_jobs=3), 0) is not None
     assert exp5._valid(path, dataclasses.replace(e, eta=0.01), 0) is None
-    d = torch.load(path, weights_only=False)  # a checkpoint written before c3_outcomes existed is still read back
+    d = torch.load(path, weights_only=True)  # a checkpoint written before c3_outcomes existed is still read back
     del d["config"]["c3_outcomes"]
     torch.save(d, path)
     assert exp5._valid(path, e, 0) is not None

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import importlib
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -38,6 +39,7 @@ from ..models.tool_use import (CHOICES, EVENTS, N_POSTURES, AcquisitionConfig, L
                                build_brain, sequence_trial)
 from ..nn.seeding import participant_seed
 from ..robot.config import POSTURE_4, WorldConfig
+from . import exp5_tasks as task_files
 
 SITUATIONS = {"behind": 1, "far": 4}  # thesis: posture 1 = tool behind toy, posture 4 = tool far from toy
 THESIS = {  # read off Fig. 7.9-7.10 and the text of section 7.1.3 (approximate)
@@ -230,6 +232,8 @@ def ineffective_keys(cfg) -> dict[str, str]:
     if cfg.preset == "quick":
         out["experiment.repetitions"] = "preset=quick runs experiment.quick_repetitions"
     return out
+
+
 STRATEGIES = ("reactive", "planning")
 
 
@@ -455,9 +459,7 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
     timing.update({k: v for k, v in getattr(env, "timing", {}).items()})
     out = dict(task=task, rows=rows, library=lib.to_state(), film=film, timing=timing, config=asdict(e), seed=seed)
     if path is not None:
-        tmp = Path(str(path) + ".tmp")
-        torch.save(out, tmp)
-        tmp.replace(path)
+        task_files.save(out, path)
     return out
 
 
@@ -468,13 +470,10 @@ def _task_path(run_or_dir, key: str) -> Path:
 
 
 def _stored(path: Path) -> dict | None:
-    if not path.exists():
-        return None
-    try:
-        d = torch.load(path, map_location="cpu", weights_only=False)
-    except Exception:
-        return None
-    if not isinstance(d.get("config"), dict):
+    """The task file at ``path`` (None if absent); one that is not plain data or not a task file
+    is refused (:func:`exp5_tasks.read_task`)."""
+    d = task_files.read_task(path)
+    if d is None:
         return None
     # written before these keys existed: their values then
     d["config"] = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, "c3_outcomes": "success",
@@ -513,6 +512,7 @@ def train(cfg, run) -> dict:
     from tqdm.auto import tqdm
 
     e = _exp(cfg)
+    task_files.remove_stale(run.checkpoints)  # left by workers stopped while writing
     todo, done, libraries = [], [], {}
     for t in tasks(cfg):
         d = _stored(_task_path(run, t["key"]))  # each checkpoint is read once
@@ -529,10 +529,17 @@ def train(cfg, run) -> dict:
     if todo:
         jobs = (delayed(run_task)(e, cfg.seed, t, str(_task_path(run, t["key"])), libraries[t["key"]]) for t in todo)
         results = Parallel(n_jobs=min(e.n_jobs, len(todo)), return_as="generator_unordered")(jobs)
-        for res in results:
-            done.append(res)
-            bar.update(1)
-            run.logger.scalar("train/task_s", res["timing"]["task_s"], len(done))
+        try:
+            for res in results:
+                done.append(res)
+                bar.update(1)
+                run.logger.scalar("train/task_s", res["timing"]["task_s"], len(done))
+        except BaseException:  # an interrupt (SIGINT, SIGTERM) or a failed task: finished tasks stay on disk
+            with warnings.catch_warnings():  # joblib's note on the tasks it cancels
+                warnings.simplefilter("ignore", UserWarning)
+                results.close()  # joblib kills the workers still running (loky: terminate(kill_workers=True))
+            task_files.remove_stale(run.checkpoints)
+            raise
     bar.close()
     done.sort(key=lambda d: d["task"]["key"])
     run.save_checkpoint("exp5_index", {"keys": [d["task"]["key"] for d in done], "seed": cfg.seed})

@@ -12,12 +12,14 @@ prints the pooled table and claims (a Hydra sweep directory stands for its numbe
 ``--out`` also writes ``individuals.csv`` (with a ``run``
 column), ``summary.json`` and ``report.md`` into DIR. The runs must agree on every experiment
 setting except the engine's (``n_jobs``, ``reuse_libraries``, ``filmstrip_repetition``) and the
-number of repetitions, and must have distinct seeds.
+number of repetitions, and must have distinct seeds. A run whose ``individuals.csv`` does not hold
+the rows its ``summary.json`` counts (cut short, header only, not a CSV file) is refused.
 """
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import io
 import json
 from pathlib import Path
 
@@ -28,6 +30,7 @@ from ..analysis.report import Report
 from ..errors import UserInputError
 from .exp5 import _ENGINE_KEYS, STRATEGIES, Exp5Config, group_rates, summarise
 from .exp5_figures import group_table
+from .exp5_tasks import write_atomic
 
 # settings that may differ between pooled runs: how the work was spread, and how many robots
 _FREE_KEYS = _ENGINE_KEYS + ("filmstrip_repetition", "repetitions", "quick_repetitions")
@@ -39,7 +42,7 @@ def read_config(run_dir: str | Path) -> tuple[Exp5Config, int]:
     if not d.is_dir():
         raise UserInputError(f"{d}: no such run directory")
     cfg_path, csv_path = d / ".hydra" / "config.yaml", d / "individuals.csv"
-    for path in (cfg_path, csv_path):
+    for path in (cfg_path, csv_path, d / "summary.json"):
         if not path.is_file():
             raise UserInputError(f"{d}: no {path.relative_to(d)} (not a finished Exp. 5 run directory)")
     raw = OmegaConf.to_container(OmegaConf.load(cfg_path), resolve=True)
@@ -58,15 +61,68 @@ def read_config(run_dir: str | Path) -> tuple[Exp5Config, int]:
     return e, int(raw.get("seed", 0))
 
 
+GROUP = ["hypothesis", "level", "situation", "strategy"]
+NUMERIC = ("level", "age_months", "success", "n_skills")
+
+
+def read_rows(csv_path: Path) -> pd.DataFrame:
+    """The rows of one run's ``individuals.csv``, refused unless the file is whole: complete lines,
+    the columns pooling needs, at least one row, no empty group key or test result."""
+    try:
+        raw = csv_path.read_bytes()
+    except OSError as err:
+        raise UserInputError(f"{csv_path}: cannot read ({err.strerror or err})") from None
+    if not raw.strip():
+        raise UserInputError(f"{csv_path}: empty file")
+    try:
+        df = pd.read_csv(io.BytesIO(raw))
+    except ValueError as err:  # pandas' parser and decoding errors
+        raise UserInputError(f"{csv_path}: not a readable CSV file ({str(err).strip().splitlines()[0]})") from None
+    need = {*GROUP, *NUMERIC, "test_actions"}
+    missing = sorted(need - set(df.columns))
+    if missing:
+        raise UserInputError(f"{csv_path}: missing columns {', '.join(missing)}")
+    if not raw.endswith(b"\n"):  # pandas ends every row with one
+        raise UserInputError(f"{csv_path}: cut short (the last line is incomplete)")
+    if df.empty:
+        raise UserInputError(f"{csv_path}: no rows (header only)")
+    for col in NUMERIC:
+        if not pd.api.types.is_numeric_dtype(df[col]):
+            raise UserInputError(f"{csv_path}: column {col} is not numeric")
+    empty = df[[*GROUP, *NUMERIC]].isna().any(axis=1)
+    if empty.any():
+        raise UserInputError(f"{csv_path}: line {int(empty.to_numpy().argmax()) + 2} has empty fields")
+    return df
+
+
+def check_rows(df: pd.DataFrame, csv_path: Path, summary_path: Path) -> None:
+    """Refuse rows that are not the ones ``summary.json`` was computed from: the number of rows of
+    every group and its success rate must be the summary's."""
+    try:
+        groups = json.loads(summary_path.read_text())["groups"]
+        stated = {(g["hypothesis"], int(g["level"]), g["situation"], g["strategy"]): (int(g["n"]), g["success_rate"])
+                  for g in groups}
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise UserInputError(f"{summary_path}: cannot read its groups ({type(err).__name__}: {err})") from None
+    total = sum(n for n, _ in stated.values())
+    if len(df) != total:
+        raise UserInputError(f"{csv_path}: {len(df)} rows, but {summary_path.name} counts {total} "
+                             "(cut short, or not this run's rows)")
+    have = {(h, int(lv), si, st): (len(g), round(float(g["success"].mean()), 4))
+            for (h, lv, si, st), g in df.groupby(GROUP, sort=False)}
+    for key in sorted(set(stated) | set(have), key=str):
+        if have.get(key) != stated.get(key):
+            (n, rate), (n0, rate0) = have.get(key, (0, None)), stated.get(key, (0, None))
+            raise UserInputError(f"{csv_path}: group {' '.join(map(str, key))} has {n} rows, success rate {rate}; "
+                                 f"{summary_path.name} states {n0}, {rate0}")
+
+
 def read_run(run_dir: str | Path) -> tuple[Exp5Config, int, pd.DataFrame]:
     """The experiment settings, seed and individuals of one finished Exp. 5 run directory."""
     e, seed = read_config(run_dir)
     csv_path = Path(run_dir) / "individuals.csv"
-    df = pd.read_csv(csv_path)
-    need = {"hypothesis", "level", "age_months", "situation", "strategy", "success", "n_skills", "test_actions"}
-    missing = sorted(need - set(df.columns))
-    if missing:
-        raise UserInputError(f"{csv_path}: missing columns {', '.join(missing)}")
+    df = read_rows(csv_path)
+    check_rows(df, csv_path, Path(run_dir) / "summary.json")
     return e, seed, df
 
 
@@ -158,10 +214,13 @@ def main(argv: list[str] | None = None) -> None:
     print(rep.text())
     if args.out:
         out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        df.to_csv(out / "individuals.csv", index=False)
-        (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-        rep.write(out / "report.md")
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise UserInputError(f"--out: cannot create {out} ({err.strerror or err})") from None
+        write_atomic(out / "individuals.csv", lambda tmp: df.to_csv(tmp, index=False))
+        write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
+        write_atomic(out / "report.md", lambda tmp: tmp.write_text(rep.text()))
         print(f"pooled report: {out / 'report.md'}")
 
 
