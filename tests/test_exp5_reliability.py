@@ -36,10 +36,24 @@ def compose(*overrides):
     return make_cfg("experiment=exp5", *ARGS, *overrides)
 
 
+def as_run_of(d: Path, cfg, keys=()) -> None:
+    """Make ``d`` a run directory of ``cfg`` (its manifest, and an index of ``keys`` when given), as a
+    run that was stopped or finished would have left it."""
+    from neuroimagery import manifest as mf
+    from neuroimagery.config import validate
+
+    conf = validate(cfg)
+    rd = R.RunDir(d, conf, manifest=mf.build(conf, exp5))
+    if keys:
+        rd.save_checkpoint("exp5_index", {"keys": list(keys), "seed": conf.seed})
+
+
 def one_error_line(capsys) -> str:
-    err = capsys.readouterr().err
-    assert err.startswith("error: ") and err.count("\n") == 1, err
-    return err
+    """The one ``error:`` line on stderr (``note:`` lines, e.g. that a run resumes, may come before)."""
+    lines = capsys.readouterr().err.splitlines()
+    errors = [ln for ln in lines if ln.startswith("error: ")]
+    assert len(errors) == 1 and all(ln.startswith(("error: ", "note: ")) for ln in lines), lines
+    return errors[0] + "\n"
 
 
 # ---------------------------------------------------------------------------------- planted files
@@ -72,9 +86,13 @@ def test_a_planted_task_file_is_refused_and_nothing_in_it_runs(tmp_path, capsys,
     marker, run, other = tmp_path / "ran", tmp_path / "run", tmp_path / "other"
     key = "rep000_behind" if where == "checkpoint" else "rep000_far"  # checkpoint= reads in task order
     planted = exp5._task_path(run if where == "resumed run" else other, key)
-    plant(planted, marker)
     extra = {"resumed run": (), "reuse_libraries": (f"experiment.reuse_libraries={other}",),
              "checkpoint": (f"checkpoint={other}",)}[where]
+    if where == "resumed run":
+        as_run_of(run, compose())
+    elif where == "checkpoint":
+        as_run_of(other, compose(), keys=[t["key"] for t in exp5.tasks(R.validate(compose()))])
+    plant(planted, marker)
     with pytest.raises(SystemExit) as ex:
         friendly_errors(R.evaluate)(compose(*extra), out_dir=run)
     assert ex.value.code == 2
@@ -92,7 +110,7 @@ def test_a_planted_task_file_is_refused_and_nothing_in_it_runs(tmp_path, capsys,
 ])
 def test_a_broken_task_file_is_refused_naming_it(tmp_path, content, why):
     path = exp5._task_path(tmp_path, "rep000_behind")
-    path.parent.mkdir(parents=True)
+    as_run_of(tmp_path, compose())
     if content == "list":
         torch.save([1, 2], path)
     else:
