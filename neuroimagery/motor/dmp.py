@@ -27,6 +27,8 @@ import math
 
 import torch
 
+from ..nn.functional import checks_enabled
+
 # Largest joint displacement (rad) of a movement's goal from its start posture: a skill is a
 # movement from where the arm is, not a jump to anywhere in the joint range (docs/robot.md).
 MAX_GOAL_OFFSET_RAD = 0.15
@@ -94,14 +96,14 @@ class DMP(torch.nn.Module):
             theta = theta.unsqueeze(0)
         if theta.dim() != 2 or theta.shape[1] != self.n_params:
             raise ValueError(f"theta must have shape (N, {self.n_params}), got {tuple(theta.shape)}")
-        if not torch.isfinite(theta).all():
+        if checks_enabled(theta) and not torch.isfinite(theta).all():
             raise ValueError("DMP parameters theta contain NaN or inf")
-        y0 = torch.as_tensor(y0, dtype=theta.dtype)
+        y0 = torch.as_tensor(y0, dtype=theta.dtype, device=theta.device)
         if y0.dim() == 1:
             y0 = y0.expand(len(theta), -1)
         if y0.shape != (len(theta), self.n_joints):
             raise ValueError(f"y0 must have shape ({len(theta)}, {self.n_joints}) or ({self.n_joints},)")
-        if not torch.isfinite(y0).all():
+        if checks_enabled(y0) and not torch.isfinite(y0).all():
             raise ValueError("DMP start y0 contains NaN or inf")
         if not (duration_s > 0 and dt > 0 and dt <= duration_s):
             raise ValueError(f"need 0 < dt <= duration_s, got dt={dt}, duration_s={duration_s}")
@@ -138,10 +140,10 @@ class DMP(torch.nn.Module):
         tau = float(duration_s)
         steps = int(round(duration_s / dt))
         y, v = y0.clone(), torch.zeros_like(y0)  # v = dy/dt
-        out = torch.empty(len(theta), steps + 1, self.n_joints, dtype=theta.dtype)
+        out = theta.new_empty(len(theta), steps + 1, self.n_joints)
         out[:, 0] = y
         k, c = self.alpha_v * self.beta_v / tau**2, self.alpha_v / tau
-        ts = torch.arange(steps, dtype=theta.dtype) * dt
+        ts = torch.arange(steps, dtype=theta.dtype, device=theta.device) * dt
         xs = self.phase(ts, tau)
         psi = torch.exp(-self.widths.to(theta.dtype) * (xs[:, None] - self.centres.to(theta.dtype)) ** 2)  # (S, B)
         shape = torch.einsum("sb,njb->snj", psi / psi.sum(-1, keepdim=True), w)  # (S, N, J)

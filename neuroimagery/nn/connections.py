@@ -22,7 +22,7 @@ import torch
 from torch import nn
 
 from . import seeding
-from .functional import as_batched, check_tensor, gain_field, transfer
+from .functional import as_batched, check_tensor, checks_enabled, gain_field, transfer
 from .rules import Rule
 
 
@@ -88,11 +88,12 @@ class Connection(nn.Module):
             if key in kw and kw[key] is not None:
                 kw[key], _ = as_batched(kw[key], self.n_out, key)
         if len(self.rules) == 1 and _applies_in_place(self.rules[0]) and not return_delta:
-            # one rule: let it update the weights in place (same numbers, fewer passes over memory)
-            self.rules[0].apply_(self.weight, pre=pre_b, post=post, **kw)  # inputs were checked finite
+            # one rule: let it update the weights in place (same numbers, fewer passes over memory);
+            # the inputs were checked finite (while value checks run)
+            self.rules[0].apply_(self.weight, pre=pre_b, post=post, **kw)
             return None
         total = sum(rule.delta(self.weight, pre=pre_b, post=post, **kw) for rule in self.rules)
-        if not torch.isfinite(total).all():
+        if checks_enabled(total) and not torch.isfinite(total).all():
             raise FloatingPointError(f"connection {self.name!r}: learning produced non-finite weights")
         self.weight.add_(total)
         return total

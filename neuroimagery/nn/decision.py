@@ -2,6 +2,8 @@
 competing accumulator (eq. 6.12-6.13) and softmax selection (eq. 6.3, 6.11, 7.7).
 
 One cycle of either dynamics is one simulated millisecond of response time (thesis chapter 5).
+Both compute on their input's device and in its dtype. A race stops once every element has
+decided; on the ``meta`` device, where there are no values to look at, it runs all its cycles.
 """
 from __future__ import annotations
 
@@ -12,8 +14,8 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from .functional import check_bounds, check_rate, check_tensor, softmax_probabilities, softmax_select  # noqa: F401
-from .som import grid_coords
+from .functional import (check_bounds, check_rate, check_tensor, grid_coords,  # noqa: F401
+                         softmax_probabilities, softmax_select)
 
 
 @dataclass
@@ -70,7 +72,7 @@ class DynamicField(nn.Module):
     def step(self, u: torch.Tensor, s: torch.Tensor) -> torch.Tensor:
         """One Euler cycle for activity ``u`` and input ``s``, both ``(..., n)``."""
         f = u.clamp(0.0, 1.0)
-        return u + (-u + self.h + s + f @ self.kernel.T) / self.tau
+        return u + (-u + self.h + s + f @ self.kernel.to(dtype=u.dtype).T) / self.tau
 
     @torch.no_grad()
     def forward(self, s: torch.Tensor, max_cycles: int = 1000, u0: torch.Tensor | None = None) -> Decision:
@@ -81,14 +83,19 @@ class DynamicField(nn.Module):
         flat = s.reshape(*s.shape[: s.dim() - len(self.shape)], self.n)
         u = torch.full_like(flat, self.h) if u0 is None else u0.reshape(flat.shape).clone()
         batch = flat.shape[:-1]
-        winner = torch.full(batch, -1, dtype=torch.long)
-        cycles = torch.full(batch, max_cycles, dtype=torch.long)
-        done = torch.zeros(batch, dtype=torch.bool)
+        winner = torch.full(batch, -1, dtype=torch.long, device=s.device)
+        cycles = torch.full(batch, max_cycles, dtype=torch.long, device=s.device)
+        done = torch.zeros(batch, dtype=torch.bool, device=s.device)
+        early = s.device.type != "meta"  # stop once all decided (reads `done` on the host)
         for t in range(1, max_cycles + 1):
             u = self.step(u, flat)
             m, idx = u.max(-1)
             new = (m >= self.threshold) & ~done
-            if new.any():
+            if not early:
+                winner = torch.where(new, idx, winner)
+                cycles = torch.where(new, torch.full_like(cycles, t), cycles)
+                done = done | new
+            elif new.any():
                 winner = torch.where(new, idx, winner)
                 cycles = torch.where(new, torch.full_like(cycles, t), cycles)
                 done = done | new
@@ -131,8 +138,10 @@ class LeakyCompetingAccumulator(nn.Module):
         self.k, self.w, self.threshold, self.dt, self.noise = (ok[n] for n in ("k", "w", "threshold", "dt", "noise"))
         self.name = name
 
-    def initial_state(self, batch: Sequence[int]) -> torch.Tensor:
-        return torch.zeros(*batch, self.n)
+    def initial_state(self, batch: Sequence[int], device: torch.device | str | None = None,
+                      dtype: torch.dtype | None = None) -> torch.Tensor:
+        """Silent accumulators ``(*batch, n)`` (default: float32 on the CPU, as ``torch.zeros``)."""
+        return torch.zeros(*batch, self.n, device=device, dtype=dtype)
 
     @torch.no_grad()
     def forward(self, inputs: torch.Tensor, cycles: int, state: torch.Tensor | None = None,
@@ -145,21 +154,31 @@ class LeakyCompetingAccumulator(nn.Module):
         check_tensor("inputs", inputs, (self.n,))
         if cycles < 1:
             raise ValueError(f"cycles must be >= 1, got {cycles}")
-        y = self.initial_state(inputs.shape[:-1]) if state is None else state.clone()
+        dev = inputs.device
+        like = inputs.dtype if inputs.is_floating_point() else None
+        y = self.initial_state(inputs.shape[:-1], dev, like) if state is None else state.clone()
         batch = inputs.shape[:-1]
-        live = torch.ones(batch, dtype=torch.bool) if active is None else active.clone()
-        winner = torch.full(batch, -1, dtype=torch.long)
-        used = torch.full(batch, cycles, dtype=torch.long)
-        decided = torch.zeros(batch, dtype=torch.bool)
+        live = torch.ones(batch, dtype=torch.bool, device=dev) if active is None else active.clone()
+        winner = torch.full(batch, -1, dtype=torch.long, device=dev)
+        used = torch.full(batch, cycles, dtype=torch.long, device=dev)
+        decided = torch.zeros(batch, dtype=torch.bool, device=dev)
+        early = dev.type != "meta"  # stop once all decided (reads `live` on the host)
         for t in range(1, cycles + 1):
             total = y.sum(-1, keepdim=True)
             dy = -self.k * y - self.w * (total - y) + inputs
-            if self.noise > 0:
-                dy = dy + self.noise * torch.randn(y.shape, generator=generator) / self.dt ** 0.5
+            if self.noise > 0:  # drawn where the generator lives (default: y's device), in y's dtype
+                g_dev = dev if generator is None else generator.device
+                z = torch.randn(y.shape, generator=generator, device=g_dev, dtype=y.dtype).to(dev)
+                dy = dy + self.noise * z / self.dt ** 0.5
             y = torch.where(live.unsqueeze(-1), (y + self.dt * dy).clamp_min(0.0), y)
             m, idx = y.max(-1)
             new = live & (m >= self.threshold)
-            if new.any():
+            if not early:
+                winner = torch.where(new, idx, winner)
+                used = torch.where(new, torch.full_like(used, t), used)
+                decided = decided | new
+                live = live & ~new
+            elif new.any():
                 winner = torch.where(new, idx, winner)
                 used = torch.where(new, torch.full_like(used, t), used)
                 decided |= new

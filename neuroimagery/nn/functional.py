@@ -1,5 +1,11 @@
 """Stateless helpers shared by the blocks: transfer functions, Gaussian bumps, gain fields,
-softmax selection and input checks."""
+softmax selection and input checks.
+
+Checks that read a tensor's values (finiteness of an input, a label in range) make the host wait
+for the device and have nothing to read on the ``meta`` device. They run only while
+:func:`checks_enabled` says so: ``CHECKS`` is true (the default; :func:`checks` switches it for a
+block of code), the code is not being traced by ``torch.compile``, and the tensor is not on
+``meta``. Checks of shapes and of Python numbers always run."""
 from __future__ import annotations
 
 import contextlib
@@ -10,12 +16,45 @@ import torch
 
 from ..errors import UserInputError
 
+CHECKS = True  # run the value checks that synchronise with the device (see checks_enabled)
+
+
+def checks_enabled(x: torch.Tensor | None = None) -> bool:
+    """Whether checks that read tensor values (and so wait for the device) run now: ``CHECKS`` is
+    true, ``torch.compile`` is not tracing, and ``x`` (if given) is not on the ``meta`` device."""
+    if not CHECKS or torch.compiler.is_compiling():
+        return False
+    return x is None or x.device.type != "meta"
+
+
+@contextlib.contextmanager
+def checks(enabled: bool):
+    """Switch the value checks of every block on or off inside a ``with`` block (restored after)."""
+    global CHECKS
+    before, CHECKS = CHECKS, bool(enabled)
+    try:
+        yield
+    finally:
+        CHECKS = before
+
+
+def identity(x: torch.Tensor) -> torch.Tensor:
+    """``F(x) = x``."""
+    return x
+
+
+def threshold(x: torch.Tensor) -> torch.Tensor:
+    """``F(x) = 1`` where ``x > 0``, else 0, in ``x``'s dtype."""
+    return (x > 0).to(x.dtype)
+
+
+# module-level callables (not lambdas), so a block holding one can be pickled
 TRANSFER: dict[str, Callable[[torch.Tensor], torch.Tensor]] = {
-    "identity": lambda x: x,
+    "identity": identity,
     "sigmoid": torch.sigmoid,
     "tanh": torch.tanh,
     "relu": torch.relu,
-    "threshold": lambda x: (x > 0).to(x.dtype),
+    "threshold": threshold,
 }
 
 
@@ -51,14 +90,15 @@ def check_bounds(bounds: dict, values: dict, names: dict | None = None) -> dict:
 
 
 def check_tensor(name: str, x: torch.Tensor, last_dims: Sequence[int] | None = None, finite: bool = True) -> torch.Tensor:
-    """Raise ValueError naming ``name`` if ``x`` is not a tensor, has the wrong trailing shape or NaNs."""
+    """Raise ValueError naming ``name`` if ``x`` is not a tensor, has the wrong trailing shape or
+    NaNs (the last only while :func:`checks_enabled`)."""
     if not isinstance(x, torch.Tensor):
         raise ValueError(f"{name} must be a torch.Tensor, got {type(x).__name__}")
     if last_dims is not None:
         k = len(last_dims)
         if x.dim() < k or tuple(x.shape[x.dim() - k:]) != tuple(last_dims):
             raise ValueError(f"{name} must end in shape {tuple(last_dims)}, got {tuple(x.shape)}")
-    if finite and x.is_floating_point() and not torch.isfinite(x).all():
+    if finite and x.is_floating_point() and checks_enabled(x) and not torch.isfinite(x).all():
         raise ValueError(f"{name} contains NaN or infinite values")
     return x
 
@@ -86,7 +126,21 @@ def gaussian_bump(centres: torch.Tensor, coords: torch.Tensor, sigma: float | to
     units. Returns ``(..., n)`` activity ``A exp(-|c - x|^2 / (2 sigma^2))``.
     """
     d2 = ((centres.unsqueeze(-2) - coords) ** 2).sum(-1)
-    return amplitude * torch.exp(-d2 / (2.0 * torch.as_tensor(sigma, dtype=d2.dtype) ** 2))
+    return amplitude * torch.exp(-d2 / (2.0 * torch.as_tensor(sigma, dtype=d2.dtype, device=d2.device) ** 2))
+
+
+def grid_coords(shape: Sequence[int]) -> torch.Tensor:
+    """Integer grid coordinates ``(units, D)`` of a 1-D or 2-D map."""
+    axes = [torch.arange(int(n), dtype=torch.float32) for n in shape]
+    g = torch.meshgrid(*axes, indexing="ij")
+    return torch.stack([x.reshape(-1) for x in g], dim=-1)
+
+
+def squared_norms(w: torch.Tensor, rows: int = 256) -> torch.Tensor:
+    """``(w * w).sum(-1)`` computed a block of rows at a time: the same numbers (each row's sum
+    is its own reduction) without a temporary the size of ``w``."""
+    flat = w.reshape(-1, w.shape[-1])
+    return torch.cat([(b * b).sum(-1) for b in flat.split(rows)]).reshape(w.shape[:-1])
 
 
 def gain_field(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
@@ -121,7 +175,7 @@ def softmax_select(x: torch.Tensor, temperature: float, generators: Sequence[tor
         else:
             uniforms = torch.rand(x.shape[:-1], generator=generators[0])
     cdf = p.cumsum(-1)
-    idx = (cdf < uniforms.unsqueeze(-1).to(cdf.dtype)).sum(-1)
+    idx = (cdf < uniforms.unsqueeze(-1).to(device=cdf.device, dtype=cdf.dtype)).sum(-1)
     return idx.clamp_max(x.shape[-1] - 1)
 
 

@@ -55,16 +55,19 @@ class PopulationMap(nn.Module):
         """Gaussian population code of ``values``.
 
         ``values``: ``(...)`` for a 1-D map or ``(..., 2)`` for a 2-D map. Returns ``(..., *shape)``.
-        With ``noise > 0`` the noise term of eq. 4.1 is added (drawn from ``generator``).
+        With ``noise > 0`` the noise term of eq. 4.1 is added (drawn from ``generator``, on its
+        device). The code has the map's dtype and device (those of ``coords``).
         """
-        values = torch.as_tensor(values, dtype=self.coords.dtype)
+        values = torch.as_tensor(values, dtype=self.coords.dtype, device=self.coords.device)
         if len(self.shape) == 1:
             values = values.unsqueeze(-1)
         else:
             check_tensor("values", values, (2,))
         out = gaussian_bump(values, self.coords, self.sigma, amplitude)
         if self.noise > 0:
-            out = out + self.noise * torch.randn(out.shape, generator=generator, dtype=out.dtype)
+            g_dev = out.device if generator is None else generator.device
+            z = torch.randn(out.shape, generator=generator, dtype=out.dtype, device=g_dev)
+            out = out + self.noise * z.to(out.device)
         return out.reshape(*out.shape[:-1], *self.shape)
 
     def decode(self, activity: torch.Tensor, method: str = "com") -> torch.Tensor:
@@ -102,7 +105,7 @@ class PopulationMap(nn.Module):
 
     def reset_state(self) -> None:
         """Silence the map."""
-        self.activity = torch.zeros(1, 1, *self.shape, dtype=self.coords.dtype)
+        self.activity = self.coords.new_zeros(1, 1, *self.shape)
 
     def extra_repr(self) -> str:
         return f"name={self.name!r}, shape={self.shape}, sigma={self.sigma}"

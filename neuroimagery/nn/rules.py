@@ -135,8 +135,10 @@ class Kohonen(Rule):
         theta = torch.exp(-d2 / (2.0 * sigma**2))
         return torch.where(theta < self.cutoff, torch.zeros_like(theta), theta)
 
-    def delta(self, weight: torch.Tensor, pre: torch.Tensor, bmu: torch.Tensor, grid: torch.Tensor, t: int = 0, **_) -> torch.Tensor:
-        """``pre`` ``(P, 1, in)`` (one pattern per participant), ``bmu`` ``(P,)``."""
+    def delta(self, weight: torch.Tensor, pre: torch.Tensor, bmu: torch.Tensor, grid: torch.Tensor,
+              t: int | torch.Tensor = 0, **_) -> torch.Tensor:
+        """``pre`` ``(P, 1, in)`` (one pattern per participant), ``bmu`` ``(P,)``; ``t`` the step (a
+        0-dim tensor on the weights' device keeps the step on the device)."""
         eta, sigma = self.schedule(t)
         h = eta * self.neighbourhood(grid, bmu, sigma)  # (P, units)
         return h.unsqueeze(-1) * (pre[:, 0].unsqueeze(1) - weight)
@@ -160,7 +162,8 @@ class SupervisedKohonen(Kohonen):
                          sigma if sigma_final is None else sigma_final, cutoff)
         self.normalise = bool(normalise)
 
-    def delta(self, weight: torch.Tensor, pre: torch.Tensor, bmu: torch.Tensor, grid: torch.Tensor, t: int = 0, **_) -> torch.Tensor:
+    def delta(self, weight: torch.Tensor, pre: torch.Tensor, bmu: torch.Tensor, grid: torch.Tensor,
+              t: int | torch.Tensor = 0, **_) -> torch.Tensor:
         new = weight + super().delta(weight, pre, bmu, grid, t)
         if self.normalise:
             new = new / new.sum(-1, keepdim=True).clamp_min(1e-12)
@@ -200,7 +203,7 @@ class QLearning(Rule):
         q_max = torch.einsum("pai,pbi->pba", weight, next_pre).max(-1).values
         if done is not None:
             q_max = torch.where(done, torch.zeros_like(q_max), q_max)
-        reward = torch.as_tensor(reward, dtype=weight.dtype)
+        reward = torch.as_tensor(reward, dtype=weight.dtype, device=weight.device)
         sign = 1.0 if self.form == "standard" else -1.0
         err = reward + sign * self.gamma * q_max - q_win  # (P, B)
         onehot = torch.nn.functional.one_hot(action, weight.shape[1]).to(weight.dtype)  # (P, B, A)

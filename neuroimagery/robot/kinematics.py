@@ -25,6 +25,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..nn.functional import checks_enabled
+
 ARM_JOINTS = (
     "r_shoulder_pitch",
     "r_shoulder_roll",
@@ -88,7 +90,9 @@ class ArmKinematics(torch.nn.Module):
     eye_offset: position of the right eye in the ``head`` link frame, metres (the icub-models
         URDF has no eye joints; the eyes are held still at this point).
 
-    Buffers ``joint_limits`` (7, 2) hold the URDF's lower/upper limits in radians.
+    Buffers ``joint_limits`` (7, 2) hold the URDF's lower/upper limits in radians. The
+    pytorch-kinematics chains (``arm``, ``head``) follow the module's device and dtype
+    (``.to()``, ``.double()``, ``.cuda()``), so FK runs in the dtype of ``joint_limits``.
     """
 
     def __init__(
@@ -109,6 +113,7 @@ class ArmKinematics(torch.nn.Module):
         if tuple(self.arm.get_joint_parameter_names()) != ARM_JOINTS:
             raise RuntimeError(f"unexpected arm joints {self.arm.get_joint_parameter_names()}")
         self.head = pk.build_serial_chain_from_urdf(text, end_link_name="head", root_link_name="chest").to(dtype=dtype)
+        self._arm_end, self._head_end = _end_frame(self.arm, "r_hand", 7), _end_frame(self.head, "head", 3)
         torso = pk.build_serial_chain_from_urdf(text, end_link_name="chest", root_link_name="root_link").to(dtype=dtype)
         root_T_chest = torso.forward_kinematics(torch.zeros(1, 3, dtype=dtype)).get_matrix()[0]
         lo, hi = self.arm.get_joint_limits()
@@ -121,11 +126,21 @@ class ArmKinematics(torch.nn.Module):
         self.register_buffer("eye_offset", torch.tensor([*eye_offset, 1.0], dtype=dtype))
         self.root_height = root_height
 
+    def _apply(self, fn, recurse=True):
+        """Move and cast the chains with the buffers (they are not modules, so ``nn.Module`` would not)."""
+        out = super()._apply(fn, recurse)
+        like = self.joint_limits
+        self.arm = self.arm.to(dtype=like.dtype, device=like.device)
+        self.head = self.head.to(dtype=like.dtype, device=like.device)
+        return out
+
     # ------------------------------------------------------------------ arm
     def check_limits(self, q: torch.Tensor, tol: float = 1e-6) -> None:
         """Raise ``ValueError`` if any joint value in ``q`` (..., 7) is outside the URDF limits or NaN."""
         if q.shape[-1] != 7:
             raise ValueError(f"joint vectors must have 7 entries (right arm), got shape {tuple(q.shape)}")
+        if not checks_enabled(q):  # the checks read values (meta device, torch.compile, checks(False))
+            return
         if not torch.isfinite(q).all():
             raise ValueError("joint trajectory contains NaN or inf")
         lo, hi = self.joint_limits[:, 0], self.joint_limits[:, 1]
@@ -147,7 +162,9 @@ class ArmKinematics(torch.nn.Module):
         """World pose (..., 4, 4) of the hand frame ``r_hand`` for joint vectors ``q`` (..., 7)."""
         shape = q.shape[:-1]
         flat = q.reshape(-1, 7).to(self.joint_limits.dtype)
-        chest_T_hand = self.arm.forward_kinematics(flat).get_matrix()
+        # the hand's frame of all the chain's transforms: forward_kinematics(flat).get_matrix() without its
+        # host look-up of the frame index (so FK also runs on meta)
+        chest_T_hand = self.arm.forward_kinematics_tensor(flat)[self._arm_end]
         return (self.world_T_chest @ chest_T_hand).reshape(*shape, 4, 4)
 
     def rake_pose_np(self, q: np.ndarray) -> np.ndarray:
@@ -169,7 +186,7 @@ class ArmKinematics(torch.nn.Module):
             chain = [(offsets[f], int(jidx[f]) if kinds[f] == 1 else None) for f in order]
             if any(kinds[f] not in (0, 1) for f in order):
                 raise RuntimeError("the arm chain has a joint that is neither fixed nor revolute")
-            self._np_chain = (chain, axes, self.world_T_chest.double().numpy(), self.grasp.double().numpy())
+            self._np_chain = (chain, axes, self.world_T_chest.double().cpu().numpy(), self.grasp.double().cpu().numpy())
         chain, axes, world_T_chest, grasp = self._np_chain
         q = np.asarray(q, dtype=np.float64)
         shape = q.shape[:-1]
@@ -200,11 +217,20 @@ class ArmKinematics(torch.nn.Module):
         The camera looks along the head frame's +z axis... of the world: see :meth:`eye_look`.
         """
         if neck is None:
-            neck = torch.zeros(3, dtype=self.joint_limits.dtype)
-        T = self.world_T_chest @ self.head.forward_kinematics(neck.reshape(1, 3)).get_matrix()[0]
+            neck = self.joint_limits.new_zeros(3)
+        T = self.world_T_chest @ self.head.forward_kinematics_tensor(neck.reshape(1, 3))[self._head_end][0]
         T = T.clone()
         T[:, 3] = T @ self.eye_offset
         return T
+
+
+def _end_frame(chain, link: str, n_joints: int) -> int:
+    """Index of ``link``'s frame among the transforms of ``chain.forward_kinematics_tensor``, which
+    takes the chain's own joints in order (so FK needs no host look-ups: it runs on ``meta`` too)."""
+    if chain.n_joints != n_joints or chain._serial_frames[-1].name != link:
+        raise RuntimeError(f"unexpected chain to {link!r}: {chain.n_joints} joints, "
+                           f"ends in {chain._serial_frames[-1].name!r}")
+    return int(chain.get_frame_indices(link)[0])
 
 
 def default_grasp() -> torch.Tensor:
