@@ -1,6 +1,8 @@
 """Experiment 3: config checks, batched == solo, an end-to-end quick run."""
 import json
 
+import pandas as pd
+
 import pytest
 import torch
 from conftest import make_cfg
@@ -45,7 +47,7 @@ def test_flat_posture_codes_stop_the_rotation_with_the_centre_readout():
     """Thesis 6.1.3: codes with no clear orientation make M1_1 activate its central units -> n2."""
     flat = torch.full((1, 1, 4), 1.0)
     m11 = (flat.unsqueeze(-1) * flat.unsqueeze(-2)).reshape(1, 1, 16)  # eq. 6.1 gain field
-    centre = exp3._model(_cfg("participants=1", "logger=none"), [0]).m1_2(m11)
+    centre = exp3._model(_cfg("participants=1", "logger=none", "experiment.m1_readout=centre"), [0]).m1_2(m11)
     pattern = exp3._model(_cfg("participants=1", "logger=none", "experiment.m1_readout=pattern"), [0]).m1_2(m11)
     assert centre.argmax(-1).item() == 1 and centre[0, 0, [0, 2]].max() < 0.01
     assert pattern[0, 0, 1] < pattern[0, 0, 0]  # as whole patterns, spread activity favours the triangles
@@ -67,11 +69,13 @@ def test_match_tolerance_covers_a_one_unit_shift_only():
     img[10, 5:25] = 1.0
     shifted, two, far = torch.roll(img, 1, 0), torch.roll(img, 2, 0), torch.roll(img, 3, 0)
     t = img.reshape(1, 1, -1)
+    assert model.p.match_tolerance == 0  # the default: the thesis's one-to-one C8
+    assert model.uncovered(t, t).sum() == 0
+    assert model.uncovered(t, shifted.reshape(1, 1, -1)).sum() == img.sum()
+    model.p.match_tolerance = 1  # the option: a reach of one map unit
     assert model.uncovered(t, shifted.reshape(1, 1, -1)).sum() == 0
     assert model.uncovered(t, two.reshape(1, 1, -1)).sum() == img.sum()  # tolerance 2 would cover it
     assert model.uncovered(t, far.reshape(1, 1, -1)).sum() == img.sum()
-    model.p.match_tolerance = 0  # the literal one-to-one C8
-    assert model.uncovered(t, shifted.reshape(1, 1, -1)).sum() == img.sum()
 
 
 def test_batched_participants_equal_solo_runs():
@@ -149,3 +153,18 @@ def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     assert s["participants"] == 2
     assert s["tests"]["recog/none"]["n_trials"] == 2 * 64
     assert (tmp_path / "ev" / "report.md").read_text().count("2 simulated participants") == 1
+
+
+def test_answers_do_not_read_labels(monkeypatch):
+    """Shuffling every label column of the chosen trials, images kept, changes no answer or RT."""
+    from support_labels import answers, shuffle_labels
+
+    cfg = _cfg("participants=2", "logger=none", "experiment.fm_images=300", "experiment.posture_iterations=100",
+               quick=False)
+    model = exp3.train_model(cfg, [0, 1])
+    base, _, _ = exp3.run_tests(cfg, model)
+    original = pc.trial_table
+    monkeypatch.setattr(pc, "trial_table", lambda *a, **k: shuffle_labels(original(*a, **k), seed=7))
+    shuffled, _, _ = exp3.run_tests(cfg, model)
+    assert (shuffled["target_angle"].to_numpy() != base["target_angle"].to_numpy()).any()
+    pd.testing.assert_frame_equal(answers(shuffled), answers(base))

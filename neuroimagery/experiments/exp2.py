@@ -130,8 +130,10 @@ def run_test(cfg, model, sset, test, condition, record=0):
     P = model.c1.participants
     rot = maps[[idx[r] for r, _ in pairs]].expand(P, -1, -1)
     tgt = maps[[idx[t] for _, t in pairs]].expand(P, -1, -1)
-    tgt_angle = torch.tensor([t[1] for _, t in pairs], dtype=torch.float32).expand(P, -1)
-    out = model.trial(rot, tgt, condition, record=record, target_angle=tgt_angle)
+    out = model.trial(rot, tgt, condition, record=record)  # the images only
+    # the rotation is scored against the target's true orientation here, outside the model
+    tgt_angle = torch.tensor([t[1] for _, t in pairs], dtype=out["final_angle"].dtype).expand(P, -1)
+    out["rotated_ok"] = out["stopped"] & ((out["final_angle"] - tgt_angle).abs() < 15.0)
     app = sset.appearances[0]
     rows = []
     for p in range(P):

@@ -44,7 +44,7 @@ class Exp3Config:
     fm_threshold: float = 0.5  # a PP_2 unit is on when its C6 input exceeds this (not given)
     dot_inner: int = 23  # dots lie in the central inner x inner square (thesis 23)
     eta_posture: float = 0.1  # Kohonen rate of C2/C3 (thesis 0.1)
-    eta_posture_final: float = 0.002  # decays to this so each prototype ends as an average (not given)
+    eta_posture_final: float = 0.1  # rate at the last step: = eta_posture, the thesis's constant 0.1; lower = a decay
     posture_sigma: float = 0.3  # neighbourhood radius of the forced winner, units (not given)
     posture_iterations: int = 960  # supervised Kohonen steps (40 passes over 24 set-a images; not given)
     posture_code_sigma: float = 0.15  # width of the Gaussian of eq. 6.5-6.6 on squared-distance differences (not given)
@@ -53,21 +53,20 @@ class Exp3Config:
     # than the others'. sigma^2 = 0.82 / 4 puts the other units two "standard" widths down (exp(-2) ~ 0.13),
     # i.e. a clear posture difference gives a clear move and the softmax (tau 0.3) picks it ~90 % of the time.
     m1_sigma: float = 0.45
-    # how eq. 6.2 compares M1_1 with the weights of n1, n2, n3. 'centre' (default): by where the M1_1
-    # activity is centred across the diagonal (mean SS unit - PMC_1 unit, in posture units), so that two
-    # flat posture codes, like two coinciding ones, put it on the diagonal and select n2 (thesis 6.1.3:
-    # objects with no clear orientation make M1_1 activate its central units and stop the rotation early).
-    # 'pattern': the whole 16-unit pattern as a direction (width m1_sigma), where flat codes favour the
-    # 6-unit triangles and keep the rotation going.
-    m1_readout: str = "centre"
+    # how eq. 6.2 compares M1_1 with the weights of n1, n2, n3. 'pattern' (default, eq. 6.2 as printed): the
+    # whole 16-unit pattern as a direction (width m1_sigma), where flat codes favour the 6-unit triangles and
+    # keep the rotation going. 'centre': by where the M1_1 activity is centred across the diagonal (mean SS
+    # unit - PMC_1 unit, in posture units), so that two flat posture codes, like two coinciding ones, put it on
+    # the diagonal and select n2 (thesis 6.1.3: objects with no clear orientation stop the rotation early).
+    m1_readout: str = "pattern"
     # width of the Gaussian of the 'centre' readout, in posture units (not given): half the spacing of the
     # posture units, so that a centre one unit off the diagonal selects a turn (n2 falls to ~0.3, the softmax
     # picks the turn ~87 % of the time) and a centre on the diagonal selects n2 (the turns fall to ~0.004)
     m1_centre_sigma: float = 0.5
-    # C8 tolerance (not given): a PP_2 unit covers the target units within this many map units (Chebyshev),
-    # since edge maps are 1-2 units thick and one 45-deg step shifts resampled edges by up to one unit;
-    # 0 = the literal one-to-one subtraction.
-    match_tolerance: int = 1
+    # C8 reach: 0 (default) = the thesis's one-to-one subtraction; r > 0 = a PP_2 unit covers the target
+    # units within r map units (Chebyshev), since edge maps are 1-2 units thick and one 45-deg step shifts
+    # resampled edges by up to one unit.
+    match_tolerance: int = 0
     softmax_tau: float = 0.3  # M1_2 softmax temperature (thesis 0.3)
     match_threshold: float = 0.05  # NO when PMC_2 > this fraction of PFC_1's active units (thesis 5 %)
     max_steps: int = 15  # rotation steps before answering NO (thesis 15)

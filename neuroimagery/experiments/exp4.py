@@ -10,7 +10,7 @@ in each condition on the tests listed in ``noise_tests``. RT = accumulator cycle
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import List
+from typing import List, Optional
 
 import numpy as np
 import pandas as pd
@@ -46,7 +46,9 @@ class Exp4Config:
     dot_inner: int = 23  # dots lie in the central inner x inner square (thesis 23)
     # --- posture maps C16/C17 (supervised Kohonen, eq. 6.14-6.16) ---------------------------
     eta_posture: float = 0.1  # Kohonen learning rate (thesis 0.1)
-    eta_posture_final: float = 0.002  # the rate decays exponentially to this, so each prototype ends as an average of its images (not given)
+    # rate at the last step: = eta_posture, the thesis's constant 0.1; lower = an exponential decay
+    # (e.g. 0.002: each prototype ends as an average of its images)
+    eta_posture_final: float = 0.1
     posture_sigma: float = 0.3  # neighbourhood radius of the forced winner, in units (not given)
     posture_iterations: int = 1440  # supervised Kohonen steps (40 passes over the 36 set-A images; not given)
     # PPCp winner of the mental image (eq. 6.14): 0 = arg-max of the C16 potentials; > 0 = drawn from a
@@ -54,10 +56,10 @@ class Exp4Config:
     # whose potentials are nearly flat). 0.1 = the PMCm temperature, not fitted. PPCt stays arg-max.
     posture_tau: float = 0.0
     # axis of the flipped target PFCft (C10, "flipped along the main object axis of the object"; not given how):
-    # 'object' = the object's own main axis at the orientation the target is shown in (C10 a fixed
-    # transformation of PFCt, as Table 6.2 lists it: no input from the posture maps); 'ppct' = the axis
-    # of the orientation PPCt reads (C17), so a misread target posture also gives a wrong flip
-    flip_axis: str = "object"
+    # 'image' = the principal axis of the target map itself (a fixed transformation of PFCt, as Table 6.2
+    # lists C10: no label, no posture input) | 'ppct' = the axis of the orientation PPCt reads (C17), so a
+    # misread target posture also gives a wrong flip. docs/choices.md
+    flip_axis: str = "image"
     ppc_sigma: float = 0.5  # width (units) of the Gaussian bump PPCp/PPCt put around the winner (eq. 6.14; not given)
     # --- action selection (eq. 6.10-6.11) ---------------------------------------------------
     softmax_tau: float = 0.1  # PMCm softmax temperature (thesis 0.1)
@@ -67,7 +69,10 @@ class Exp4Config:
     lca_threshold: float = 1.2  # decision threshold (thesis 1.2)
     lca_dt: float = 0.1  # Euler step per cycle (not given)
     lca_cycles: int = 10  # accumulator cycles per rotation step (thesis 10)
-    lca_input_gain: float = 4.0  # input scale: evidence = gain * |PFCxm| / |PFCt| (not given)
+    # input scale: evidence = gain * |PFCxm| / |PFCt| (C13/C14 weights of 1.0 over the overlap, per target
+    # unit); None = the rule of docs/choices.md: the smallest gain with which a full overlap crosses the
+    # threshold within one step (1.495 with k 0.5, dt 0.1, 10 cycles)
+    lca_input_gain: Optional[float] = None
     max_steps: int = 20  # rotation steps before a random answer (thesis 20)
     # --- embodiment -----------------------------------------------------------------------
     proprio_gain: float = 1.0  # strength of the wrist signal added to PPCp (scaled encoder signal; not given)
@@ -75,7 +80,7 @@ class Exp4Config:
     # bump is clipped to [0, 1] (the encoder is an input of its own, untouched by the noise that stands
     # for an unreliable image-to-posture mapping); 'visual' = summed with the bump before noise and clip,
     # so on the congruent unit it saturates at 1 and cannot outweigh the noise on the other units
-    proprio_stage: str = "separate"
+    proprio_stage: str = "visual"
     noise_amplitude: float = 0.5  # noise variant: U[-a, a] added to each PPCp unit per step (thesis 0.5)
     noise_tests: List[str] = field(default_factory=lambda: ["recog", "gen1"])  # tests repeated with noise
     # --- protocol size ----------------------------------------------------------------------
@@ -88,7 +93,7 @@ class Exp4Config:
             if not (v > 0 if strict else v >= 0):
                 raise ValueError(f"experiment.{k} must be {'>' if strict else '>='} 0, got {v!r}")
         for k in ("step_deg", "init_high", "eta_fm", "eta_posture", "eta_posture_final", "posture_sigma", "ppc_sigma", "softmax_tau",
-                  "lca_threshold", "lca_dt", "lca_input_gain"):
+                  "lca_threshold", "lca_dt"):
             pos(k)
         for k in ("lca_k", "lca_w", "proprio_gain", "noise_amplitude", "posture_tau"):
             pos(k, strict=False)
@@ -108,8 +113,10 @@ class Exp4Config:
                      {k: f"experiment.lca_{k}" for k in lca})
         if len(self.ppc_angles) < 2 or list(self.ppc_angles) != sorted(self.ppc_angles):
             raise ValueError(f"experiment.ppc_angles must be >= 2 increasing angles, got {list(self.ppc_angles)}")
-        if self.flip_axis not in ("object", "ppct"):
-            raise ValueError(f"experiment.flip_axis must be 'object' or 'ppct', got {self.flip_axis!r}")
+        if self.flip_axis not in ("image", "ppct"):
+            raise ValueError(f"experiment.flip_axis must be 'image' or 'ppct', got {self.flip_axis!r}")
+        if self.lca_input_gain is not None and not self.lca_input_gain > 0:
+            raise ValueError(f"experiment.lca_input_gain must be > 0 (or null for the rule), got {self.lca_input_gain!r}")
         if self.proprio_stage not in ("separate", "visual"):
             raise ValueError(f"experiment.proprio_stage must be 'separate' or 'visual', got {self.proprio_stage!r}")
         bad = [t for t in self.noise_tests if t not in TESTS]
@@ -217,10 +224,6 @@ def run_tests(cfg, model, eye=None, record: int = 0):
         table = _subset(bank, pc.trial_table(bank, test, "none"), cfg)
         tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
-        flipped = None  # 'ppct': the model reflects each target about the axis PPCt reads
-        if e.flip_axis == "object":
-            angles = torch.as_tensor(table["target_angle"].to_numpy().astype(float).copy())
-            flipped = model.flipped_about_object_axis(tgt[:1], angles).expand(P, -1, -1)
         names, conds = [], []
         for noise in noisy:
             for cond in CONDITIONS:
@@ -228,7 +231,7 @@ def run_tests(cfg, model, eye=None, record: int = 0):
                 conds.append((cond, noise, seeding.participant_generators(cfg.seed, ids, stream=100 + k)))
                 k += 1
         # all conditions of a test in one batch: they share the targets and the first step
-        for name, out in zip(names, model.run_conditions(tgt, rot, conds, record=record, flipped=flipped)):
+        for name, out in zip(names, model.run_conditions(tgt, rot, conds, record=record, )):
             histories[f"{test}/{name}"] = out.pop("history")
             frames.append(pc.trial_rows(table.assign(condition=name), out, ids))
     return pd.concat(frames, ignore_index=True), histories, banks

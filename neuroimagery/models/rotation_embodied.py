@@ -57,6 +57,42 @@ def reflection_index(size: int, axis_deg: float) -> torch.Tensor:
     return torch.where(ok, row * size + col, torch.full_like(col, size * size)).reshape(-1)
 
 
+def principal_axis_flip(maps: torch.Tensor, size: int) -> torch.Tensor:
+    """C10 as a fixed transformation of the image: each binary map ``(..., size*size)`` reflected about
+    its own principal axis, the line through the centroid of its active units along the eigenvector
+    of the largest eigenvalue of their second-moment matrix. Pixels whose source falls outside the
+    map stay 0; an empty map stays empty."""
+    shape = maps.shape
+    x = maps.reshape(-1, size * size).to(torch.float64)
+    c = (size - 1) / 2.0
+    ys, xs = torch.meshgrid(torch.arange(size, dtype=torch.float64), torch.arange(size, dtype=torch.float64), indexing="ij")
+    px, py = (xs - c).reshape(-1), (c - ys).reshape(-1)  # y up, as seen on screen
+    m = x.sum(-1).clamp_min(1.0)
+    cx, cy = (x * px).sum(-1) / m, (x * py).sum(-1) / m
+    dx, dy = px - cx.unsqueeze(-1), py - cy.unsqueeze(-1)
+    sxx, syy, sxy = (x * dx * dx).sum(-1), (x * dy * dy).sum(-1), (x * dx * dy).sum(-1)
+    t2 = torch.atan2(2.0 * sxy, sxx - syy).unsqueeze(-1)  # twice the axis angle
+    cos2, sin2 = torch.cos(t2), torch.sin(t2)
+    sx, sy = cx.unsqueeze(-1) + cos2 * dx + sin2 * dy, cy.unsqueeze(-1) + sin2 * dx - cos2 * dy  # source of each pixel
+    col, row = torch.round(sx + c).long(), torch.round(c - sy).long()
+    ok = (col >= 0) & (col < size) & (row >= 0) & (row < size)
+    idx = torch.where(ok, row * size + col, torch.full_like(col, size * size))
+    pad = torch.cat([x, torch.zeros(x.shape[0], 1, dtype=x.dtype)], dim=-1)
+    return torch.gather(pad, -1, idx).to(maps.dtype).reshape(shape)
+
+
+def lca_gain(p) -> float:
+    """The evidence scale of PMCd: ``p.lca_input_gain``, or when it is None the smallest gain with
+    which a full overlap (fraction 1), alone from rest, crosses the threshold within one step of
+    ``lca_cycles`` Euler cycles (docs/choices.md): ``threshold k / (1 - (1 - dt k)^cycles)``."""
+    if p.lca_input_gain is not None:
+        return float(p.lca_input_gain)
+    k, dt, n = p.lca_k, p.lca_dt, p.lca_cycles
+    if k == 0:
+        return p.lca_threshold / (dt * n)
+    return p.lca_threshold * k / (1.0 - (1.0 - dt * k) ** n)
+
+
 def posture_maps(p, n_in: int, units: int, generators, names: Sequence[str]) -> list[SOM]:
     """The chapter-6 image -> wrist-posture maps (supervised Kohonen, eq. 6.7-6.8), one per name,
     built in order from ``p``'s ``init_high``, ``eta_posture(_final)``, ``posture_sigma`` and
@@ -157,16 +193,10 @@ class RotationEmbodied(nn.Module):
         pad = torch.cat([target, torch.zeros(*target.shape[:-1], 1)], dim=-1)
         return torch.gather(pad, -1, self.flip_index[ppct_unit])
 
-    def flipped_about_object_axis(self, target: torch.Tensor, angles_deg: torch.Tensor) -> torch.Tensor:
-        """PFCft with ``flip_axis='object'``: each target map ``(..., B, n)`` reflected about the
-        object's own main axis, i.e. its upright axis turned by the angle ``angles_deg`` ``(B,)``
-        at which the object is shown (C10 as a fixed transformation of PFCt; no posture input).
-        This is the mirror appearance of the shape at the target's orientation."""
-        pad = torch.cat([target, torch.zeros(*target.shape[:-1], 1)], dim=-1)
-        angles = [float(a) for a in torch.as_tensor(angles_deg).reshape(-1)]
-        table = {a: reflection_index(self.size, 90.0 + a) for a in set(angles)}
-        idx = torch.stack([table[a] for a in angles])  # (B, n)
-        return torch.gather(pad, -1, idx.expand(*pad.shape[:-2], -1, -1))
+    def flipped_image(self, target: torch.Tensor) -> torch.Tensor:
+        """PFCft with ``flip_axis='image'``: each target map reflected about its own principal axis
+        (:func:`principal_axis_flip`; C10 a fixed transformation of PFCt)."""
+        return principal_axis_flip(target, self.size)
 
     # ------------------------------------------------------------------ trials
     @torch.no_grad()
@@ -214,7 +244,9 @@ class RotationEmbodied(nn.Module):
         pfct = target.reshape(Q, n)
         ppct_unit = self.posture(self.c17, target)
         ppct = self.ppc.encode(ppct_unit.float()).reshape(Q, nu)
-        pfcft = (self.flipped(target, ppct_unit) if flipped is None else flipped).reshape(Q, n)
+        if flipped is None:
+            flipped = self.flipped(target, ppct_unit) if p.flip_axis == "ppct" else self.flipped_image(target)
+        pfcft = flipped.reshape(Q, n)
         t_count = pfct.sum(-1).clamp_min(1.0)
         step_deg = torch.tensor(self.step_angles)
         # ---- results, (C, Q)
@@ -226,10 +258,12 @@ class RotationEmbodied(nn.Module):
         histories: list[list[list[dict]]] = [[[] for _ in range(min(record, B))] for _ in range(C)]
         rec = [(q, k) for k in range(min(record, B)) for q in [k]]  # participant 0, trials 0..record-1
 
+        gain = lca_gain(p)
+
         def evidence(rows_q, pocp):
             tm = (pfct[rows_q] + pocp > 1.5).float()
             fm = (pfcft[rows_q] + pocp > 1.5).float()
-            ev = p.lca_input_gain * torch.stack([tm.sum(-1), fm.sum(-1)], -1) / t_count[rows_q].unsqueeze(-1)
+            ev = gain * torch.stack([tm.sum(-1), fm.sum(-1)], -1) / t_count[rows_q].unsqueeze(-1)
             return ev, tm, fm
 
         # ---- step 1: the "still" forward model on every trial, identical in every condition

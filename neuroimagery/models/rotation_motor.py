@@ -239,7 +239,7 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
 
     # ------------------------------------------------------------------ a trial
     @torch.no_grad()
-    def trial(self, pp0, pfc1, condition: str = "none", record: int = 0, target_angle=None) -> dict:
+    def trial(self, pp0, pfc1, condition: str = "none", record: int = 0) -> dict:
         """Rotate ``pp0`` ``(P, B, 1024)`` toward the target ``pfc1`` and answer.
 
         condition: ``none`` (no proprioceptive input to SS), ``match`` (SS feels the actual wrist,
@@ -247,8 +247,9 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         (a random one of the 7 posture clusters every step, from the participant's generator).
         The felt posture pre-activates SS (the field starts at rest + proprioceptive input) and
         stays on during the competition, at ``proprio_gain`` of the forward model's strength.
-        ``target_angle`` ``(P, B)`` (the target's true orientation) scores the rotation; default:
-        the desired posture the model itself selected.
+        Only the two images reach the model. ``rotated_ok`` scores the rotation against the desired
+        posture the model itself selected; ``final_angle`` and ``stopped`` let the caller score it
+        against the target's true orientation.
 
         Every large product here has an input drawn from a small finite set (the 14 images, the
         M1_1 winner, the SS winner), so it is computed once per distinct input and looked up
@@ -321,8 +322,7 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
                     frames[k].append({"PP": pp[0, k].reshape(32, 32).clone(), "SS": ss[0, k].reshape(31, 100).clone(),
                                       "M1_1": m[0, k].reshape(64, 64).clone()})
         final = col_angle[ss.reshape(P, B, 31, 100).amax(-2).argmax(-1)]
-        target_angle = desired if target_angle is None else target_angle
-        ok = stopped & ((final - target_angle).abs() < 15.0)
+        ok = stopped & ((final - desired).abs() < 15.0)
         act = self.som_bump(self.pfc2, bmu=distinct_rows(lambda x: self.pfc2.bmu(x), torch.cat([pp, pfc1], -1)))
         s = self.c5.net(act)
         s = s / s.amax(-1, keepdim=True).clamp_min(1e-9)
@@ -333,7 +333,8 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         for k in range(record):
             frames[k].append({"PP": pp[0, k].reshape(32, 32), "PFC_1": pfc1[0, k].reshape(32, 32),
                               "PFC_2": act[0, k].reshape(64, 64), "PMC_2": d.state[0, k].reshape(10, 20)})
-        return {"steps": steps, "rotated_ok": ok, "yes": yes, "rt": rt, "frames": frames}
+        return {"steps": steps, "rotated_ok": ok, "final_angle": final, "stopped": stopped, "yes": yes, "rt": rt,
+                "frames": frames}
 
     def _lookups(self):
         """What a trial looks up, built once per set of trained weights (and reused by every
