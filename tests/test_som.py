@@ -91,8 +91,10 @@ def test_windowed_fit_equals_online_rule():
 def test_windowed_fit_by_pieces_and_jointly_equals_online_rule():
     """Patterns made of pieces ([a_i, b_j]: 4 x 3 pieces, 12 patterns): the windowed fit over the
     distinct pieces (``parts``), and two maps trained together (``fit_windowed_many``), give the
-    online rule's winners; the joint fit gives each map exactly the weights of its own fit."""
-    from neuroimagery.nn.som import fit_windowed, fit_windowed_many
+    online rule's winners; the joint fit gives each map the weights of its own fit, to within the
+    rounding of the final products (the joint loop works on other shapes)."""
+    from neuroimagery.nn.numerics import rounding_bound
+    from neuroimagery.nn.som import fit_windowed, fit_windowed_many, windowed_factors
 
     g = torch.Generator().manual_seed(7)
     A, B = (torch.rand(4, 120, generator=g) > 0.6).float(), (torch.rand(3, 80, generator=g) > 0.6).float()
@@ -110,7 +112,12 @@ def test_windowed_fit_by_pieces_and_jointly_equals_online_rule():
     jx, jy = mk(200, 3), mk(150, 4)
     vx, vy = fit_windowed_many([(jx, X, ox, (120, 80)), (jy, Y, oy, None)])
     assert torch.equal(vx, wx) and torch.equal(vy, wy)
-    assert torch.equal(jx.weight, solo.weight)
+    # the weights are scale * w0 + coef @ X, with scale and coef from float64 recurrences that are
+    # element for element the same: if they round differently their float32 values move by at most
+    # one ulp (one more term's worth of rounding), and the float32 product of N patterns adds N + 1
+    f = windowed_factors(solo)
+    mag = f["scale"].abs().unsqueeze(-1) * mk(200, 3).weight.abs() + f["coef"].abs() @ f["patterns"].abs()
+    assert ((jx.weight - solo.weight).abs() <= rounding_bound(mag, f["coef"].shape[-1] + 2)).all()
     assert torch.allclose(jy.weight, ref_y.weight, atol=1e-5)
     with pytest.raises(ValueError, match="parts"):
         fit_windowed(mk(200, 3), X, ox, parts=(100, 80))
@@ -129,7 +136,7 @@ def test_windowed_weights_rebuild_from_their_factors():
     f = windowed_factors(a)
     assert f["coef"].shape == (2, 81, 12) and f["patterns"].shape == (12, 400)
     rebuild_windowed(fresh, f)
-    assert torch.equal(fresh.weight, a.weight)
+    assert torch.equal(fresh.weight, a.weight)  # the trainer's own products, same shapes and threads
     with pytest.raises(ValueError, match="do not fit"):
         rebuild_windowed(SOM((9, 9), 400, participants=3), f)
     with pytest.raises(ValueError, match="not trained by fit_windowed"):

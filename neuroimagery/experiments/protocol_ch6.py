@@ -160,28 +160,34 @@ def train_delta_binary(conn, X: torch.Tensor, Y: torch.Tensor, eta: float, batch
     is evaluated at the same weights and the summed change is applied, exactly as
     ``conn.learn(pre=x, post=conn(x), target=y)`` with a ``Delta`` rule would do, but only the
     weight columns of active inputs are read and written.
+
+    Deterministic: a prediction adds its active weight columns one after the other, and each
+    weight receives its changes in the order of the mini-batch's patterns (``index_add_``, which
+    adds in index order on the CPU; ``index_put_(accumulate=True)`` does not, with several
+    threads). Every number is thus a fixed sequence of IEEE additions and products, the same at
+    any thread count and on any CPU.
     """
     W = conn.weight  # (P, out, in)
     P, O, I = W.shape
     Wt = torch.cat([W.transpose(1, 2), torch.zeros(P, 1, O)], dim=1).contiguous()  # row I = padding
+    rows_of = Wt.view(P * (I + 1), O)  # participant p's weight column i is row p (I + 1) + i
+    base = (torch.arange(P) * (I + 1)).view(P, 1, 1)
     N = X.shape[1]
-    pidx = torch.arange(P)
     for s in range(0, N, batch):
         x, y = X[:, s:s + batch], Y[:, s:s + batch]
-        b = x.shape[1]
         on = x > 0.5
         K = int(on.sum(-1).max())
         if K == 0:
             continue
-        # active indices padded with the dummy row I
+        # rows of each pattern's active inputs (ascending), padded with the participant's zero row I
         order = torch.argsort((~on).to(torch.int8), dim=-1, stable=True)[..., :K]
         valid = torch.gather(on, -1, order)
-        idx = torch.where(valid, order, torch.full_like(order, I))  # (P, b, K)
-        pp = pidx.view(P, 1, 1).expand_as(idx)
-        out = Wt[pp, idx].sum(2)  # (P, b, O)
+        rows = base + torch.where(valid, order, torch.full_like(order, I))  # (P, b, K)
+        out = rows_of[rows[..., 0]]
+        for k in range(1, K):
+            out = out + rows_of[rows[..., k]]  # (P, b, O)
         err = eta * (y - out)
-        Wt.index_put_((pp.reshape(-1), idx.reshape(-1)), err.unsqueeze(2).expand(-1, -1, K, -1).reshape(-1, O),
-                      accumulate=True)
+        rows_of.index_add_(0, rows.reshape(-1), err.unsqueeze(2).expand(-1, -1, K, -1).reshape(-1, O))
         Wt[:, I] = 0
     conn.weight.copy_(Wt[:, :I].transpose(1, 2))
 

@@ -253,7 +253,8 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
 
         Every large product here has an input drawn from a small finite set (the 14 images, the
         M1_1 winner, the SS winner), so it is computed once per distinct input and looked up
-        (:class:`RowCache`); the numbers are those of the product over the whole batch.
+        (:class:`RowCache`); the numbers are those of the product over the whole batch up to float
+        rounding (a product of other shapes may sum in another order).
         """
         e = self.e
         P, B, _ = pp0.shape
@@ -368,10 +369,11 @@ class RowCache:
     """Per-participant outputs of ``fn`` for integer keys, each computed once.
 
     ``fn(keys)`` maps keys ``(P, L)`` to a tuple of ``(P, L, ...)`` tensors, one row per key, and
-    must compute each row independently of the others (a batched matrix product over at least
-    ``MIN_ROWS`` rows does: its rows are bit-identical to those of the product over any larger
-    batch). Calling the cache with keys ``(P, B)`` returns ``fn(keys)`` by evaluating only the keys
-    it has not seen yet.
+    must compute each row independently of the others (as a batched matrix product does). Calling
+    the cache with keys ``(P, B)`` returns ``fn(keys)`` by evaluating only the keys it has not seen
+    yet, over at least ``MIN_ROWS`` rows. The rows equal those of ``fn(keys)`` to float rounding,
+    not bit for bit: BLAS may sum a product of other shapes in another order (with oneMKL on
+    AVX-512, 8-row products round otherwise than larger ones).
     """
 
     def __init__(self, participants: int, n_keys: int, fn) -> None:

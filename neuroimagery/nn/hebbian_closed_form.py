@@ -113,7 +113,7 @@ def _form_indexed(out: torch.Tensor, weight0: torch.Tensor, a: torch.Tensor, C: 
 @torch.no_grad()
 def rebuild_indexed(weight0: torch.Tensor, factors: dict) -> torch.Tensor:
     """The weights :func:`hebbian_indexed_many` trained from the initial ``weight0`` ``(P, out, in)``,
-    formed again from one of its ``factors`` by the same products (so they are identical)."""
+    formed again from one of its ``factors`` by the same products (identical on the same CPU and threads)."""
     a, C, post_set = factors["a"], factors["C"], factors["post_set"]
     P, n_out, n_in = weight0.shape
     if a.shape != (P, n_in) or C.shape[0] != P or C.shape[2] != n_in or post_set.shape != (C.shape[1], n_out):

@@ -229,9 +229,9 @@ def form_windowed_weights(w0: torch.Tensor, scale: torch.Tensor, coef: torch.Ten
 def windowed_factors(som) -> dict:
     """The factors :func:`fit_windowed_many` formed ``som``'s current weights from: ``scale``
     ``(P, U)``, ``coef`` ``(P, U, N)`` and ``patterns`` ``(N, in)`` (shared) or ``(P, N, in)``.
-    Together with the initial weights they give the trained weights back bit for bit
-    (:func:`rebuild_windowed`), at ``N / in`` of their size. Raises if the map was not trained by
-    the windowed form in this process."""
+    Together with the initial weights they give the trained weights back (:func:`rebuild_windowed`;
+    bit for bit on the same CPU and thread count), at ``N / in`` of their size. Raises if the map
+    was not trained by the windowed form in this process."""
     f = getattr(som, "windowed_factors", None)
     if f is None:
         raise ValueError(f"SOM {som.name!r} was not trained by fit_windowed in this process: no factors to save")
@@ -241,7 +241,7 @@ def windowed_factors(som) -> dict:
 @torch.no_grad()
 def rebuild_windowed(som, factors: dict) -> None:
     """Form ``som``'s trained weights from its *initial* weights (in place) and ``factors`` of
-    :func:`windowed_factors`, by the very products of the trainer (so the weights are identical)."""
+    :func:`windowed_factors`, by the very products of the trainer (identical on the same CPU and threads)."""
     scale, coef, X = factors["scale"], factors["coef"], factors["patterns"]
     P, U = som.participants, som.units
     if scale.shape != (P, U) or coef.shape[:2] != (P, U) or X.shape[-1] != som.n_in or X.shape[-2] != coef.shape[2]:
