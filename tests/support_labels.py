@@ -14,7 +14,7 @@ def shuffle_labels(table: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     rng = np.random.default_rng(seed)
     out = table.copy()
     cols = [c for c in table.columns if c not in KEEP]
-    assert {"target_angle", "rotated_angle", "target_object", "rotated_object"} <= set(cols), cols
+    assert {"rotated_angle", "target_object", "rotated_object"} <= set(cols), cols
     for c in cols:
         out[c] = table[c].to_numpy()[rng.permutation(len(table))]
     assert any((out[c] != table[c]).any() for c in cols)  # the labels did change

@@ -121,3 +121,38 @@ def test_rotation_makes_up_to_max_cycles_image_updates(centred_at):
     assert len(calls) == min(e.max_cycles, centred_at or e.max_cycles)
     assert int(out["steps"]) == n and bool(out["rotated_ok"]) == (centred_at is not None)
     assert int(out["rt"]) >= 7 * len(calls)
+
+
+def test_answers_do_not_read_labels(tmp_path, monkeypatch):
+    """The pairs' labels (objects, angles) shuffled after the protocol has chosen them, each trial's
+    images kept: the model's answers, RTs and steps are unchanged."""
+    import pandas as pd
+    from support_labels import answers, shuffle_pair_labels
+
+    from neuroimagery.config import validate
+    from neuroimagery.experiments import exp1
+    from neuroimagery.run import RunDir
+    from neuroimagery.vision.stimulus_sets import get_stimulus_set
+
+    cfg = validate(make_cfg("experiment=exp1", "participants=2", "preset=quick", "progress=false", "logger=none",
+                            "experiment.som_iterations=50"))
+    model = exp1.train(cfg, RunDir(tmp_path, cfg))
+    sset = get_stimulus_set("L")
+    base = pd.DataFrame(exp1.run_test(cfg, model, sset, "generalisation")[0])
+    true_pairs = exp1.test_pairs("generalisation", exp1.objects_of(sset))
+    fake = shuffle_pair_labels(true_pairs, seed=3)
+    images = exp1.edge_maps
+
+    def true_images(cfg_, sset_, items):  # the images of the trials as chosen, whatever their labels say
+        rot = [(p["rotated_object"], p["rotated_angle"]) for p in fake]
+        tgt = [(p["target_object"], 0.0) for p in fake]
+        real = ([(p["rotated_object"], p["rotated_angle"]) for p in true_pairs] if list(items) == rot else
+                [(p["target_object"], 0.0) for p in true_pairs] if list(items) == tgt else None)
+        assert real is not None, "unexpected image request"
+        return images(cfg_, sset_, real)
+
+    monkeypatch.setattr(exp1, "test_pairs", lambda test, objs: fake)
+    monkeypatch.setattr(exp1, "edge_maps", true_images)
+    shuffled = pd.DataFrame(exp1.run_test(cfg, model, sset, "generalisation")[0])
+    assert (shuffled["rotated_angle"] != base["rotated_angle"]).any()
+    pd.testing.assert_frame_equal(answers(shuffled), answers(base))

@@ -314,3 +314,36 @@ def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
         evaluate(_cfg("participants=3", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
     s = evaluate(_cfg("participants=1", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
     assert s["participants"] == 1 and s["tests"]["all/none"]["n_trials"] == 196
+
+
+@pytest.mark.parametrize("condition", ["none", "match"])
+def test_answers_do_not_read_labels(monkeypatch, condition):
+    """The items' labels (objects, angles) shuffled after the protocol has chosen them, each trial's
+    images kept: the model's answers, RTs and steps are unchanged (the rotation is scored against the
+    labels outside the model)."""
+    import pandas as pd
+    from support_labels import answers
+
+    from neuroimagery.config import validate
+    from neuroimagery.experiments import exp2
+    from neuroimagery.experiments.protocol_ch5 import image_table
+    from neuroimagery.vision.stimulus_sets import get_stimulus_set
+
+    cfg = validate(_cfg("participants=2", "logger=none", "experiment.som_iterations=30", "experiment.hebb_steps=60",
+                        "experiment.c5_epochs=1"))
+    sset = get_stimulus_set("L")
+    e = exp2._e(cfg)
+    model = MotorRotationModel(e, 2, 0)
+    model.fit(image_table(cfg, sset, exp2.ANGLES))
+    model.eval()
+    base = pd.DataFrame(exp2.run_test(cfg, model, sset, "all", condition)[0])
+    objs, angles = exp2.objects_of(sset), list(exp2.ANGLES)
+    images = exp2.edge_maps
+    true_items = [(o, a) for o in objs for a in angles]
+    monkeypatch.setattr(exp2, "objects_of", lambda s: objs[::-1])  # object labels swapped
+    monkeypatch.setattr(exp2, "ANGLES", angles[3:] + angles[:3])  # angle labels moved round
+    monkeypatch.setattr(exp2, "edge_maps", lambda c, s, items: images(c, s, true_items))  # the images as chosen
+    shuffled = pd.DataFrame(exp2.run_test(cfg, model, sset, "all", condition)[0])
+    assert (shuffled["rotated_angle"] != base["rotated_angle"]).any()
+    assert (shuffled["target_object"] != base["target_object"]).any()
+    pd.testing.assert_frame_equal(answers(shuffled), answers(base))
