@@ -52,6 +52,22 @@ class Report:
             out.append([name, fmt(ours, pct), fmt(thesis, pct), d])
         return self.table(["measure", "this run", "thesis", "difference"], out)
 
+    def effects(self, rows: list[dict]) -> "Report":
+        """The effects table of :func:`neuroimagery.analysis.summary.effect` rows: the participant is
+        the unit (paired t-tests over participants, or one-sample t-tests of their slopes), Holm's
+        correction over the table's family."""
+        self.p("Each effect is tested with the simulated participant as the unit: a paired t-test over the "
+               "participants' mean RT or correct rate (value = mean difference, first condition minus the "
+               "second, with its 95 % interval), or a one-sample t-test of their RT-disparity slopes (value = "
+               "mean slope per degree). p is two-sided; p (Holm) corrects it over the rows of this table. "
+               "'holds': the expected sign with p (Holm) < 0.05; for '~0', uncorrected p >= 0.05.")
+        ci = lambda c: "-" if not c else f"[{c[0]:.3g}, {c[1]:.3g}]"  # noqa: E731
+        pv = lambda v: "-" if v is None else f"{v:.2g}"  # noqa: E731
+        return self.table(["effect", "expected", "value", "95 % CI", "n", "p", "p (Holm)", "holds"],
+                          [[e["effect"], e["expected"], fmt(e["value"]), ci(e["ci95"]), e["n"], pv(e["p"]),
+                            pv(e.get("p_holm")), "-" if e["holds"] is None else ("yes" if e["holds"] else "**no**")]
+                           for e in rows])
+
     def figure(self, path: str | Path, caption: str, root: str | Path | None = None) -> "Report":
         rel = Path(path).relative_to(root) if root is not None else Path(path)
         self.lines += [f"![{caption}]({rel.as_posix()})", "", f"*{caption}*", ""]

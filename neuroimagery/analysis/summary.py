@@ -88,3 +88,68 @@ def compare_rates(a: Iterable[bool], b: Iterable[bool]) -> dict:
     else:
         _, p, _, _ = stats.chi2_contingency(table)
     return {"rate_a": _r(a.mean()), "rate_b": _r(b.mean()), "diff": _r(a.mean() - b.mean()), "p": float(p)}
+
+
+def paired_by_participant(a: pd.DataFrame, b: pd.DataFrame, value: str) -> dict:
+    """The participant as the unit: each participant's mean of ``value`` in ``a`` and in ``b``,
+    compared by a paired t-test over the participants present in both (two-sided p), with the
+    mean difference ``a - b`` and its 95 % interval."""
+    ma = a.groupby("participant")[value].mean()
+    mb = b.groupby("participant")[value].mean()
+    both = ma.index.intersection(mb.index)
+    x, y = ma.loc[both].to_numpy(float), mb.loc[both].to_numpy(float)
+    d = x - y
+    out = {"n": int(d.size), "mean_a": _r(x.mean(), 4) if d.size else None, "mean_b": _r(y.mean(), 4) if d.size else None,
+           "diff": _r(d.mean(), 4) if d.size else None, "t": None, "p": None, "ci95": None}
+    if d.size >= 2 and d.std(ddof=1) > 0:
+        t, p = stats.ttest_rel(x, y)
+        half = stats.t.ppf(0.975, d.size - 1) * d.std(ddof=1) / math.sqrt(d.size)
+        out.update(t=_r(t), p=float(p), ci95=[_r(d.mean() - half, 4), _r(d.mean() + half, 4)])
+    elif d.size >= 2:
+        out.update(p=1.0 if d.mean() == 0 else 0.0, ci95=[_r(d.mean(), 4), _r(d.mean(), 4)])
+    return out
+
+
+def slope_by_participant(df: pd.DataFrame, x: str = "disparity", y: str = "rt") -> dict:
+    """Each participant's least-squares slope of ``y`` on ``x``, and a one-sample t-test of the
+    slopes against 0 over the participants (the participant as the unit)."""
+    slopes = []
+    for _, g in df.groupby("participant"):
+        xs, ys = g[x].to_numpy(float), g[y].to_numpy(float)
+        if np.ptp(xs) > 0:
+            slopes.append(float(np.polyfit(xs, ys, 1)[0]))
+    s = np.asarray(slopes)
+    out = {"n": int(s.size), "mean_slope": _r(s.mean(), 5) if s.size else None, "t": None, "p": None}
+    if s.size >= 2 and s.std(ddof=1) > 0:
+        t, p = stats.ttest_1samp(s, 0.0)
+        out.update(t=_r(t), p=float(p))
+    return out
+
+
+def effect(name: str, expected: str, res: dict, key: str = "diff") -> dict:
+    """One row of a report's effects table: ``expected`` is ``'>0'``, ``'<0'`` or ``'~0'`` for the
+    value ``res[key]`` (a paired difference or a mean slope); ``holds`` says whether the measured
+    value has the expected sign and, for a signed effect, p < 0.05 (``'~0'``: p >= 0.05)."""
+    v, p = res.get(key), res.get("p")
+    if v is None or p is None:
+        holds = None
+    elif expected == "~0":
+        holds = p >= 0.05
+    else:
+        holds = (v > 0 if expected == ">0" else v < 0) and p < 0.05
+    return {"effect": name, "expected": expected, "value": v, "ci95": res.get("ci95"), "p": p, "n": res.get("n"),
+            "holds": holds}
+
+
+def holm(rows: list[dict]) -> list[dict]:
+    """Add ``p_holm``: Holm's step-down correction over the family ``rows`` (their ``p``)."""
+    ps = [(r["p"], i) for i, r in enumerate(rows) if r.get("p") is not None]
+    ps.sort()
+    m, running = len(ps), 0.0
+    for rank, (p, i) in enumerate(ps):
+        running = max(running, min(1.0, (m - rank) * p))
+        rows[i]["p_holm"] = running
+    for r in rows:  # a signed effect holds on the corrected p; '~0' keeps the uncorrected (stricter) one
+        if r.get("holds") is not None and r["expected"] != "~0":
+            r["holds"] = bool((r["value"] > 0 if r["expected"] == ">0" else r["value"] < 0) and r["p_holm"] < 0.05)
+    return rows

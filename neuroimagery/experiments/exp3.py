@@ -18,7 +18,7 @@ import torch
 
 from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
-from ..analysis.summary import summarise_trials
+from ..analysis.summary import effect, holm, paired_by_participant, slope_by_participant, summarise_trials
 from ..nn import seeding
 from . import protocol_ch6 as pc
 from .exp4 import _bar
@@ -178,7 +178,8 @@ def evaluate(cfg, run, trained) -> dict:
                                     b, e.step_deg, 3, e.map_size) for t, b in banks.items()}
     # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
     summary = {"experiment": "exp3", "participants": int(df["participant"].nunique()), "tests": tests,
-               "targets": {k: {"error_rate": v} for k, v in THESIS.items()}, "forward_model_iou": iou}
+               "targets": {k: {"error_rate": v} for k, v in THESIS.items()}, "forward_model_iou": iou,
+               "effects": _effects(df)}
     for key, hist in histories.items():
         pc.log_history(run.logger, hist, key)
     f = run.figures
@@ -193,6 +194,28 @@ def evaluate(cfg, run, trained) -> dict:
     return summary
 
 
+def _effects(df) -> list[dict]:
+    """The effects the thesis states (section 6.1.2), each judged with the participant as the unit;
+    Holm's correction over the family."""
+    d = df.assign(error=(~df["correct"].astype(bool)).astype(float))
+    by = {t: d[d["test"] == t] for t in TESTS if t in set(d["test"])}
+    rows = []
+    if {"recog", "gen1"} <= set(by):
+        rows.append(effect("error rate: Recog < Gen-I", "<0", paired_by_participant(by["recog"], by["gen1"], "error")))
+    if {"gen1", "gen2"} <= set(by):
+        rows.append(effect("error rate: Gen-I < Gen-II", "<0", paired_by_participant(by["gen1"], by["gen2"], "error")))
+    if {"recog", "gen2"} <= set(by):
+        rows.append(effect("RT: Gen-II below Recog", "<0", paired_by_participant(by["gen2"], by["recog"], "rt")))
+    for t in ("recog", "gen1"):
+        if t in by:
+            rows.append(effect(f"{t}: RT rises with disparity", ">0", slope_by_participant(by[t]), "mean_slope"))
+    if "gen2" in by:
+        g = by["gen2"]
+        rows.append(effect("Gen-II: RT flat past 90 deg (135 vs 90)", "~0",
+                           paired_by_participant(g[g["disparity"] == 135], g[g["disparity"] == 90], "rt")))
+    return holm(rows)
+
+
 def report(cfg, run, summary) -> None:
     t = summary["tests"]
     r = Report("Experiment 3: mental rotation and generalisation")
@@ -202,6 +225,8 @@ def report(cfg, run, summary) -> None:
     rows = [(f"{k} error rate", t[k]["error_rate"], v, True) for k, v in THESIS.items() if k in t]
     rows += [(f"{k} RT-disparity r", v["rt_r"], None, False) for k, v in t.items()]
     r.targets(rows)
+    r.h("Effects, the participant as the unit")
+    r.effects(summary.get("effects", []))
     r.h("All tests")
     r.table(["test", "trials", "error", "rotated ok", "RT mean", "RT by disparity"],
             [[k, v["n_trials"], f"{100 * v['error_rate']:.1f} %", f"{100 * v['rotation_success_rate']:.1f} %", v["rt_mean"],

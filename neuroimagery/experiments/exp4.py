@@ -18,7 +18,8 @@ import torch
 
 from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
-from ..analysis.summary import compare_rates, compare_rt, summarise_trials
+from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, slope_by_participant,
+                                summarise_trials)
 from ..nn import seeding
 from . import protocol_ch6 as pc
 
@@ -255,6 +256,35 @@ def _stats(df: pd.DataFrame) -> dict:
     return out
 
 
+def _effects(df: pd.DataFrame) -> list[dict]:
+    """The effects the thesis states (section 6.2.3), each judged with the participant as the unit:
+    paired t-tests over participants on their mean RT or correct rate, one-sample t-tests of their
+    RT-disparity slopes; Holm's correction over the family."""
+    rows = []
+    cond = lambda t, c: df[(df["test"] == t) & (df["condition"] == c)]  # noqa: E731
+    tests = [t for t in TESTS if t in set(df["test"])]
+    for t in tests:
+        rows.append(effect(f"{t}: RT rises with disparity", ">0", slope_by_participant(cond(t, "none")), "mean_slope"))
+    for t in tests:
+        if {"none", "mismatch"} <= set(df[df["test"] == t]["condition"]):
+            a, b = cond(t, "mismatch"), cond(t, "none")
+            rows.append(effect(f"{t}: incongruent movement lengthens RT", ">0", paired_by_participant(a, b, "rt")))
+            rows.append(effect(f"{t}: incongruent movement lowers the correct rate", "<0",
+                               paired_by_participant(a.assign(correct=a["correct"].astype(float)),
+                                                     b.assign(correct=b["correct"].astype(float)), "correct")))
+            m = cond(t, "match")
+            rows.append(effect(f"{t}: congruent movement, no gain in RT (ceiling)", "~0", paired_by_participant(m, b, "rt")))
+        if {"noise-none", "noise-match"} <= set(df[df["test"] == t]["condition"]):
+            far = lambda d: d[d["disparity"] >= 120]  # noqa: E731
+            a, b = far(cond(t, "noise-match")), far(cond(t, "noise-none"))
+            rows.append(effect(f"{t}, noise, 120-150 deg: congruent movement shortens RT", "<0",
+                               paired_by_participant(a, b, "rt")))
+            rows.append(effect(f"{t}, noise, 120-150 deg: congruent movement raises the correct rate", ">0",
+                               paired_by_participant(a.assign(correct=a["correct"].astype(float)),
+                                                     b.assign(correct=b["correct"].astype(float)), "correct")))
+    return holm(rows)
+
+
 def _stats_by_disparity(df: pd.DataFrame) -> dict:
     """Welch t-tests on RT and chi-square tests on correct answers, per disparity, for the
     proprioception comparisons of each test (``{"<test>:<a>-vs-<b>": {"<disparity>": {...}}}``)."""
@@ -309,7 +339,7 @@ def evaluate(cfg, run, trained) -> dict:
     # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
     summary = {"experiment": "exp4", "participants": int(df["participant"].nunique()), "tests": tests,
                "targets": {k: {"correct_rate": v} for k, v in THESIS.items()},
-               "statistics": _stats(df), "statistics_by_disparity": _stats_by_disparity(df),
+               "effects": _effects(df), "statistics": _stats(df), "statistics_by_disparity": _stats_by_disparity(df),
                "rt_by_rotation_steps": _rt_vs_steps(df),
                "rt_by_required_steps": _rt_vs_required_steps(df, e.step_deg)}
     # generalisation of the three-dot forward models to the test shapes
@@ -391,7 +421,9 @@ def report(cfg, run, summary) -> None:
     r.table(["n", "10 n", "RT, n steps required"] + [f"required, {k}" for k in tests_req] + ["RT, n steps made"],
             [[n, 10 * n, dash(req.get("all", {}), n)] + [dash(req[k], n) for k in tests_req]
              + [dash(summary["rt_by_rotation_steps"], n)] for n in ns])
-    r.h("Embodiment statistics")
+    r.h("Effects, the participant as the unit")
+    r.effects(summary.get("effects", []))
+    r.h("Embodiment statistics (trials as samples)")
     r.table(["comparison", "RT a", "RT b", "RT p (Welch)", "correct a", "correct b", "correct p"],
             [[k, v["rt"]["mean_a"], v["rt"]["mean_b"], f"{v['rt']['p']:.3g}" if v["rt"]["p"] is not None else "-",
               v["correct"]["rate_a"], v["correct"]["rate_b"], f"{v['correct']['p']:.3g}"]
