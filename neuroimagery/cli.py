@@ -11,11 +11,17 @@ import signal
 import sys
 import threading
 
+from . import console
 from .errors import UserInputError
 
 
-def _fail(message: str) -> None:
-    print(f"error: {message}", file=sys.stderr)
+def _fail(message: str, log: bool = True) -> None:
+    """``error: message`` on stderr, exit 2; ``log``: in the job log too (there is none before Hydra
+    starts a job, and a sweep's own logging would print the line a second time, with a prefix)."""
+    if log:
+        console.error(message)
+    else:
+        print(f"error: {message}", file=sys.stderr)
     sys.exit(2)
 
 
@@ -47,7 +53,7 @@ def friendly_errors(fn):
         except OSError as e:
             _fail(os_error_message(e))
         except KeyboardInterrupt:
-            print("interrupted: files already written in the run directory are kept", file=sys.stderr)
+            console.interrupted("interrupted: files already written in the run directory are kept")
             sys.exit(130)
         finally:
             if main:
@@ -87,11 +93,11 @@ def plain_hydra_errors() -> None:
         try:
             return func()
         except UserInputError as ex:
-            _fail(str(ex))
+            _fail(str(ex), log=False)
         except (HydraException, OmegaConfBaseException) as ex:
-            _fail(_one_line(ex))
+            _fail(_one_line(ex), log=False)
         except OSError as ex:
-            _fail(os_error_message(ex))
+            _fail(os_error_message(ex), log=False)
         except Exception as ex:  # a bug: Hydra prints it as usual, without running anything again
             def again():
                 raise ex
