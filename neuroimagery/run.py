@@ -62,8 +62,9 @@ class RunDir:
         held = [n for n in RUN_FILES if (self.root / n).exists()] + sorted(p.name for p in self.checkpoints.glob("*.pt"))
         if held and not overwrite:
             if not path.exists():
-                raise UserInputError(f"{self.root} already holds a run without a manifest ({', '.join(held[:3])}; an "
-                                     "older version's, or not a run): choose another directory or set overwrite=true")
+                raise UserInputError(f"{self.root} already holds a run without a manifest ({', '.join(held[:3])}; a "
+                                     "run of version 0.1.0, before runs had manifests, or not a run): choose another "
+                                     "directory or set overwrite=true")
             old = read_json(path, "run manifest")
             diff = mf.differences(manifest["settings"], old.get("settings", {}))
             if old.get("experiment") != manifest["experiment"]:
@@ -194,8 +195,8 @@ def verify_checkpoint(checkpoint: str | Path, name: str, manifest: dict) -> None
     state = safe_load(path)
     stored = state.pop("manifest", None) if isinstance(state, dict) else None
     if not isinstance(stored, dict):
-        raise UserInputError(f"checkpoint {path}: has no manifest (written by an older version, or not by this "
-                             "package): train it again")
+        raise UserInputError(f"checkpoint {path}: has no manifest (written by version 0.1.0, before checkpoints had "
+                             "manifests, or not by this package): train it again with this version")
     if stored.get("tensor_hash") != mf.tensor_hash(state):
         raise UserInputError(f"checkpoint {path}: its tensors do not match the hash it stores (altered or corrupt)")
     if stored.get("experiment") != manifest["experiment"]:

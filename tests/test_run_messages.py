@@ -1,15 +1,17 @@
 """What a run shows: its lines on the terminal and in Hydra's job log, one plain ``error:`` line for a
 refusal, progress bars of Experiments 1-4 on stderr unless ``progress=false``."""
+import json
 import logging
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+import torch
 from conftest import make_cfg
 
 from neuroimagery import cli
-from neuroimagery.run import evaluate
+from neuroimagery.run import evaluate, train
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -76,3 +78,25 @@ def test_a_quick_run_shows_training_and_test_bars_and_progress_false_none(tmp_pa
     err = capsys.readouterr().err
     assert (tmp_path / "quiet" / "trials.csv").is_file()  # it trained and tested
     assert "exp4 train" not in err and "exp4 test" not in err and "%|" not in err
+
+
+def test_a_run_or_checkpoint_of_another_version_says_which(tmp_path, capsys):
+    cfg = lambda *o: make_cfg("experiment=demo", "participants=2", "logger=none", *o)  # noqa: E731
+    train(cfg(), out_dir=tmp_path / "tr")
+    manifest = json.loads((tmp_path / "tr" / "manifest.json").read_text())
+    ck = tmp_path / "tr" / "checkpoints" / "model.pt"
+    state = torch.load(ck, weights_only=True)
+    torch.save({**state, "manifest": {**state["manifest"], "package": "0.0.9"}}, ck)
+    evaluate(cfg(f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev")
+    assert f"note: checkpoint {ck} was written by version 0.0.9 (this is {manifest['package']})" in capsys.readouterr().err
+    (tmp_path / "ev" / "manifest.json").write_text(json.dumps({**manifest, "package": "0.0.9"}))
+    evaluate(cfg(f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev")
+    assert f"note: {tmp_path / 'ev'} holds a run of version 0.0.9" in capsys.readouterr().err
+    torch.save({k: v for k, v in state.items() if k != "manifest"}, ck)  # as version 0.1.0 wrote it
+    with pytest.raises(SystemExit):
+        cli.friendly_errors(evaluate)(cfg(f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev2")
+    assert "has no manifest (written by version 0.1.0" in capsys.readouterr().err
+    (tmp_path / "tr" / "manifest.json").unlink()
+    with pytest.raises(SystemExit):
+        cli.friendly_errors(train)(cfg(), out_dir=tmp_path / "tr")
+    assert "holds a run without a manifest (train.json, model.pt; a run of version 0.1.0" in capsys.readouterr().err
