@@ -7,13 +7,13 @@ from pathlib import Path
 
 import pytest
 from hydra import compose, initialize_config_dir
+from hydra_plugins.hydra_submitit_launcher import config as submitit_launcher  # the cluster extra, in .[test]
 from omegaconf import OmegaConf
 
 from conftest import CONF
 from neuroimagery import cli, pool
 
 ROOT = Path(__file__).resolve().parents[1]
-submitit_launcher = pytest.importorskip("hydra_plugins.hydra_submitit_launcher.config")  # the cluster extra
 
 
 def _launcher(name: str) -> dict:
