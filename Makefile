@@ -1,6 +1,9 @@
 # Quick start: `make run` (main job) and `make test` (test suite). Both create .venv and install
 # what they need on first use; a second call skips the install.
 PYTHON ?= python3.11
+# pip's index for torch: empty = pip's default (on Linux the CUDA build, gigabytes);
+# e.g. make test TORCH_INDEX=https://download.pytorch.org/whl/cpu for the CPU-only build
+TORCH_INDEX ?=
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
@@ -11,10 +14,11 @@ $(PY):
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (Python 3.11 is required)"; exit 1; }
 	$(PYTHON) -m venv $(VENV)
 
-# torch==2.13.0 first and explicitly: a looser requirement would pull a multi-GB CUDA build.
+# torch==2.13.0 first and explicitly (from TORCH_INDEX when set): the package's install below then
+# finds it installed and keeps it, instead of choosing a build itself.
 $(STAMP): $(PY) pyproject.toml
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet torch==2.13.0
+	$(PY) -m pip install --quiet torch==2.13.0 $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX))
 	$(PY) -m pip install --quiet -e ".[test]"
 	@touch $(STAMP)
 

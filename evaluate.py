@@ -3,6 +3,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
+from neuroimagery import console
 from neuroimagery.cli import friendly_errors, plain_hydra_errors
 from neuroimagery.config import register_configs
 from neuroimagery.run import evaluate
@@ -16,7 +17,7 @@ plain_hydra_errors()
 def main(cfg: DictConfig) -> None:
     evaluate(cfg)
     out = HydraConfig.get().runtime.output_dir
-    print(f"report: {out}/report.md")
+    console.info(f"report: {out}/report.md")
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 import hydra
 from omegaconf import DictConfig
 
+from neuroimagery import console
 from neuroimagery.cli import friendly_errors, plain_hydra_errors
 from neuroimagery.config import register_configs
 from neuroimagery.run import train
@@ -14,8 +15,8 @@ plain_hydra_errors()
 @friendly_errors
 def main(cfg: DictConfig) -> None:
     info = train(cfg)
-    print(f"trained {info['experiment']} ({info['participants']} {info['unit']}) in {info['runtime_s']['train']:.1f} s; "
-          f"checkpoints in {info['checkpoints']}")
+    console.info(f"trained {info['experiment']} ({info['participants']} {info['unit']}) in {info['runtime_s']['train']:.1f} s; "
+                 f"checkpoints in {info['checkpoints']}")
 
 
 if __name__ == "__main__":

@@ -7,15 +7,23 @@ same kind of line instead of Hydra's few lines or traceback.
 from __future__ import annotations
 
 import functools
+import os
+import re
 import signal
 import sys
 import threading
 
+from . import console
 from .errors import UserInputError
 
 
-def _fail(message: str) -> None:
-    print(f"error: {message}", file=sys.stderr)
+def _fail(message: str, log: bool = True) -> None:
+    """``error: message`` on stderr, exit 2; ``log``: in the job log too (there is none before Hydra
+    starts a job, and a sweep's own logging would print the line a second time, with a prefix)."""
+    if log:
+        console.error(message)
+    else:
+        print(f"error: {message}", file=sys.stderr)
     sys.exit(2)
 
 
@@ -47,7 +55,7 @@ def friendly_errors(fn):
         except OSError as e:
             _fail(os_error_message(e))
         except KeyboardInterrupt:
-            print("interrupted: files already written in the run directory are kept", file=sys.stderr)
+            console.interrupted("interrupted: files already written in the run directory are kept")
             sys.exit(130)
         finally:
             if main:
@@ -69,11 +77,28 @@ def _one_line(ex: BaseException) -> str:
     return "; ".join(parts) or type(ex).__name__
 
 
+_CLUSTER_HINT = ' (the submitit launchers need hydra-submitit-launcher: pip install -e ".[cluster]")'
+
+
+def _refused_sweep_job(ex: Exception) -> str | None:
+    """The ``error:`` line of a sweep job that a submitit launcher ran and the job refused (bad
+    settings, a directory holding another run), with where submitit keeps the job's output; None
+    for anything else (a job that crashed shows its traceback)."""
+    if not type(ex).__module__.startswith("submitit"):
+        return None
+    text = str(ex)
+    refusals = [ln[len("error: "):] for ln in text.splitlines() if ln.startswith("error: ")]
+    if not refusals:
+        return None
+    where = re.search(r"with path (\S+)", text)
+    log = f" (the job's output: {os.path.dirname(where.group(1))})" if where else ""
+    return f"a job of the sweep stopped: {refusals[-1]}{log}"
+
+
 def plain_hydra_errors() -> None:
     """Make Hydra report a configuration it cannot compose, or a run directory it cannot create,
-    as one ``error:`` line with exit status 2 (``HYDRA_FULL_ERROR=1`` still shows Hydra's own)."""
-    import os
-
+    as one ``error:`` line with exit status 2 (``HYDRA_FULL_ERROR=1`` still shows Hydra's own); the
+    same for a sweep job that the submitit launcher ran and that refused its settings."""
     from hydra._internal import utils as hydra_utils
     from hydra.errors import HydraException
     from omegaconf.errors import OmegaConfBaseException
@@ -87,12 +112,18 @@ def plain_hydra_errors() -> None:
         try:
             return func()
         except UserInputError as ex:
-            _fail(str(ex))
+            _fail(str(ex), log=False)
         except (HydraException, OmegaConfBaseException) as ex:
-            _fail(_one_line(ex))
+            _fail(_one_line(ex) + (_CLUSTER_HINT if "hydra_submitit_launcher" in str(ex) else ""), log=False)
         except OSError as ex:
-            _fail(os_error_message(ex))
+            _fail(os_error_message(ex), log=False)
         except Exception as ex:  # a bug: Hydra prints it as usual, without running anything again
+            if "Unknown plugin class" in str(ex):  # hydra/launcher=... of a plugin that is not installed
+                _fail(_one_line(ex) + (_CLUSTER_HINT if "hydra_submitit_launcher" in str(ex) else ""), log=False)
+            refused = _refused_sweep_job(ex)
+            if refused:
+                _fail(refused, log=False)
+
             def again():
                 raise ex
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
@@ -21,6 +22,11 @@ from .validation import check_finite
 from .vision.config import StimuliConfig, VisionConfig
 
 EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "demo")
+# conf/hydra/launcher/submitit_*.yaml share their names with the launcher plugin's schemas, which
+# Hydra 1.3 still checks them against, with a deprecation warning; they list every key and work
+# without the schema too. Set on import: a sweep job of the submitit launcher composes its
+# configuration again in a process of its own, after unpickling the task (which imports this module).
+warnings.filterwarnings("ignore", message=r"\s*'hydra/launcher/submitit_\w+' is validated against ConfigStore schema")
 
 
 @dataclass

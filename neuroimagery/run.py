@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 import os
 import pickle
-import sys
 import tempfile
 import time
 import zipfile
@@ -18,7 +17,7 @@ from typing import Any
 import torch
 from omegaconf import DictConfig, OmegaConf
 
-from . import manifest as mf
+from . import console, manifest as mf, progress
 from .config import Config, experiment_module, validate
 from .errors import UserInputError
 from .logger import make_logger
@@ -63,8 +62,9 @@ class RunDir:
         held = [n for n in RUN_FILES if (self.root / n).exists()] + sorted(p.name for p in self.checkpoints.glob("*.pt"))
         if held and not overwrite:
             if not path.exists():
-                raise UserInputError(f"{self.root} already holds a run without a manifest ({', '.join(held[:3])}; an "
-                                     "older version's, or not a run): choose another directory or set overwrite=true")
+                raise UserInputError(f"{self.root} already holds a run without a manifest ({', '.join(held[:3])}; a "
+                                     "run of version 0.1.0, before runs had manifests, or not a run): choose another "
+                                     "directory or set overwrite=true")
             old = read_json(path, "run manifest")
             diff = mf.differences(manifest["settings"], old.get("settings", {}))
             if old.get("experiment") != manifest["experiment"]:
@@ -73,11 +73,9 @@ class RunDir:
                 raise UserInputError(f"{self.root} holds another run ({'; '.join(diff[:4])}"
                                      f"{'; ...' if len(diff) > 4 else ''}): choose another directory or set overwrite=true")
             if old.get("package") != manifest["package"]:
-                print(f"note: {self.root} holds a run of version {old.get('package')} (this is {manifest['package']})",
-                      file=sys.stderr)
-            print(f"note: {self.root} holds a run with the same settings: "
-                  + ("finished tasks are kept and the run resumes" if manifest["experiment"] == "exp5" else "rewriting it"),
-                  file=sys.stderr)
+                console.note(f"{self.root} holds a run of version {old.get('package')} (this is {manifest['package']})")
+            console.note(f"{self.root} holds a run with the same settings: "
+                         + ("finished tasks are kept and the run resumes" if manifest["experiment"] == "exp5" else "rewriting it"))
         self.write_json("manifest.json", manifest)
 
     def _atomic(self, path: Path, write) -> Path:
@@ -197,8 +195,8 @@ def verify_checkpoint(checkpoint: str | Path, name: str, manifest: dict) -> None
     state = safe_load(path)
     stored = state.pop("manifest", None) if isinstance(state, dict) else None
     if not isinstance(stored, dict):
-        raise UserInputError(f"checkpoint {path}: has no manifest (written by an older version, or not by this "
-                             "package): train it again")
+        raise UserInputError(f"checkpoint {path}: has no manifest (written by version 0.1.0, before checkpoints had "
+                             "manifests, or not by this package): train it again with this version")
     if stored.get("tensor_hash") != mf.tensor_hash(state):
         raise UserInputError(f"checkpoint {path}: its tensors do not match the hash it stores (altered or corrupt)")
     if stored.get("experiment") != manifest["experiment"]:
@@ -209,8 +207,8 @@ def verify_checkpoint(checkpoint: str | Path, name: str, manifest: dict) -> None
         raise UserInputError(f"checkpoint {path} was trained with other settings: {'; '.join(diff)} "
                              "(set them as in training, or train again)")
     if stored.get("package") != manifest["package"]:
-        print(f"note: checkpoint {path} was written by version {stored.get('package')} (this is "
-              f"{manifest['package']})", file=sys.stderr)
+        console.note(f"checkpoint {path} was written by version {stored.get('package')} (this is "
+                     f"{manifest['package']})")
 
 
 def _output_dir(out_dir: str | Path | None) -> Path:
@@ -251,7 +249,8 @@ def train(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
     conf, module, run = _prepare(cfg, out_dir)
     try:
         t0 = time.perf_counter()
-        module.train(conf, run)
+        with progress.phase(f"{conf.experiment.name} train", conf.progress):
+            module.train(conf, run)
         run.timings["train"] = round(time.perf_counter() - t0, 3)
         # experiments whose simulated subjects are not cfg.participants say how many they trained
         count, unit = module.trained_count(conf) if hasattr(module, "trained_count") else (conf.participants, "participants")
@@ -278,10 +277,12 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
                 run.timings.update(read_json(tj, "training record").get("runtime_s", {}))
         else:
             t0 = time.perf_counter()
-            trained = module.train(conf, run)
+            with progress.phase(f"{conf.experiment.name} train", conf.progress):
+                trained = module.train(conf, run)
             run.timings["train"] = round(time.perf_counter() - t0, 3)
         t0 = time.perf_counter()
-        summary = module.evaluate(conf, run, trained)
+        with progress.phase(f"{conf.experiment.name} test", conf.progress):
+            summary = module.evaluate(conf, run, trained)
         run.timings["evaluate"] = round(time.perf_counter() - t0, 3)
         summary["runtime_s"] = dict(run.timings)
         run.write_json("summary.json", summary)

@@ -19,7 +19,7 @@ from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import summarise_trials
 from ..models.rotation_affordance import AffordanceRotationModel
-from .protocol_ch5 import (auto_threads, edge_maps, finish_report, load_model, objects_of, pearson,
+from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of, pearson,
                            record_figures_and_scalars, stimulus_set,
                            to_np, train_and_save, trials_frame)
 
@@ -164,7 +164,7 @@ def run_test(cfg, model, sset, test: str, record: int = 0):
                              correct=yes == same, rotation_steps=int(out["steps"][p, i]),
                              rotated_ok=bool(out["rotated_ok"][p, i]), rt=int(out["rt"][p, i]),
                              signed_disparity=pr["rotated_angle"]))
-    return rows, out, pairs
+    return count_trials(rows, test), out, pairs
 
 
 def _success_by_object(df: pd.DataFrame) -> dict:

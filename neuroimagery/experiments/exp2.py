@@ -17,7 +17,7 @@ from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import compare_rates, compare_rt, summarise_trials
 from ..models.rotation_motor import ANGLES, MotorRotationModel
-from .protocol_ch5 import (auto_threads, edge_maps, finish_report, load_model, objects_of,
+from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of,
                            record_figures_and_scalars, stimulus_set, to_np,
                            train_and_save, trials_frame)
 
@@ -145,7 +145,7 @@ def run_test(cfg, model, sset, test, condition, record=0):
                              disparity=abs(r[1] - t[1]), same=same, answer="yes" if yes else "no", correct=yes == same,
                              rotation_steps=int(out["steps"][p, i]), rotated_ok=bool(out["rotated_ok"][p, i]),
                              rt=int(out["rt"][p, i]), signed_disparity=r[1] - t[1], pair_type=r[0] + t[0]))
-    return rows, out
+    return count_trials(rows, test, condition), out
 
 
 @auto_threads

@@ -6,18 +6,18 @@ with different seeds (``evaluate.py -m experiment=exp5 seed=0,1,2``) are pooled 
 ``individuals.csv`` rows are put together and judged with the same functions as one run
 (:func:`neuroimagery.experiments.exp5.summarise`)::
 
-    python -m neuroimagery.experiments.exp5_pool RUN_DIR RUN_DIR ... [--out DIR]
+    python -m neuroimagery.pool RUN_DIR RUN_DIR ... [--out DIR]
 
-prints the pooled table and claims (a Hydra sweep directory stands for its numbered runs);
-``--out`` also writes ``individuals.csv`` (with a ``run``
-column), ``summary.json`` and ``report.md`` into DIR. The runs must agree on every experiment
+(or ``python -m neuroimagery.experiments.exp5_pool``, the same command) prints the pooled table and
+claims (a Hydra sweep directory stands for its numbered runs); ``--out`` also writes
+``individuals.csv`` (with a ``run`` column), ``summary.json`` and ``report.md`` into DIR. The
+command first checks the runs' manifests (:mod:`neuroimagery.pool`). The runs must agree on every experiment
 setting except the engine's (``n_jobs``, ``reuse_libraries``, ``filmstrip_repetition``) and the
 number of repetitions, and must have distinct seeds. A run whose ``individuals.csv`` does not hold
 the rows its ``summary.json`` counts (cut short, header only, not a CSV file) is refused.
 """
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import io
 import json
@@ -30,7 +30,6 @@ from ..analysis.report import Report
 from ..errors import UserInputError
 from .exp5 import _ENGINE_KEYS, STRATEGIES, Exp5Config, group_rates, summarise
 from .exp5_figures import group_table
-from .exp5_tasks import write_atomic
 
 # settings that may differ between pooled runs: how the work was spread, and how many robots
 _FREE_KEYS = _ENGINE_KEYS + ("filmstrip_repetition", "repetitions", "quick_repetitions")
@@ -203,25 +202,11 @@ def report(summary: dict, e: Exp5Config) -> Report:
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(prog="python -m neuroimagery.experiments.exp5_pool", description=__doc__.split("\n\n")[0])
-    ap.add_argument("runs", nargs="+", help="finished Exp. 5 run directories (one configuration, distinct seeds), "
-                    "or a Hydra sweep directory holding them")
-    ap.add_argument("--out", help="write individuals.csv, summary.json and report.md here")
-    args = ap.parse_args(argv)
-    summary, df = pool(args.runs)
-    e = read_config(summary["runs"][0]["run"])[0]
-    rep = report(summary, e)
-    print(rep.text())
-    if args.out:
-        out = Path(args.out)
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as err:
-            raise UserInputError(f"--out: cannot create {out} ({err.strerror or err})") from None
-        write_atomic(out / "individuals.csv", lambda tmp: df.to_csv(tmp, index=False))
-        write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
-        write_atomic(out / "report.md", lambda tmp: tmp.write_text(rep.text()))
-        print(f"pooled report: {out / 'report.md'}")
+    """``python -m neuroimagery.experiments.exp5_pool``: the same command as ``python -m neuroimagery.pool``,
+    which pools the runs of every experiment (an Exp. 5 run through :func:`pool` and :func:`report`)."""
+    from .. import pool as pooling  # the command sits above the experiments; imported only when run
+
+    pooling.main(argv, prog="python -m neuroimagery.experiments.exp5_pool")
 
 
 if __name__ == "__main__":

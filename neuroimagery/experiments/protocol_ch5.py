@@ -2,7 +2,9 @@
 
 * the stimuli: edge maps (32x32, {0, 1}) of the upside-down L (object A) and its mirror
   (object B), or of a user's folder, through the project's vision pipeline;
-* the trial table -> summary -> report plumbing common to both experiments.
+* the trial table -> summary -> report plumbing common to both experiments;
+* their progress bars: the training stages, and the trials of each test block
+  (``neuroimagery.progress``).
 """
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from .. import progress
 from ..analysis.summary import TRIAL_COLUMNS, check_trials
 from ..nn.functional import intra_op_threads
 
@@ -80,7 +83,11 @@ def train_and_save(cfg, run, model_cls, e, angles: Sequence[float]):
     from ..vision.stimulus_sets import get_stimulus_set
 
     model = model_cls(e, cfg.participants, cfg.seed)
-    model.fit(image_table(cfg, get_stimulus_set("L"), angles))
+    with progress.bar(total=2, what="stimuli, model", unit="stage") as stages:
+        images = image_table(cfg, get_stimulus_set("L"), angles)
+        stages.update()
+        model.fit(images)
+        stages.update()
     if hasattr(model, "compact_state"):  # the factors the weights are formed from, not the weights
         run.save_checkpoint("model", model.compact_state())
     else:
@@ -118,6 +125,12 @@ def load_model(cfg, checkpoint_dir, model_cls, e):
         raise UserInputError(f"checkpoint {path}: unknown format {fmt!r} ({model_cls.__name__} reads {known})")
     model.eval()
     return model
+
+
+def count_trials(rows: list[dict], test: str, condition: str = "none") -> list[dict]:
+    """The rows of one test block, counted on the test phase's progress bar; returns ``rows``."""
+    progress.advance(len(rows), note=f"{test}/{condition}")
+    return rows
 
 
 def trials_frame(rows: list[dict]) -> pd.DataFrame:

@@ -8,7 +8,9 @@
   of eq. 6.4 on a mini-batch, touching only the columns of the active inputs);
 * the three-dot training set of the forward models (thesis Fig. 6.3, 6.8);
 * the generalisation check of the forward models (IoU of imagined vs. true rotated edge maps);
-* sample-trial logging and the step-by-step map panels (Fig. 6.12-6.13).
+* sample-trial logging and the step-by-step map panels (Fig. 6.12-6.13);
+* progress bars (``neuroimagery.progress``): the forward models' mini-batches and the posture maps
+  while training, the trials of each test block while testing.
 
 Nothing here knows a model's internals: models return tensors, this module turns them into rows.
 """
@@ -21,6 +23,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from .. import progress
 from ..errors import UserInputError
 from ..nn import seeding
 from ..analysis.summary import TRIAL_COLUMNS
@@ -128,6 +131,8 @@ def trial_rows(table: pd.DataFrame, out: dict, participants: Sequence[int]) -> p
             if extra in out:
                 df[extra] = out[extra][k].numpy()
         frames.append(df)
+    if len(table):
+        progress.advance(len(table) * len(frames), note=f"{table['test'].iloc[0]}/{table['condition'].iloc[0]}")
     return pd.concat(frames, ignore_index=True)[TRIAL_COLUMNS + [c for c in ("decided", "rotations") if c in out]]
 
 
@@ -173,7 +178,7 @@ def train_delta_binary(conn, X: torch.Tensor, Y: torch.Tensor, eta: float, batch
     rows_of = Wt.view(P * (I + 1), O)  # participant p's weight column i is row p (I + 1) + i
     base = (torch.arange(P) * (I + 1)).view(P, 1, 1)
     N = X.shape[1]
-    for s in range(0, N, batch):
+    for s in progress.bar(range(0, N, batch), what="forward model", unit="batch"):
         x, y = X[:, s:s + batch], Y[:, s:s + batch]
         on = x > 0.5
         K = int(on.sum(-1).max())
@@ -274,7 +279,7 @@ def train_posture_maps_and_freeze(cfg, eye, model, soms, angles: Sequence[float]
     e = cfg.experiment
     bank = StimulusBank.build(eye, stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
     labels = bank.angle_labels(angles)
-    for som in soms:
+    for som in progress.bar(soms, what="posture maps", unit="map"):
         som.fit(bank.maps, labels=labels, generators=generators, method="factored")
     model.eval()
     model.freeze()

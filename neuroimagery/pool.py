@@ -1,0 +1,331 @@
+"""Runs of one configuration with different seeds, pooled: ``python -m neuroimagery.pool``.
+
+::
+
+    python -m neuroimagery.pool RUN_DIR RUN_DIR ... [--out OUT]
+    python -m neuroimagery.pool SWEEP_DIR --out OUT      # the runs of evaluate.py -m ... seed=0,1,2
+
+A Hydra sweep directory stands for the runs in its subdirectories (those holding a
+``manifest.json``, in job order). The runs must be finished runs of one experiment whose manifests
+have the same ``settings`` except ``seed`` (each differing key is named), with distinct seeds; each
+``trials.csv`` must hold the rows its ``summary.json`` was computed from (row counts and rates per
+test). Every refusal is one ``error:`` line naming the file or the key.
+
+Experiments 1-4 and the demo: OUT gets ``trials.csv`` (every run's rows, with ``run`` and ``seed``
+columns added), ``summary.json`` (per test the figures of one run's summary computed on the rows of
+all runs, with ``per_seed`` values and their ``across_seeds`` mean, SD, min and max) and
+``report.md`` (a table per test: each seed, the mean and SD across seeds, the pooled value and the
+thesis's target). Experiment 5 is pooled by :mod:`neuroimagery.experiments.exp5_pool` (rates,
+routes and claims on all robots; ``individuals.csv`` instead of ``trials.csv``).
+"""
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import math
+import os
+import statistics
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from . import console
+from .analysis.report import Report
+from .analysis.summary import TRIAL_COLUMNS, summarise_test
+from .errors import UserInputError
+
+# per test: (key in summary.json, label in report.md, a rate shown in %?)
+MEASURES = (("correct_rate", "correct", True), ("error_rate", "error", True),
+            ("rotation_success_rate", "rotation success", True), ("error_rate_same", "NO to same pairs", True),
+            ("error_rate_different", "YES to mirror pairs", True), ("rt_mean", "RT mean", False))
+NUMERIC = ("participant", "disparity", "rt")
+TITLES = {"demo": "Demo", **{f"exp{k}": f"Experiment {k}" for k in range(1, 6)}}
+OLD = "runs of version 0.1.0 have none"
+
+
+@dataclass
+class Run:
+    """A finished run directory: its manifest and summary."""
+
+    dir: Path
+    manifest: dict
+    summary: dict
+
+    experiment = property(lambda self: self.manifest.get("experiment"))
+    seed = property(lambda self: self.manifest.get("seed"))
+
+
+# ------------------------------------------------------------------------------ finding runs
+def find_runs(dirs: list[str | Path]) -> list[Path]:
+    """Run directories (holding ``manifest.json``), a sweep directory replaced by its runs in job order."""
+    out = []
+    for d in map(Path, dirs):
+        if not d.is_dir():
+            raise UserInputError(f"{d}: no such run directory")
+        if (d / "manifest.json").is_file():
+            out.append(d)
+            continue
+        jobs = [c for c in d.iterdir() if (c / "manifest.json").is_file()]
+        if not jobs:
+            raise UserInputError(f"{d}: not a finished run directory nor a sweep directory holding runs "
+                                 f"(no manifest.json in it or in its subdirectories; {OLD})")
+        jobs.sort(key=lambda c: (not c.name.isdigit(), int(c.name) if c.name.isdigit() else 0, c.name))
+        out.extend(jobs)
+    if not out:
+        raise UserInputError("pool: give at least one run directory")
+    return out
+
+
+def _json(path: Path, what: str) -> dict:
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise UserInputError(f"{path.parent}: no {path.name} ({what})") from None
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        raise UserInputError(f"{path}: cannot be read ({getattr(err, 'strerror', None) or err})") from None
+    if not isinstance(data, dict):
+        raise UserInputError(f"{path}: not a JSON object")
+    return data
+
+
+def read_run(d: Path) -> Run:
+    """The manifest and summary of one run directory; refused unless the run is finished."""
+    manifest = _json(d / "manifest.json", f"not a run directory; {OLD}")
+    for key in ("experiment", "seed", "settings"):
+        if key not in manifest:
+            raise UserInputError(f"{d / 'manifest.json'}: no {key!r} (not a manifest this package wrote)")
+    summary = _json(d / "summary.json", "not a finished run: it stopped, or is still running")
+    return Run(d, manifest, summary)
+
+
+def check_runs(runs: list[Run], free: tuple[str, ...] = ()) -> None:
+    """One experiment, the same settings except ``seed`` (and ``free``), distinct seeds."""
+    first = runs[0]
+    for r in runs[1:]:
+        if r.experiment != first.experiment:
+            raise UserInputError(f"pool: {r.dir} is a run of {r.experiment}, {first.dir} of {first.experiment}; "
+                                 "pool runs of one experiment")
+        a, b = first.manifest["settings"], r.manifest["settings"]
+        diff = [f"{k} {a.get(k, '<absent>')!r} in {first.dir} but {b.get(k, '<absent>')!r} in {r.dir}"
+                for k in sorted(set(a) | set(b)) if k != "seed" and k not in free and a.get(k) != b.get(k)]
+        if diff:
+            raise UserInputError(f"pool: runs with other settings: {'; '.join(diff)} (pool runs that differ only "
+                                 "in seed)")
+    seen: dict = {}
+    for r in runs:
+        if r.seed in seen:
+            raise UserInputError(f"pool: {r.dir} and {seen[r.seed]} both have seed {r.seed} (the same participants "
+                                 "twice)")
+        seen[r.seed] = r.dir
+    versions = sorted({str(r.manifest.get("package")) for r in runs})
+    if len(versions) > 1:
+        console.note(f"pooling runs written by versions {', '.join(versions)}")
+
+
+# ---------------------------------------------------------------------------- reading rows
+def read_trials(run: Run) -> pd.DataFrame:
+    """``trials.csv`` of a run, refused unless it is whole: complete lines, the public columns, at
+    least one row, no empty field where a figure is computed from."""
+    path = run.dir / "trials.csv"
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise UserInputError(f"{run.dir}: no trials.csv (not a finished run of {run.experiment})") from None
+    except OSError as err:
+        raise UserInputError(f"{path}: cannot read ({err.strerror or err})") from None
+    if not raw.strip():
+        raise UserInputError(f"{path}: empty file")
+    try:
+        df = pd.read_csv(io.BytesIO(raw))
+    except ValueError as err:  # pandas' parser and decoding errors
+        raise UserInputError(f"{path}: not a readable CSV file ({str(err).strip().splitlines()[0]})") from None
+    missing = [c for c in TRIAL_COLUMNS if c not in df.columns]
+    if missing:
+        raise UserInputError(f"{path}: missing columns {', '.join(missing)}")
+    if not raw.endswith(b"\n"):  # the run's writer ends every row with one
+        raise UserInputError(f"{path}: cut short (the last line is incomplete)")
+    if df.empty:
+        raise UserInputError(f"{path}: no rows (header only)")
+    for col in NUMERIC:
+        if not pd.api.types.is_numeric_dtype(df[col]):
+            raise UserInputError(f"{path}: column {col} is not numeric")
+    empty = df[["participant", "test", "condition", "disparity", "same", "correct", "rotated_ok", "rt"]].isna().any(axis=1)
+    if empty.any():
+        raise UserInputError(f"{path}: line {int(empty.to_numpy().argmax()) + 2} has empty fields")
+    for col in ("same", "correct", "rotated_ok"):
+        if not pd.api.types.is_bool_dtype(df[col]):
+            raise UserInputError(f"{path}: column {col} is not True/False")
+    return df
+
+
+def _close(a, b, rate: bool) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return abs(float(a) - float(b)) <= (1e-4 if rate else max(2e-3, 1e-6 * abs(float(b))))
+
+
+def figures_of(df: pd.DataFrame, run: Run) -> dict:
+    """Per ``<test>/<condition>`` the figures of the rows, refused unless they are the ones the run's
+    ``summary.json`` states (the tests, their trial counts and the :data:`MEASURES`)."""
+    csv, name = run.dir / "trials.csv", "summary.json"
+    stated = run.summary.get("tests")
+    if not isinstance(stated, dict) or not stated:
+        raise UserInputError(f"{run.dir / name}: no tests")
+    have = {f"{t}/{c}": summarise_test(g) for (t, c), g in df.groupby(["test", "condition"], sort=False)}
+    for key in sorted(set(have) | set(stated)):
+        if key not in have:
+            raise UserInputError(f"{csv}: no rows of test {key}, which {name} states (not this run's rows)")
+        if key not in stated:
+            raise UserInputError(f"{csv}: rows of test {key}, which {name} does not state (not this run's rows)")
+        n, n0 = have[key]["n_trials"], stated[key].get("n_trials")
+        if n != n0:
+            raise UserInputError(f"{csv}: test {key} has {n} rows, but {name} counts {n0} (cut short, or not this "
+                                 "run's rows)")
+        for m, _, rate in MEASURES:
+            if not _close(have[key].get(m), stated[key].get(m), rate):
+                raise UserInputError(f"{csv}: test {key} {m} is {have[key].get(m)} from the rows, {stated[key].get(m)} "
+                                     f"in {name} (not this run's rows)")
+    return have
+
+
+# ------------------------------------------------------------------------------ pooling
+def _spread(values: list) -> dict:
+    vals = [float(v) for v in values if v is not None and not (isinstance(v, float) and math.isnan(v))]
+    if not vals:
+        return {"mean": None, "sd": None, "min": None, "max": None, "n": 0}
+    sd = statistics.stdev(vals) if len(vals) > 1 else None
+    return {"mean": round(statistics.fmean(vals), 4), "sd": None if sd is None else round(sd, 4),
+            "min": round(min(vals), 4), "max": round(max(vals), 4), "n": len(vals)}
+
+
+def pool_trials(runs: list[Run]) -> tuple[dict, pd.DataFrame]:
+    """Pooled summary and rows of runs of Experiments 1-4 or the demo (checked with :func:`check_runs`)."""
+    frames, per_run = [], []
+    for r in runs:
+        df = read_trials(r)
+        per_run.append(figures_of(df, r))
+        frames.append(df.assign(run=str(r.dir), seed=r.seed))
+    rows = pd.concat(frames, ignore_index=True)
+    tests = {}
+    for (t, c), g in rows.groupby(["test", "condition"], sort=False):
+        key = f"{t}/{c}"
+        per_seed = {str(r.seed): {m: fig[key][m] for m, _, _ in MEASURES} for r, fig in zip(runs, per_run)}
+        across = {m: _spread([p[m] for p in per_seed.values()]) for m, _, _ in MEASURES}
+        tests[key] = {**summarise_test(g), "per_seed": per_seed, "across_seeds": across}
+    targets = runs[0].summary.get("targets") or {}
+    if any((r.summary.get("targets") or {}) != targets for r in runs[1:]):
+        console.note(f"the runs state different thesis targets; the report shows those of {runs[0].dir}")
+    counts = [int(f.participant.nunique()) for f in frames]
+    summary = {"experiment": runs[0].experiment, "pooled": True, "seeds": [r.seed for r in runs],
+               "participants": sum(counts), "tests": tests, "targets": targets,
+               "runs": [{"run": str(r.dir), "seed": r.seed, "participants": n, "package": r.manifest.get("package")}
+                        for r, n in zip(runs, counts)]}
+    return summary, rows
+
+
+def _cell(v, rate: bool, spread: bool = False) -> str:
+    if v is None:
+        return "-"
+    if rate:
+        return f"{100 * v:.1f} pts" if spread else f"{100 * v:.1f} %"
+    return f"{v:.3g}" if isinstance(v, float) else str(v)
+
+
+def report_trials(summary: dict) -> Report:
+    """A table per test: each seed's value, mean and SD across seeds, the pooled value, the thesis's."""
+    runs, targets = summary["runs"], summary["targets"]
+    seeds = [str(r["seed"]) for r in runs]
+    rep = Report(f"{TITLES.get(summary['experiment'], summary['experiment'])} pooled over {len(runs)} runs")
+    rep.p(f"{len(runs)} runs of the same settings (seeds {', '.join(seeds)}), {summary['participants']} participants "
+          "in all. Per test: each seed's value, their mean and standard deviation across seeds (SD: none with one "
+          "seed), the value on all trials of all runs, and the thesis's figure where the summary of a run states "
+          "one. RT in the experiment's own unit.")
+    shown = set()
+    for key, t in summary["tests"].items():
+        rep.h(f"{key} ({t['n_trials']} trials)")
+        rows = []
+        for m, label, rate in MEASURES:
+            target = (targets.get(key) or {}).get(m)
+            if target is not None:
+                shown.add((key, m))
+            a = t["across_seeds"][m]
+            rows.append([label, *(_cell(t["per_seed"][s][m], rate) for s in seeds), _cell(a["mean"], rate),
+                         _cell(a["sd"], rate, spread=True), _cell(t[m], rate), _cell(target, rate)])
+        rep.table(["measure", *(f"seed {s}" for s in seeds), "mean", "SD", "pooled", "thesis"], rows)
+    rest = [f"{k}: {m} {_cell(v, 'rate' in m or 'success' in m)}" for k, d in targets.items() if isinstance(d, dict)
+            for m, v in d.items() if (k, m) not in shown and isinstance(v, (int, float))]
+    if rest:
+        rep.h("Other figures of the thesis (not pooled here)")
+        rep.bullets(rest)
+    rep.h("Runs")
+    rep.bullets([f"`{r['run']}`: seed {r['seed']}, {r['participants']} participants, version {r['package']}"
+                 for r in runs])
+    return rep
+
+
+def pool(dirs: list[str | Path]) -> tuple[dict, pd.DataFrame, Report]:
+    """Pooled summary, rows and report of the runs in ``dirs`` (run or sweep directories)."""
+    runs = [read_run(d) for d in find_runs(dirs)]
+    if runs[0].experiment == "exp5":
+        from .experiments import exp5_pool
+
+        check_runs(runs, free=tuple(f"experiment.{k}" for k in exp5_pool._FREE_KEYS))
+        summary, df = exp5_pool.pool([r.dir for r in runs])
+        return summary, df, exp5_pool.report(summary, exp5_pool.read_config(runs[0].dir)[0])
+    check_runs(runs)
+    summary, df = pool_trials(runs)
+    return summary, df, report_trials(summary)
+
+
+# ------------------------------------------------------------------------------- writing
+def _write(path: Path, text: str | None = None, frame: pd.DataFrame | None = None, float_format=None) -> None:
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    try:
+        if frame is not None:
+            frame.to_csv(tmp, index=False, float_format=float_format)
+        else:
+            tmp.write_text(text)
+        os.replace(tmp, path)
+    except OSError as err:
+        tmp.unlink(missing_ok=True)
+        raise UserInputError(f"cannot write {path}: {err.strerror or err}") from None
+
+
+def write(out: str | Path, summary: dict, df: pd.DataFrame, rep: Report) -> Path:
+    """Write the pooled table (``trials.csv``, or ``individuals.csv`` for exp5), ``summary.json`` and
+    ``report.md`` into ``out``; returns the report's path."""
+    out = Path(out)
+    if (out / "manifest.json").exists():
+        raise UserInputError(f"--out: {out} is a run directory (it has manifest.json): choose another")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise UserInputError(f"--out: cannot create {out} ({err.strerror or err})") from None
+    if summary["experiment"] == "exp5":
+        _write(out / "individuals.csv", frame=df)
+    else:  # as a run writes its trials.csv
+        _write(out / "trials.csv", frame=df, float_format="%.6g")
+    _write(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    _write(out / "report.md", rep.text())
+    return out / "report.md"
+
+
+def main(argv: list[str] | None = None, prog: str = "python -m neuroimagery.pool") -> None:
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", nargs="+", help="finished run directories of one experiment and settings (distinct seeds), "
+                    "or a Hydra sweep directory holding them")
+    ap.add_argument("--out", help="write the pooled table, summary.json and report.md here")
+    args = ap.parse_args(argv)
+    summary, df, rep = pool(args.runs)
+    sys.stdout.write(rep.text())
+    if args.out:
+        console.info(f"pooled report: {write(args.out, summary, df, rep)}")
+
+
+if __name__ == "__main__":
+    from .cli import friendly_errors
+
+    friendly_errors(main)()
