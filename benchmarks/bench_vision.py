@@ -21,7 +21,9 @@ from neuroimagery.vision import (
     shape_elongation,
 )
 
-_STEP = {"L": 15.0, "exp3-a": 45.0, "exp3-b": 45.0, "exp3-c": 45.0}
+def _step(name: str) -> float:
+    """The protocol's angle step: 15 (set L), 45 (Exp. 3 sets), 30 (Exp. 4 sets)."""
+    return 15.0 if name == "L" else 45.0 if name.startswith("exp3") else 30.0
 
 
 def elongations() -> None:
@@ -36,7 +38,7 @@ def rotate_vs_redraw(eye) -> None:
     print("\n| set | step (deg) | IoU mean | IoU min | one-unit shift IoU |\n|---|---|---|---|---|")
     for name in list_stimulus_sets():
         s = get_stimulus_set(name)
-        step = _STEP.get(name, 30.0)
+        step = _step(name)
         app = s.appearances[0]
         a0 = np.arange(-90.0, 90.0, step)
         e0 = eye.edge_maps(s, [(o, a, app) for o in s.objects for a in a0])

@@ -1,9 +1,12 @@
-"""Contact sheets of stimulus sets: ``python -m neuroimagery.stimuli SET --out DIR``.
+"""Contact sheets and measures of stimulus sets: ``python -m neuroimagery.stimuli SET --out DIR``.
 
 Each row is one object in one appearance, each column one protocol angle; every cell shows the
 drawn stimulus beside its 32x32 edge map (direct path).  ``--list`` prints the builtin set names;
-a folder path in place of SET makes a set from the folder's images.  Errors in the user's input
-print one line on stderr and exit with status 2.
+a folder path in place of SET makes a set from the folder's images.  ``--measure [SET ...]``
+prints the measured properties of every object and whether each design rule holds
+(docs/stimuli.md), for every builtin set by default; ``--like SET`` checks folders against the
+rules of a builtin set.  Errors in the user's input print one line on stderr and exit with
+status 2.
 """
 from __future__ import annotations
 
@@ -60,11 +63,33 @@ def _parser() -> argparse.ArgumentParser:
         prog="python -m neuroimagery.stimuli",
         description="Write a contact sheet (PNG) of a stimulus set: every object, angle and "
                     "appearance beside its edge map.")
-    ap.add_argument("set", nargs="?", help="a builtin set name (see --list) or a folder of images")
+    ap.add_argument("set", nargs="*", help="a builtin set name (see --list) or a folder of images; "
+                                           "with --measure, any number (default: every builtin set)")
     ap.add_argument("--out", default=".", help="folder for <set>.png (default: current folder)")
     ap.add_argument("--list", action="store_true", help="print the builtin set names and exit")
     ap.add_argument("--size", type=int, default=32, help="side of the edge map (default 32)")
+    ap.add_argument("--measure", action="store_true",
+                    help="print each object's measured properties and whether each design rule holds")
+    ap.add_argument("--like", metavar="SET", help="with --measure: check folders against the rules "
+                                                  "(and views) of this builtin set")
+    ap.add_argument("--markdown", action="store_true", help="with --measure: markdown tables")
     return ap
+
+
+def _measure(args) -> int:
+    from neuroimagery.vision import list_stimulus_sets
+    from neuroimagery.vision.measure import format_report, measure_set
+
+    if args.like is not None and args.like not in list_stimulus_sets():
+        raise UserInputError(f"--like {args.like!r} is not a builtin set; sets: "
+                             f"{', '.join(list_stimulus_sets())}")
+    names = args.set or list_stimulus_sets()
+    reports = []
+    for name in names:
+        like = args.like if args.like is not None and os.path.isdir(name) else None
+        reports.append(format_report(measure_set(name, like), args.markdown))
+    print("\n\n".join(reports))
+    return 0
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -74,9 +99,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if args.list:
         print("\n".join(list_stimulus_sets()))
         return 0
-    if not args.set:
-        print("error: name a stimulus set or a folder (see --list)", file=sys.stderr)
+    if args.measure:
+        try:
+            return _measure(args)
+        except UserInputError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+    if len(args.set) != 1:
+        print("error: name one stimulus set or folder (see --list)", file=sys.stderr)
         return 2
+    args.set = args.set[0]
     try:
         if args.size < 8:
             raise UserInputError(f"--size must be >= 8, got {args.size}")

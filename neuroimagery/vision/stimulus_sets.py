@@ -12,6 +12,9 @@ object pairs shown in a test:
   twice, so 2 x 2 appearances x 4 x 4 angles = 64 pairs per object.
 * ``"exp4-A"``, ``"exp4-B"``, ``"exp4-C"`` (Exp. 4, sec. 6.2.1): three objects each, at 90, 60,
   30, 0, -30, -60 degrees, basic or mirror: 2 x 2 x 6 x 6 = 144 pairs per object.
+* ``"exp3-b-v1"``, ``"exp3-c-v1"``, ``"exp4-A-v1"``, ``"exp4-B-v1"``, ``"exp4-C-v1"``: earlier
+  designs of those sets (same protocol), kept to reproduce results obtained with them; they break
+  some of the design rules of docs/stimuli.md (see :mod:`neuroimagery.vision.measure`);
 * a folder of PNG/JPEG images, one shape per image, darker or redder than its background.
 
 In a pair image the target object is on the left and the rotated object on the right (Exp. 3
