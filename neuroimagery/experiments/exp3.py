@@ -235,22 +235,19 @@ def report(cfg, run, summary) -> None:
     r.table(["set", "1 step", "2 steps", "3 steps"], [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
     r.h("Why the numbers differ")
     r.p("Where this run's errors are: " + pc.error_split(t) + ".")
+    e = cfg.experiment
     r.bullets([
-        "The shapes of sets a, b and c are designed for the thesis's descriptions (its figures are not in the "
-        "text); set b has thinner bars with more side features (\"many details\"), set c no principal axis. "
-        "Error rates depend on how much detail a shape loses under the forward model (IoU table above).",
-        "Mirror pairs leave 20-40 % of the target uncovered against the 5 % threshold, so they are almost always "
-        "rejected; errors are mostly same pairs answered NO after two or three forward-model steps have blurred "
-        "the image. The thesis's Gen-II errors are largely YES answers to mirror pairs, which the one-unit "
-        f"match reach (`match_tolerance` = {cfg.experiment.match_tolerance}) rarely produces on set c, so "
-        "Gen-II's error stays below the thesis's 54 %.",
-        "For the same reason the error does not drop at 135 deg: lost detail turns same pairs into NO answers "
-        "and cannot help with mirror pairs, which are already rejected.",
-        f"M1_2 reads where the M1_1 activity is centred (`m1_readout` = {cfg.experiment.m1_readout}): flat "
-        "posture codes of set c put it on the diagonal and stop the rotation early, as the thesis describes; "
-        "the set-c codes are flatter than set a's but not flat, so Gen-II RT still rises past 90 deg.",
-        "The posture code width, the match reach and the M1_2 width are not given in the thesis; the values "
-        "and their reasons are listed in docs/exp3.md and docs/choices.md.",
+        "The shapes of sets a, b and c are drawn to the design rules of docs/stimuli.md (the thesis's figures "
+        "are not in its text); `python -m neuroimagery.stimuli --measure` prints how each set meets them.",
+        f"C8 reaches {'only the same unit (one-to-one, as the thesis has it)' if e.match_tolerance == 0 else f'the units within {e.match_tolerance} map unit(s)'}"
+        f" (`match_tolerance` = {e.match_tolerance}). An edge map turned by 45 deg and resampled on the 32x32 grid "
+        "seldom lands on the same units as the target's, so with the one-to-one C8 most same pairs shown at a "
+        "disparity leave more than the 5 % threshold uncovered and are answered NO (the split above).",
+        f"M1_2 compares M1_1 with the weights of n1, n2, n3 by `m1_readout` = {e.m1_readout} "
+        "('pattern': eq. 6.2 on the whole 16-unit pattern; 'centre': where the activity is centred across the "
+        "diagonal). docs/choices.md gives the measured effect of every departure from the thesis.",
+        "The constants the thesis does not give (posture-code width, M1_2 width, forward-model images) and the "
+        "rules that fix them are listed in docs/exp3.md and docs/choices.md.",
     ])
     r.h("Figures")
     for p in sorted(run.figures.glob("*.png")):

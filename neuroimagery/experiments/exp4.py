@@ -17,6 +17,7 @@ import pandas as pd
 import torch
 
 from ..analysis import figures
+from ..models.rotation_embodied import lca_gain
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, slope_by_participant,
                                 summarise_trials)
@@ -439,19 +440,20 @@ def report(cfg, run, summary) -> None:
             [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
     r.h("Why the numbers differ")
     r.p("Where this run's errors are: " + pc.error_split(t) + ".")
+    e = cfg.experiment
     r.bullets([
-        "The shapes of sets A, B and C are designed for the thesis's descriptions (its figures are not in the "
-        "text); how well the posture maps (C16/C17, trained on set A) read sets B and C, and how much detail "
-        "each shape loses under the forward models (IoU table above), set the Gen1 and Gen2 rates.",
-        "Gen1: set-B images are read at the wrong posture more often than set A's (the default set-B bars "
-        "are less elongated than set A's; `exp4-B-long` is not), so rotations stop at a wrong angle.",
-        f"Gen2: the posture maps cannot read set C, so rotations are erratic; the flipped target (C10, "
-        f"`flip_axis` = {cfg.experiment.flip_axis}) decides whether zero-disparity mirror pairs are recognised "
-        "('object': the mirror appearance; 'ppct': a reflection about the misread PPCt axis, mostly wrong).",
+        "The shapes of sets A, B and C are drawn to the design rules of docs/stimuli.md (the thesis's figures "
+        "are not in its text); how well the posture maps (C16/C17, trained on set A) read sets B and C, and how "
+        "much detail each shape loses under the forward models (IoU table above), set the Gen1 and Gen2 rates.",
+        f"The flipped target (C10, `flip_axis` = {e.flip_axis}) is made from the target image alone "
+        "('image': a reflection about the map's principal axis; 'ppct': about the axis of the orientation "
+        "PPCt reads); no trial label reaches the model.",
+        f"PMCd's evidence is the overlap as a fraction of the target's units times {lca_gain(e):.3g} "
+        "(`lca_input_gain`; by default the smallest gain with which a full overlap decides within one step).",
         "Eq. 6.14 puts a fixed bump on the arg-max posture, which discards the flatter C16 potentials of "
-        f"unfamiliar shapes (`posture_tau` = {cfg.experiment.posture_tau}; 0 = arg-max).",
-        "The accumulator constants, the flip rule and the stage at which proprioception joins PPCp are not "
-        "given in the thesis; the values and their reasons are listed in docs/exp4.md and docs/choices.md.",
+        f"unfamiliar shapes (`posture_tau` = {e.posture_tau}; 0 = arg-max).",
+        "docs/choices.md gives the rule behind every constant the thesis does not state and the measured "
+        "effect of every departure from the thesis.",
     ])
     r.h("Figures")
     for p in sorted(run.figures.glob("*.png")):
