@@ -124,8 +124,10 @@ def plain_hydra_errors() -> None:
             if refused:
                 _fail(refused, log=False)
 
+            bug = ex
+
             def again():
-                raise ex
+                raise bug
 
             return original(again)
 

@@ -21,7 +21,6 @@ routes and claims on all robots; ``individuals.csv`` instead of ``trials.csv``).
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import math
 import os
@@ -35,6 +34,7 @@ import pandas as pd
 from . import console
 from .analysis.report import Report
 from .analysis.summary import TRIAL_COLUMNS, summarise_test
+from .analysis.tables import read_whole_csv
 from .errors import UserInputError
 
 # per test: (key in summary.json, label in report.md, a rate shown in %?)
@@ -131,30 +131,10 @@ def read_trials(run: Run) -> pd.DataFrame:
     least one row, no empty field where a figure is computed from."""
     path = run.dir / "trials.csv"
     try:
-        raw = path.read_bytes()
+        df = read_whole_csv(path, TRIAL_COLUMNS, NUMERIC,
+                            ["participant", "test", "condition", "disparity", "same", "correct", "rotated_ok", "rt"])
     except FileNotFoundError:
         raise UserInputError(f"{run.dir}: no trials.csv (not a finished run of {run.experiment})") from None
-    except OSError as err:
-        raise UserInputError(f"{path}: cannot read ({err.strerror or err})") from None
-    if not raw.strip():
-        raise UserInputError(f"{path}: empty file")
-    try:
-        df = pd.read_csv(io.BytesIO(raw))
-    except ValueError as err:  # pandas' parser and decoding errors
-        raise UserInputError(f"{path}: not a readable CSV file ({str(err).strip().splitlines()[0]})") from None
-    missing = [c for c in TRIAL_COLUMNS if c not in df.columns]
-    if missing:
-        raise UserInputError(f"{path}: missing columns {', '.join(missing)}")
-    if not raw.endswith(b"\n"):  # the run's writer ends every row with one
-        raise UserInputError(f"{path}: cut short (the last line is incomplete)")
-    if df.empty:
-        raise UserInputError(f"{path}: no rows (header only)")
-    for col in NUMERIC:
-        if not pd.api.types.is_numeric_dtype(df[col]):
-            raise UserInputError(f"{path}: column {col} is not numeric")
-    empty = df[["participant", "test", "condition", "disparity", "same", "correct", "rotated_ok", "rt"]].isna().any(axis=1)
-    if empty.any():
-        raise UserInputError(f"{path}: line {int(empty.to_numpy().argmax()) + 2} has empty fields")
     for col in ("same", "correct", "rotated_ok"):
         if not pd.api.types.is_bool_dtype(df[col]):
             raise UserInputError(f"{path}: column {col} is not True/False")

@@ -19,7 +19,6 @@ the rows its ``summary.json`` counts (cut short, header only, not a CSV file) is
 from __future__ import annotations
 
 import dataclasses
-import io
 import json
 from pathlib import Path
 
@@ -27,6 +26,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from ..analysis.report import Report
+from ..analysis.tables import read_whole_csv
 from ..errors import UserInputError
 from .exp5 import _ENGINE_KEYS, STRATEGIES, Exp5Config, group_rates, summarise
 from .exp5_figures import group_table
@@ -68,30 +68,9 @@ def read_rows(csv_path: Path) -> pd.DataFrame:
     """The rows of one run's ``individuals.csv``, refused unless the file is whole: complete lines,
     the columns pooling needs, at least one row, no empty group key or test result."""
     try:
-        raw = csv_path.read_bytes()
-    except OSError as err:
-        raise UserInputError(f"{csv_path}: cannot read ({err.strerror or err})") from None
-    if not raw.strip():
-        raise UserInputError(f"{csv_path}: empty file")
-    try:
-        df = pd.read_csv(io.BytesIO(raw))
-    except ValueError as err:  # pandas' parser and decoding errors
-        raise UserInputError(f"{csv_path}: not a readable CSV file ({str(err).strip().splitlines()[0]})") from None
-    need = {*GROUP, *NUMERIC, "test_actions"}
-    missing = sorted(need - set(df.columns))
-    if missing:
-        raise UserInputError(f"{csv_path}: missing columns {', '.join(missing)}")
-    if not raw.endswith(b"\n"):  # pandas ends every row with one
-        raise UserInputError(f"{csv_path}: cut short (the last line is incomplete)")
-    if df.empty:
-        raise UserInputError(f"{csv_path}: no rows (header only)")
-    for col in NUMERIC:
-        if not pd.api.types.is_numeric_dtype(df[col]):
-            raise UserInputError(f"{csv_path}: column {col} is not numeric")
-    empty = df[[*GROUP, *NUMERIC]].isna().any(axis=1)
-    if empty.any():
-        raise UserInputError(f"{csv_path}: line {int(empty.to_numpy().argmax()) + 2} has empty fields")
-    return df
+        return read_whole_csv(csv_path, sorted({*GROUP, *NUMERIC, "test_actions"}), NUMERIC, [*GROUP, *NUMERIC])
+    except FileNotFoundError:
+        raise UserInputError(f"{csv_path}: no such file") from None
 
 
 def check_rows(df: pd.DataFrame, csv_path: Path, summary_path: Path) -> None:
