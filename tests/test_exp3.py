@@ -1,8 +1,6 @@
 """Experiment 3: config checks, batched == solo, an end-to-end quick run."""
 import json
 
-import pandas as pd
-
 import pytest
 import torch
 from conftest import make_cfg
