@@ -284,6 +284,15 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
         with progress.phase(f"{conf.experiment.name} test", conf.progress):
             summary = module.evaluate(conf, run, trained)
         run.timings["evaluate"] = round(time.perf_counter() - t0, 3)
+        trials = run.root / "trials.csv"
+        if "stimuli" in getattr(module, "INPUTS", ()) and trials.is_file():  # a user's stimuli against chance
+            import pandas as pd
+
+            from .analysis.summary import custom_vs_chance
+
+            chance = custom_vs_chance(pd.read_csv(trials))
+            if chance is not None:
+                summary["custom_vs_chance"] = chance
         summary["runtime_s"] = dict(run.timings)
         run.write_json("summary.json", summary)
         if hasattr(module, "report"):

@@ -52,6 +52,17 @@ class Report:
             out.append([name, fmt(ours, pct), fmt(thesis, pct), d])
         return self.table(["measure", "this run", "thesis", "difference"], out)
 
+    def chance_warning(self, summary: dict) -> "Report":
+        """At the top of a report on a user's stimuli: say so when the participants' correct rates
+        on them are not above chance (``summary["custom_vs_chance"]``)."""
+        c = summary.get("custom_vs_chance")
+        if c and not c["above_chance"]:
+            p = "-" if c["p_greater"] is None else f"{c['p_greater']:.2g}"
+            self.p(f"**Warning: on your stimuli (test `custom`) the model answers at chance.** Mean correct rate "
+                   f"{100 * c['mean_correct']:.1f} % over {c['n']} participants; one-sided t-test of their rates "
+                   f"against 50 %: p = {p}. Its other numbers on these stimuli say little.")
+        return self
+
     def effects(self, rows: list[dict]) -> "Report":
         """The effects table of :func:`neuroimagery.analysis.summary.effect` rows: the participant is
         the unit (paired t-tests over participants, or one-sample t-tests of their slopes), Holm's

@@ -153,3 +153,21 @@ def holm(rows: list[dict]) -> list[dict]:
         if r.get("holds") is not None and r["expected"] != "~0":
             r["holds"] = bool((r["value"] > 0 if r["expected"] == ">0" else r["value"] < 0) and r["p_holm"] < 0.05)
     return rows
+
+
+def custom_vs_chance(df: pd.DataFrame) -> dict | None:
+    """A user's stimuli (test ``custom``, condition ``none``) against chance: each participant's
+    correct rate, a one-sided one-sample t-test of the rates against 0.5 over the participants.
+    ``above_chance`` is a mean above 0.5 with p < 0.05. None when the run has no custom test."""
+    c = df[(df["test"] == "custom") & (df["condition"] == "none")]
+    if c.empty:
+        return None
+    rates = c.groupby("participant")["correct"].mean().to_numpy(float)
+    out = {"n": int(rates.size), "mean_correct": _r(rates.mean(), 4), "t": None, "p_greater": None,
+           "above_chance": False}
+    if rates.size >= 2 and rates.std(ddof=1) > 0:
+        t, p = stats.ttest_1samp(rates, 0.5, alternative="greater")
+        out.update(t=_r(t), p_greater=float(p), above_chance=bool(rates.mean() > 0.5 and p < 0.05))
+    elif rates.size >= 1:
+        out["above_chance"] = bool(rates.min() > 0.5 and rates.size >= 2)
+    return out

@@ -219,6 +219,7 @@ def _effects(df) -> list[dict]:
 def report(cfg, run, summary) -> None:
     t = summary["tests"]
     r = Report("Experiment 3: mental rotation and generalisation")
+    r.chance_warning(summary)
     r.p(f"{summary['participants']} simulated participants; preset `{cfg.preset}`; vision `{cfg.vision.kind}`. "
         "RT in rotation steps. Gen-I and Gen-II are keyed `gen1` and `gen2`. " + reproducibility_note(cfg.seed))
     r.h("Headline figures")

@@ -399,6 +399,7 @@ def _bar(df, path, title, by="test"):
 def report(cfg, run, summary) -> None:
     t = summary["tests"]
     r = Report("Experiment 4: generalisation, decision making and embodiment")
+    r.chance_warning(summary)
     r.p(f"{summary['participants']} simulated participants; preset `{cfg.preset}`; vision `{cfg.vision.kind}`. "
         "RT in accumulator cycles (10 per rotation step). " + reproducibility_note(cfg.seed))
     rows = [(f"{k} correct rate", t.get(k, {}).get("correct_rate"), v, True) for k, v in THESIS.items() if k in t]
