@@ -59,7 +59,7 @@ class Config:
     preset: str = "full"  # full protocol, or 'quick' for a first look (each experiment says what it shrinks)
     checkpoint: Optional[str] = None  # evaluate.py: a training run's directory; None trains first
     progress: bool = True  # progress bars on long loops
-    threads: int = 0  # torch intra-op threads (0 = torch's default)
+    threads: int = 0  # torch intra-op threads during the run (0 = the cores other work leaves free, neuroimagery.threads)
     overwrite: bool = False  # write into a run directory that holds a run with other settings
 
     def __post_init__(self) -> None:

@@ -19,6 +19,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from . import console, manifest as mf, progress
 from .config import Config, experiment_module, validate
+from .nn.functional import intra_op_threads
+from .threads import auto_threads
 from .errors import UserInputError
 from .logger import make_logger
 from .validation import check_run
@@ -238,8 +240,6 @@ def _prepare(cfg: DictConfig | Config, out_dir, checkpoint: bool = False):
             raise UserInputError(f"checkpoint: {ck} is not a directory")
         for name in getattr(module, "CHECKPOINTS", ("model",)):
             verify_checkpoint(ck, name, manifest)
-    if conf.threads:
-        torch.set_num_threads(conf.threads)
     run = RunDir(_output_dir(out_dir), conf, raw, manifest)
     return conf, module, run
 
@@ -247,19 +247,20 @@ def _prepare(cfg: DictConfig | Config, out_dir, checkpoint: bool = False):
 def train(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
     """Train experiment ``cfg.experiment.name`` and save its checkpoints. Returns a small summary."""
     conf, module, run = _prepare(cfg, out_dir)
-    try:
-        t0 = time.perf_counter()
-        with progress.phase(f"{conf.experiment.name} train", conf.progress):
-            module.train(conf, run)
-        run.timings["train"] = round(time.perf_counter() - t0, 3)
-        # experiments whose simulated subjects are not cfg.participants say how many they trained
-        count, unit = module.trained_count(conf) if hasattr(module, "trained_count") else (conf.participants, "participants")
-        info = {"experiment": conf.experiment.name, "participants": count, "unit": unit, "runtime_s": dict(run.timings),
-                "checkpoints": str(run.checkpoints)}
-        run.write_json("train.json", info)
-        return info
-    finally:
-        run.close()
+    with intra_op_threads(conf.threads or auto_threads()):  # restored afterwards
+        try:
+            t0 = time.perf_counter()
+            with progress.phase(f"{conf.experiment.name} train", conf.progress):
+                module.train(conf, run)
+            run.timings["train"] = round(time.perf_counter() - t0, 3)
+            # experiments whose simulated subjects are not cfg.participants say how many they trained
+            count, unit = module.trained_count(conf) if hasattr(module, "trained_count") else (conf.participants, "participants")
+            info = {"experiment": conf.experiment.name, "participants": count, "unit": unit, "runtime_s": dict(run.timings),
+                    "checkpoints": str(run.checkpoints)}
+            run.write_json("train.json", info)
+            return info
+        finally:
+            run.close()
 
 
 def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
@@ -268,35 +269,36 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
     Writes ``trials.csv`` / ``individuals.csv``, ``summary.json``, ``report.md``, ``figures/``, ``tb/``.
     """
     conf, module, run = _prepare(cfg, out_dir, checkpoint=True)
-    try:
-        if conf.checkpoint:
-            ck = Path(conf.checkpoint)
-            trained = module.load(conf, ck)
-            tj = ck / "train.json"
-            if tj.exists():
-                run.timings.update(read_json(tj, "training record").get("runtime_s", {}))
-        else:
+    with intra_op_threads(conf.threads or auto_threads()):  # restored afterwards
+        try:
+            if conf.checkpoint:
+                ck = Path(conf.checkpoint)
+                trained = module.load(conf, ck)
+                tj = ck / "train.json"
+                if tj.exists():
+                    run.timings.update(read_json(tj, "training record").get("runtime_s", {}))
+            else:
+                t0 = time.perf_counter()
+                with progress.phase(f"{conf.experiment.name} train", conf.progress):
+                    trained = module.train(conf, run)
+                run.timings["train"] = round(time.perf_counter() - t0, 3)
             t0 = time.perf_counter()
-            with progress.phase(f"{conf.experiment.name} train", conf.progress):
-                trained = module.train(conf, run)
-            run.timings["train"] = round(time.perf_counter() - t0, 3)
-        t0 = time.perf_counter()
-        with progress.phase(f"{conf.experiment.name} test", conf.progress):
-            summary = module.evaluate(conf, run, trained)
-        run.timings["evaluate"] = round(time.perf_counter() - t0, 3)
-        trials = run.root / "trials.csv"
-        if "stimuli" in getattr(module, "INPUTS", ()) and trials.is_file():  # a user's stimuli against chance
-            import pandas as pd
+            with progress.phase(f"{conf.experiment.name} test", conf.progress):
+                summary = module.evaluate(conf, run, trained)
+            run.timings["evaluate"] = round(time.perf_counter() - t0, 3)
+            trials = run.root / "trials.csv"
+            if "stimuli" in getattr(module, "INPUTS", ()) and trials.is_file():  # a user's stimuli against chance
+                import pandas as pd
 
-            from .analysis.summary import custom_vs_chance
+                from .analysis.summary import custom_vs_chance
 
-            chance = custom_vs_chance(pd.read_csv(trials))
-            if chance is not None:
-                summary["custom_vs_chance"] = chance
-        summary["runtime_s"] = dict(run.timings)
-        run.write_json("summary.json", summary)
-        if hasattr(module, "report"):
-            module.report(conf, run, summary)
-        return summary
-    finally:
-        run.close()
+                chance = custom_vs_chance(pd.read_csv(trials))
+                if chance is not None:
+                    summary["custom_vs_chance"] = chance
+            summary["runtime_s"] = dict(run.timings)
+            run.write_json("summary.json", summary)
+            if hasattr(module, "report"):
+                module.report(conf, run, summary)
+            return summary
+        finally:
+            run.close()
