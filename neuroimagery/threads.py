@@ -3,7 +3,7 @@
 Torch's default is one thread per core. When other work keeps cores busy, those threads wait for
 each other (OpenMP hand-offs) and a run can become several times slower than on one thread; on an
 idle machine the extra threads help. :func:`auto_threads` samples the machine's CPU use for a
-fraction of a second (``/proc/stat``) and leaves the busy cores out. The thread count never
+tenth of a second (``/proc/stat``) and leaves the busy cores out. The thread count never
 changes a result (docs/architecture.md, "Threads").
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
-def busy_cores(sample_s: float = 0.25) -> float | None:
+def busy_cores(sample_s: float = 0.1) -> float | None:
     """Cores kept busy by other work over the next ``sample_s`` seconds (None where unknown)."""
     a = _cpu_times()
     if a is None:
@@ -42,7 +42,7 @@ def busy_cores(sample_s: float = 0.25) -> float | None:
     return (1.0 - idle / total) * (os.cpu_count() or 1)
 
 
-def auto_threads(sample_s: float = 0.25) -> int:
+def auto_threads(sample_s: float = 0.1) -> int:
     """The cores of this process's CPU set that other work leaves free (at least 1); all of them
     where CPU use cannot be read."""
     n = cores()

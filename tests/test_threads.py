@@ -8,7 +8,7 @@ from neuroimagery import threads
                                              (8, 3.2, 5), (8, 8.0, 1)])
 def test_auto_threads_leaves_the_busy_cores_out(monkeypatch, n, busy, expected):
     monkeypatch.setattr(threads, "cores", lambda: n)
-    monkeypatch.setattr(threads, "busy_cores", lambda sample_s=0.25: busy)
+    monkeypatch.setattr(threads, "busy_cores", lambda sample_s=0.1: busy)
     assert threads.auto_threads() == expected
 
 
