@@ -9,6 +9,7 @@ from conftest import make_cfg
 from neuroimagery.config import validate
 from neuroimagery.experiments import exp4, protocol_ch6 as pc
 from neuroimagery.nn import AllToAll, Delta
+from neuroimagery.nn.binary import binary_matmul
 from neuroimagery.run import evaluate
 
 
@@ -33,7 +34,7 @@ def test_binary_matmul_equals_bmm():
     x = (torch.rand(3, 5, 11, generator=g) > 0.6).float()
     x[1, 2] = 0  # an empty input
     ref = torch.bmm(x, W.transpose(1, 2))
-    assert torch.allclose(pc.binary_matmul(W.transpose(1, 2).contiguous(), x), ref, atol=1e-6)
+    assert torch.allclose(binary_matmul(W.transpose(1, 2).contiguous(), x), ref, atol=1e-6)
 
 
 def test_sparse_delta_equals_connection_learn():

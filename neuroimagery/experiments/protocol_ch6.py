@@ -3,9 +3,9 @@
 * the stimulus bank: edge maps of every item of a set, computed once per run and shared by all
   participants (they see the same screen);
 * the trial table of a test (every pair of every object) and its ``trials.csv`` rows;
-* fast exact reformulations for binary input maps: ``binary_matmul`` (``W x`` for a 0/1 ``x``
-  as a sum of the weight columns of the active units) and ``train_delta_binary`` (the delta rule
-  of eq. 6.4 on a mini-batch, touching only the columns of the active inputs);
+* ``train_delta_binary``: the delta rule of eq. 6.4 on a mini-batch of binary inputs, touching
+  only the columns of the active inputs (the binary products themselves are in
+  ``neuroimagery.nn.binary``);
 * the three-dot training set of the forward models (thesis Fig. 6.3, 6.8);
 * the generalisation check of the forward models (IoU of imagined vs. true rotated edge maps);
 * sample-trial logging and the step-by-step map panels (Fig. 6.12-6.13);
@@ -137,26 +137,6 @@ def trial_rows(table: pd.DataFrame, out: dict, participants: Sequence[int]) -> p
 
 
 # ---------------------------------------------------------------------- binary fast paths
-def binary_matmul(weight_t: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
-    """``W x`` for binary ``x`` ``(P, B, in)``, given ``weight_t = W.transpose(1, 2)`` ``(P, in, out)``.
-
-    Exactly ``torch.bmm(x, W^T)`` for 0/1 inputs, computed as the sum of the weight rows of the
-    active input units (``embedding_bag``), so the cost grows with the number of edge pixels
-    instead of the map size.
-    """
-    P, I, O = weight_t.shape
-    Pb, B, Ix = x.shape
-    if Ix != I or Pb != P:
-        raise ValueError(f"binary_matmul: x {tuple(x.shape)} does not fit weights {tuple(weight_t.shape)}")
-    nz = (x > 0.5).nonzero(as_tuple=False)  # sorted by (p, b, i)
-    counts = torch.bincount(nz[:, 0] * B + nz[:, 1], minlength=P * B)
-    offsets = torch.zeros(P * B, dtype=torch.long)
-    offsets[1:] = counts.cumsum(0)[:-1]
-    flat_idx = nz[:, 0] * I + nz[:, 2]
-    out = torch.nn.functional.embedding_bag(flat_idx, weight_t.reshape(P * I, O), offsets, mode="sum")
-    return out.reshape(P, B, O)
-
-
 @torch.no_grad()
 def train_delta_binary(conn, X: torch.Tensor, Y: torch.Tensor, eta: float, batch: int) -> None:
     """Delta rule (eq. 6.4, ``Delta(eta, reduction='sum')``) on binary inputs, in mini-batches.
@@ -253,23 +233,6 @@ def log_history(logger, history: list, prefix: str) -> None:
     for trial_k, steps in enumerate(history):
         for s, maps in enumerate(steps):
             logger.maps({k: torch.as_tensor(v) for k, v in maps.items()}, step=s + 1, prefix=f"{prefix}/trial{trial_k}/")
-
-
-def binary_matmul_rows(table: torch.Tensor, group: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
-    """``W_g x`` for a flat batch of binary rows ``x`` ``(N, in)``, each with its own weight matrix.
-
-    ``table`` ``(G, in, out)`` holds the transposed weights of ``G`` matrices (for instance one per
-    participant and forward model) and ``group`` ``(N,)`` says which one each row uses. Like
-    :func:`binary_matmul`, the cost grows with the number of active input units.
-    """
-    G, I, O = table.shape
-    N = x.shape[0]
-    nz = (x > 0.5).nonzero(as_tuple=False)  # sorted by row
-    counts = torch.bincount(nz[:, 0], minlength=N)
-    offsets = torch.zeros(N, dtype=torch.long)
-    offsets[1:] = counts.cumsum(0)[:-1]
-    flat_idx = group[nz[:, 0]] * I + nz[:, 1]
-    return torch.nn.functional.embedding_bag(flat_idx, table.reshape(G * I, O), offsets, mode="sum")
 
 
 def train_posture_maps_and_freeze(cfg, eye, model, soms, angles: Sequence[float], generators, ids):

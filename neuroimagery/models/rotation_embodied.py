@@ -30,7 +30,7 @@ from torch import nn
 
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM
 from ..nn.functional import gain_field, softmax_select
-from ..experiments.protocol_ch6 import binary_matmul, binary_matmul_rows
+from ..nn.binary import binary_matmul, binary_matmul_rows
 
 MOVES = ("Ml", "Ms", "Mr")
 

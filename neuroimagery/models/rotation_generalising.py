@@ -26,7 +26,7 @@ from torch import nn
 
 from ..nn import AllToAll, Delta, SOM
 from ..nn.functional import gain_field, softmax_select
-from ..experiments.protocol_ch6 import binary_matmul
+from ..nn.binary import binary_matmul
 from .rotation_embodied import posture_maps, triangle_weights
 
 MOVES = ("n1", "n2", "n3")
