@@ -6,7 +6,6 @@ wrap them with ``@hydra.main``. Tests call them directly with a composed config.
 from __future__ import annotations
 
 import json
-import os
 import pickle
 import tempfile
 import time
@@ -22,6 +21,7 @@ from .config import Config, experiment_module, validate
 from .nn.functional import intra_op_threads
 from .threads import auto_threads
 from .errors import UserInputError
+from .files import torch_save, write_atomic
 from .logger import make_logger
 from .validation import check_run
 
@@ -83,14 +83,10 @@ class RunDir:
     def _atomic(self, path: Path, write) -> Path:
         """``write(tmp)`` then rename onto ``path``; an ``OSError`` leaves no temporary file behind and
         becomes a :class:`UserInputError` naming ``path``."""
-        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
         try:
-            write(tmp)
-            os.replace(tmp, path)
+            return write_atomic(path, write)
         except OSError as err:
-            tmp.unlink(missing_ok=True)
             raise UserInputError(f"cannot write {path}: {err.strerror or err}{self._rescue(path, write)}") from None
-        return path
 
     @staticmethod
     def _rescue(path: Path, write) -> str:
@@ -113,7 +109,7 @@ class RunDir:
         run's manifest and a hash of the stored tensors under ``"manifest"``."""
         if self.manifest is not None:
             state = {**state, "manifest": {**self.manifest, "tensor_hash": mf.tensor_hash(state)}}
-        return self._atomic(self.checkpoints / f"{name}.pt", lambda p: _torch_save(state, p))
+        return self._atomic(self.checkpoints / f"{name}.pt", lambda p: torch_save(state, p))
 
     def write_json(self, name: str, data: Any) -> Path:
         text = json.dumps(data, indent=2, sort_keys=False, default=_json_default) + "\n"
@@ -124,12 +120,6 @@ class RunDir:
 
     def close(self) -> None:
         self.logger.close()
-
-
-def _torch_save(state, path: Path) -> None:
-    # a file opened here: torch.save given a path reports a failed write as RuntimeError, not OSError
-    with open(path, "wb") as f:
-        torch.save(state, f)
 
 
 def _hydra_overrides():
@@ -175,11 +165,16 @@ def safe_load(path: str | Path) -> Any:
         raise UserInputError(f"checkpoint {path}: cannot be read ({err.strerror or err})") from None
 
 
-def load_checkpoint(checkpoint: str | Path, name: str) -> dict:
-    """Read ``checkpoints/<name>.pt`` of a training run's directory, with a clear error if absent."""
+def _checkpoint_file(checkpoint: str | Path, name: str, experiment: str) -> Path:
     path = Path(checkpoint) / "checkpoints" / f"{name}.pt"
     if not path.exists():
-        raise UserInputError(f"checkpoint: no {path} (is {checkpoint} the directory of a training run of this experiment?)")
+        raise UserInputError(f"checkpoint: no {path} (is {checkpoint} the directory of a training run of {experiment}?)")
+    return path
+
+
+def load_checkpoint(checkpoint: str | Path, name: str) -> dict:
+    """Read ``checkpoints/<name>.pt`` of a training run's directory, with a clear error if absent."""
+    path = _checkpoint_file(checkpoint, name, "this experiment")
     state = safe_load(path)
     if not isinstance(state, dict):
         raise UserInputError(f"checkpoint {path}: holds a {type(state).__name__}, not a checkpoint of this package")
@@ -190,10 +185,7 @@ def load_checkpoint(checkpoint: str | Path, name: str) -> dict:
 def verify_checkpoint(checkpoint: str | Path, name: str, manifest: dict) -> None:
     """Check ``checkpoints/<name>.pt`` against this run's ``manifest``: the tensors are those it
     stored (hash), and it was trained with the same settings; every differing key is named."""
-    path = Path(checkpoint) / "checkpoints" / f"{name}.pt"
-    if not path.exists():
-        raise UserInputError(f"checkpoint: no {path} (is {checkpoint} the directory of a training run of "
-                             f"{manifest['experiment']}?)")
+    path = _checkpoint_file(checkpoint, name, manifest["experiment"])
     state = safe_load(path)
     stored = state.pop("manifest", None) if isinstance(state, dict) else None
     if not isinstance(stored, dict):

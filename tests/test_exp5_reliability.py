@@ -24,6 +24,7 @@ import neuroimagery.run as R  # noqa: E402
 from neuroimagery.cli import friendly_errors  # noqa: E402
 from neuroimagery.errors import UserInputError  # noqa: E402
 from neuroimagery.experiments import exp5, exp5_pool, exp5_tasks  # noqa: E402
+from neuroimagery.files import tmp_path as tmp_name  # noqa: E402
 
 STANDIN = "support_tool_env:StandInToolEnv"
 ARGS = ("preset=quick", f"experiment.environment={STANDIN}", "experiment.n_jobs=1",
@@ -132,7 +133,7 @@ def test_task_files_the_run_writes_load_as_plain_data(tmp_path):
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full (every write: no space left)")
 def test_a_failed_write_names_the_path_and_keeps_the_tasks_finished_before(tmp_path, capsys):
     first, second = exp5._task_path(tmp_path, "rep000_behind"), exp5._task_path(tmp_path, "rep000_far")
-    full = exp5_tasks.tmp_path(second)  # where this process writes the second task: a full disk
+    full = tmp_name(second)  # where this process writes the second task: a full disk
     full.parent.mkdir(parents=True)
     full.symlink_to("/dev/full")
     with pytest.raises(SystemExit) as ex:
@@ -148,7 +149,7 @@ def test_only_temporary_files_of_finished_writers_are_removed(tmp_path):
     gone = subprocess.Popen([sys.executable, "-c", ""])
     gone.wait()
     stale = tmp_path / f"exp5_rep000_far.pt.{gone.pid}.tmp"
-    live = exp5_tasks.tmp_path(tmp_path / "exp5_rep001_far.pt")  # this process's: still being written
+    live = tmp_name(tmp_path / "exp5_rep001_far.pt")  # this process's: still being written
     other = tmp_path / f"notes.txt.{gone.pid}.tmp"  # not a task file
     for p in (stale, live, other):
         p.write_bytes(b"x")

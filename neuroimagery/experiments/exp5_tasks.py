@@ -17,59 +17,24 @@ import os
 import pickle
 import re
 import warnings
-from collections.abc import Callable
 from pathlib import Path
 
 import torch
 
 from ..errors import UserInputError
+from ..files import torch_save, unlink_quietly, write_atomic
 
 # what a task file must hold, and of which type (every version of the format has had these)
 TASK_KEYS = {"task": dict, "rows": list, "library": dict, "timing": dict, "config": dict}
 
 
-def tmp_path(path: str | Path) -> Path:
-    """This process's temporary name for ``path``."""
-    path = Path(path)
-    return path.with_name(f"{path.name}.{os.getpid()}.tmp")
-
-
-def _unlink(path: Path) -> None:
-    try:
-        path.unlink()
-    except OSError:
-        pass
-
-
-def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
-    """``write(tmp)`` into this process's temporary name, then rename it to ``path``. The temporary
-    file is removed if anything goes wrong (an interrupt included); an ``OSError`` becomes a
-    :class:`UserInputError` naming ``path``."""
-    path = Path(path)
-    tmp = tmp_path(path)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except OSError as err:
-        _unlink(tmp)
-        raise UserInputError(f"cannot write {path}: {err.strerror or err}") from None
-    except BaseException:
-        _unlink(tmp)
-        raise
-    return path
-
-
 def save(obj, path: str | Path) -> Path:
-    """``torch.save(obj)`` into ``path`` atomically (:func:`write_atomic`). The file is opened
-    here: torch reports a failed open or write on a path it opens itself as a RuntimeError."""
-
-    def write(tmp: Path) -> None:
-        with open(tmp, "wb") as f:
-            torch.save(obj, f)
-            f.flush()
-            os.fsync(f.fileno())
-
-    return write_atomic(path, write)
+    """``torch.save(obj)`` into ``path`` atomically (:func:`neuroimagery.files.write_atomic`); an
+    ``OSError`` becomes a :class:`UserInputError` naming ``path``."""
+    try:
+        return write_atomic(path, lambda tmp: torch_save(obj, tmp))
+    except OSError as err:
+        raise UserInputError(f"cannot write {path}: {err.strerror or err}") from None
 
 
 def load(path: str | Path):
@@ -122,6 +87,6 @@ def remove_stale(directory: str | Path, pattern: str = "exp5_*.pt.*.tmp") -> lis
     for p in Path(directory).glob(pattern):
         pid = p.name.rsplit(".", 2)[-2]
         if pid.isdigit() and not _alive(int(pid)):
-            _unlink(p)
+            unlink_quietly(p)
             out.append(p)
     return out
