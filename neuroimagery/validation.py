@@ -52,29 +52,13 @@ def _leaves(conf: Any):
     return flatten(conf).items()
 
 
-def _defaults(obj: Any, prefix: str) -> dict[str, Any]:
-    out = {}
-    for f in dataclasses.fields(obj):
-        if f.default is not dataclasses.MISSING:
-            d = f.default
-        elif f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
-            d = f.default_factory()  # type: ignore[misc]
-        else:
-            continue
-        if dataclasses.is_dataclass(d):
-            out.update(_defaults(d, f"{prefix}{f.name}."))
-        else:
-            out[f"{prefix}{f.name}"] = d
-    return out
-
-
 def user_set(conf) -> dict[str, Any]:
     """The keys of ``conf`` whose values differ from the schema's defaults."""
     from .config import Config
 
-    defaults = _defaults(Config(experiment=None), "")  # type: ignore[arg-type]
+    defaults = flatten(Config(experiment=None))  # type: ignore[arg-type]
     defaults.pop("experiment", None)
-    defaults.update(_defaults(conf.experiment, "experiment."))
+    defaults.update(flatten(type(conf.experiment)(), "experiment."))
     values = flatten(conf)
     return {k: v for k, v in values.items() if k in defaults and _differs(v, defaults[k])}
 
