@@ -19,7 +19,7 @@ from support_tool_env import StandInToolEnv  # noqa: E402
 from conftest import make_cfg  # noqa: E402
 from support_runs import reused_run  # noqa: E402
 
-from neuroimagery.experiments import exp5  # noqa: E402
+from neuroimagery.experiments import exp5, exp5_summary  # noqa: E402
 from neuroimagery.models.tool_use import (EVENTS, AcquisitionConfig, Library, Outcomes, Result, ToolUseBrain,  # noqa: E402
                                           acquire_skills, build_brain, sequence_trial)
 
@@ -584,41 +584,50 @@ def test_batched_c1_and_c3_updates_equal_repeated_single_steps():
     assert not torch.equal(c.c3.som.weight, ToolUseBrain((6, 8), c3_eta=0.2).c3.som.weight)
 
 
-def test_direct_brain_updates_equal_the_generic_connections():
-    """The brain's row-wise C1/C2/C4 updates and C3 read-out give the generic modules' numbers."""
+def test_brain_learns_through_its_connections_as_the_equations_say():
+    """C1/C2 (eq. 4.2, gated outstar) and C4 (eq. 7.1) learn through ``Connection.learn``, with the
+    numbers of the equations written out step by step; C3's read-out equals the SOM block's."""
     from types import SimpleNamespace
 
-    from neuroimagery.models.tool_use import GatedHebbian
-    from neuroimagery.nn.connections import AllToAll
-    from neuroimagery.nn.rules import QLearning
+    from neuroimagery.nn.connections import Connection
 
     g = torch.Generator().manual_seed(1)
     x = (torch.rand(2, 6, 8, generator=g) < 0.3).float()
     x1 = (torch.rand(2, 6, 8, generator=g) < 0.3).float()
-    # C1: outstar on the trained row only (GatedHebbian through AllToAll.learn)
-    b = ToolUseBrain((6, 8), c1_eta=0.2)
-    b.c1.weight.uniform_(0, 1, generator=g)
-    ref = AllToAll(b.n_pc, b.n_dmps, init="zeros", rules=GatedHebbian(0.2))
-    ref.weight.copy_(b.c1.weight)
-    b.train_c1(x, unit=4, signal=0.3, times=5)
-    y, gate = torch.zeros(1, b.n_dmps), torch.zeros(1, b.n_dmps)
-    y[0, 4], gate[0, 4] = 0.3, 1.0
-    ref.learn(pre=b.flat(x), post=y, gate=gate, repeats=5)
-    assert torch.allclose(b.c1.weight, ref.weight, atol=1e-6)
-    assert torch.allclose(b.affordance(x), ref(b.flat(x))[0] / x.sum(), atol=1e-6)
-    # C4: eq. 7.1 through nn.rules.QLearning, both signs, with and without bootstrap
-    for form in ("standard", "printed"):
-        for done in (False, True):
-            q = ToolUseBrain((6, 8), q_eta=0.05, q_form=form)
-            q.c4.weight.uniform_(-0.1, 0.1, generator=g)
-            refq = AllToAll(q.n_pc, q.n_dmps, init="zeros", rules=QLearning(0.05, 0.8, form))
-            refq.weight.copy_(q.c4.weight)
-            q.train()
-            q.q_update(x, unit=3, reward=1.0, x1=x1, done=done)
-            refq.learn(pre=q.flat(x).unsqueeze(0), action=torch.tensor([[3]]), reward=torch.tensor([[1.0]]),
-                       next_pre=q.flat(x1).unsqueeze(0), done=torch.tensor([[done]]))
-            assert torch.allclose(q.c4.weight, refq.weight, atol=1e-6)
-            assert torch.allclose(q.q_values(x1), refq(q.flat(x1))[0], atol=1e-5)
+    calls = []
+    real_learn = Connection.learn
+
+    def counting(self, *a, **kw):
+        calls.append(self.name)
+        return real_learn(self, *a, **kw)
+
+    Connection.learn = counting
+    try:
+        # C1: five outstar steps w += eta x (y - w) on the trained row only
+        b = ToolUseBrain((6, 8), c1_eta=0.2)
+        b.c1.weight.uniform_(0, 1, generator=g)
+        w0 = b.c1.weight[0].clone()
+        b.train_c1(x, unit=4, signal=0.3, times=5)
+        hand = w0.clone()
+        xf = x.reshape(-1)
+        for _ in range(5):
+            hand[4] += 0.2 * xf * (0.3 - hand[4])
+        assert torch.allclose(b.c1.weight[0], hand, atol=1e-6)
+        b.train_c2(x, goal=1, times=3)
+        # C4: eq. 7.1, both signs, with and without bootstrap
+        for form, sign in (("standard", 1.0), ("printed", -1.0)):
+            for done in (False, True):
+                q = ToolUseBrain((6, 8), q_eta=0.05, q_form=form)
+                q.c4.weight.uniform_(-0.1, 0.1, generator=g)
+                w = q.c4.weight[0].clone()
+                q.train()
+                q.q_update(x, unit=3, reward=1.0, x1=x1, done=done)
+                q_max = 0.0 if done else float((w @ x1.reshape(-1)).max())
+                w[3] += 0.05 * (1.0 + sign * 0.8 * q_max - float(w[3] @ xf)) * xf
+                assert torch.allclose(q.c4.weight[0], w, atol=1e-7)
+    finally:
+        Connection.learn = real_learn
+    assert calls.count("C1") == 1 and calls.count("C2") == 1 and calls.count("C4") == 4
     # C3: the mental image equals the SOM block's own backward pass
     c = ToolUseBrain((6, 8), c3_eta=0.5, c3_recall="joint")
     c.train()
@@ -674,7 +683,7 @@ def test_claims_at_their_bounds_are_not_decided_by_rounding():
                            dict(hypothesis="hp1", level=k, situation="behind", strategy=strat, success_rate=behind)]
         s = {"groups": groups, "checks": {}}
         for strat, rates in (("reactive", far), ("planning", far_planning or far)):
-            s["checks"][f"hp1_far_spearman_{strat}"] = exp5._spearman(e.hp1_levels, [round(r, 4) for r in rates])
+            s["checks"][f"hp1_far_spearman_{strat}"] = exp5_summary._spearman(e.hp1_levels, [round(r, 4) for r in rates])
         diffs = [abs(a - b) for a, b in zip(far, far_planning or far)]
         s["checks"]["reactive_planning_max_abs_diff"] = round(max(diffs), 4)
         return {c["claim"]: c["holds"] for c in exp5.thesis_claims(s, e)}
@@ -682,7 +691,7 @@ def test_claims_at_their_bounds_are_not_decided_by_rounding():
     # ranks 2, 1, 4, 3, 5: squared rank differences sum to 4, rho = 1 - 6 * 4 / 120 = 0.8 exactly;
     # mean before 18 months 3/30, from 18 months 6/30: a rise of exactly 10 points
     at_bound = [4 / 30, 2 / 30, 6 / 30, 5 / 30, 7 / 30]
-    assert abs(exp5._spearman(e.hp1_levels, at_bound) - 0.8) < 1e-12
+    assert abs(exp5_summary._spearman(e.hp1_levels, at_bound) - 0.8) < 1e-12
     held = summary(at_bound)
     assert held["HP1 tool far rises with skills, Spearman rho >= 0.8 (reactive)"]
     assert held["HP1 tool far appears from 18 months (reactive)"]
@@ -708,7 +717,7 @@ def test_eye_reads_a_toy_on_either_side_of_the_reachable_border():
         for p in (1, 4):
             inside, outside = env.perceive(State(p, None, (bx - 0.0005, y))), env.perceive(State(p, None, (bx + 0.0005, y)))
             assert env.reward(inside) == 1.0 and env.reward(outside) == 0.0, (y, p)
-            assert abs(env._toy_x(inside[0]) - env.reader_bias() - (bx - 0.0005)) < 0.0004
+            assert abs(env.reader.toy_x(inside[0]) - env.reader_bias() - (bx - 0.0005)) < 0.0004
 
 
 @pytest.mark.parametrize("toy_turn", ["keep", "reset"])

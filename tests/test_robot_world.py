@@ -142,7 +142,7 @@ def test_toy_turn_is_placed_read_back_and_reported(world):
 def test_quaternion_helpers_match_scipy():
     from scipy.spatial.transform import Rotation
 
-    from neuroimagery.robot.world import _quat_from_matrix, _rotvec_between
+    from neuroimagery.robot.rake_pose import quat_from_matrix as _quat_from_matrix, rotvec_between as _rotvec_between
 
     r0, r1 = Rotation.random(500, random_state=0), Rotation.random(500, random_state=1)
     q = _quat_from_matrix(r0.as_matrix())
@@ -195,7 +195,7 @@ def test_observe_masks(world):
 
 
 def test_colour_masks_apply_the_thresholds_exactly():
-    from neuroimagery.robot.world import colour_masks
+    from neuroimagery.robot.eye import colour_masks
 
     px = np.array([[[61, 30, 30], [60, 10, 10], [100, 50, 10], [101, 50, 50], [255, 255, 255]],
                    [[30, 61, 30], [10, 60, 10], [50, 100, 10], [50, 101, 50], [0, 0, 0]]], dtype=np.uint8)

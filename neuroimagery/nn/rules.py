@@ -76,6 +76,56 @@ class Hebbian(Rule):
         return f"eta={self.eta}, form={self.form!r}"
 
 
+class GatedHebbian(Hebbian):
+    """Outstar Hebbian change (eq. 4.2-4.3) restricted to the output units being trained, repeated.
+
+    ``gate`` ``(P, out)`` (0/1) says which output units learn: the thesis trains one affordance
+    (one goal) at a time and the other units keep what they learnt. ``repeats`` = ``k`` is the
+    change of ``k`` identical online steps ``w <- w + eta x (y - w)``. With binary input (a
+    colour-filtered map) they have a closed form, ``w <- y + (1 - eta)^k (w - y)`` where ``x = 1``
+    (weights of inactive inputs do not move); :meth:`apply_` uses it, other inputs take the ``k``
+    steps one by one. One pattern per participant (``B = 1``). Weights ``(P, out, in)``.
+    """
+
+    def __init__(self, eta: float) -> None:
+        super().__init__(eta, form="outstar")
+
+    @staticmethod
+    def _check(pre: torch.Tensor, gate: torch.Tensor | None, repeats: int) -> None:
+        if pre.shape[1] != 1:
+            raise ValueError(f"GatedHebbian: one pattern per participant, got {pre.shape[1]}")
+        if int(repeats) < 0:
+            raise ValueError(f"GatedHebbian: repeats must be >= 0, got {repeats}")
+        if gate is not None and not bool(((gate == 0) | (gate == 1)).all()):
+            raise ValueError("GatedHebbian: gate must be 0/1")
+
+    def delta(self, weight, pre, post, gate=None, repeats: int = 1, **kw):
+        """The change ``repeats`` steps make (computed on a copy by :meth:`apply_`)."""
+        new = weight.clone()
+        self.apply_(new, pre, post, gate=gate, repeats=repeats)
+        return new - weight
+
+    def apply_(self, weight, pre, post, gate=None, repeats: int = 1, **_) -> None:
+        self._check(pre, gate, repeats)
+        if int(repeats) < 1:
+            return
+        for p in range(weight.shape[0]):
+            x, y = pre[p, 0], post[p, 0]
+            rows = range(weight.shape[1]) if gate is None else torch.nonzero(gate[p]).flatten().tolist()
+            binary = bool(((x == 0) | (x == 1)).all())
+            on = x > 0
+            for j in rows:
+                row, target = weight[p, j], y[j]
+                if binary:  # k steps in closed form on the active inputs
+                    row[on] = target + (1.0 - self.eta) ** int(repeats) * (row[on] - target)
+                else:
+                    for _ in range(int(repeats)):
+                        row.add_(self.eta * x * (target - row))
+
+    def extra_repr(self) -> str:
+        return f"eta={self.eta}, gated outstar"
+
+
 class Delta(Rule):
     """Delta (Widrow-Hoff) rule (eq. 6.4): ``dw_ji = eta (y_j - a_j) x_i``.
 
@@ -210,8 +260,27 @@ class QLearning(Rule):
         d = torch.einsum("pba,pb,pbi->pai", onehot, err, pre)
         return self.eta * _reduce(d, self.reduction, pre.shape[1])
 
+    def apply_(self, weight: torch.Tensor, pre: torch.Tensor, action: torch.Tensor, reward: torch.Tensor,
+               next_pre: torch.Tensor, done: torch.Tensor | None = None, **_) -> None:
+        """``weight += delta(...)`` row by row: only the chosen action's weights are touched, and
+        the temporal-difference error of each pattern (at the same weights) is formed in float64."""
+        P, B = pre.shape[:2]
+        sign = 1.0 if self.form == "standard" else -1.0
+        scale = self.eta / B if self.reduction == "mean" else self.eta
+        steps = []
+        for p in range(P):
+            for b in range(B):
+                a = int(action[p, b])
+                q_win = float(weight[p, a] @ pre[p, b])
+                ended = done is not None and bool(torch.as_tensor(done)[p, b])
+                q_max = 0.0 if ended else float((weight[p] @ next_pre[p, b]).max())
+                r = float(torch.as_tensor(reward, dtype=torch.float64).broadcast_to((P, B))[p, b])
+                steps.append((p, a, b, r + sign * self.gamma * q_max - q_win))
+        for p, a, b, err in steps:
+            weight[p, a].add_(pre[p, b], alpha=scale * err)
+
     def extra_repr(self) -> str:
         return f"eta={self.eta}, gamma={self.gamma}, form={self.form!r}"
 
 
-__all__ = ["Rule", "Hebbian", "Delta", "Kohonen", "SupervisedKohonen", "QLearning"]
+__all__ = ["Rule", "Hebbian", "GatedHebbian", "Delta", "Kohonen", "SupervisedKohonen", "QLearning"]

@@ -37,58 +37,19 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
 from neuroimagery.errors import UserInputError
-from neuroimagery.robot.config import WorldConfig
-from neuroimagery.robot.kinematics import ArmKinematics
 from neuroimagery.native import quiet_native_output
-
-EVENTS = ("retrieve", "touch", "south", "north", "west", "east")
-
-
-def event_index(name: str) -> int:
-    """Index of event ``name`` in ``EVENTS``; a clear error for an unknown name."""
-    try:
-        return EVENTS.index(name)
-    except ValueError:
-        raise UserInputError(f"unknown event {name!r}; known events: {', '.join(EVENTS)}") from None
-
-
-@dataclass(frozen=True)
-class Outcome:
-    """What one rollout did.
-
-    events: one bool per entry of ``EVENTS`` (fired at any time before the stop).
-    fired_first: name of the first event to fire (ties broken in ``EVENTS`` order), or None.
-    toy_displacement: (dx, dy) of the toy's centre between the start and the stop, metres.
-    stop_step: index of the last trajectory point executed.
-    final_toy_xy: the toy's centre at the stop.
-    final_toy_yaw: the toy's turn about the vertical at the stop (rad in [-pi/4, pi/4): the cube
-        looks the same every quarter turn).
-    blew_up: the physics produced an absurd toy state (too fast or flying); events are then all
-        False, so a blow-up is never counted as an event.
-    simulated: False when the FK filter showed the rake never came near the toy and the
-        physics was skipped.
-    """
-
-    events: tuple[bool, ...]
-    fired_first: str | None
-    toy_displacement: tuple[float, float]
-    stop_step: int
-    final_toy_xy: tuple[float, float]
-    blew_up: bool = False
-    simulated: bool = True
-    min_gap: float = float("nan")  # closest the rake came to the toy's start box (m, FK; NaN if unknown)
-    final_toy_yaw: float = 0.0  # the toy's turn about the vertical at the stop (rad, folded by toy_yaw_of)
-
-    def fired(self, name: str) -> bool:
-        return self.events[event_index(name)]
-
+from neuroimagery.robot.config import WorldConfig
+from neuroimagery.robot.constraint_drive import simulate_constraint
+from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, toy_yaw_of
+from neuroimagery.robot.eye import colour_masks
+from neuroimagery.robot.kinematics import ArmKinematics
+from neuroimagery.robot.rake_pose import quat_from_matrix, rotvec_between
 
 class ToolWorld:
     """pybullet scene of rake, toy and table driven by iCub arm trajectories.
@@ -352,7 +313,7 @@ class ToolWorld:
                     outcomes.append(self._skipped(T))
                     continue
                 t1 = time.perf_counter()
-                outcomes.append(self._simulate_constraint(poses[n], posture, traj[n, 0], watched))
+                outcomes.append(simulate_constraint(self, poses[n], posture, traj[n, 0], watched))
                 self.timing["physics_s"] += time.perf_counter() - t1
             return outcomes
         plan = self._plan(self.kin.rake_pose_np(traj.numpy()))
@@ -398,14 +359,14 @@ class ToolWorld:
         pts[..., 2] += lift[..., None]
         R = poses[..., :3, :3] @ self._R_com
         pos = poses[..., :3, 3] + poses[..., :3, :3] @ self._rake_com
-        quat = _quat_from_matrix(R)
+        quat = quat_from_matrix(R)
         dt = cfg.control_dt
         lin = np.zeros_like(pos)
         ang = np.zeros_like(pos)
         sweep = np.zeros(pts.shape[:2])
         if pos.shape[1] > 1:
             lin[:, 1:] = (pos[:, 1:] - pos[:, :-1]) / dt
-            ang[:, 1:] = _rotvec_between(quat[:, :-1], quat[:, 1:]) / dt
+            ang[:, 1:] = rotvec_between(quat[:, :-1], quat[:, 1:]) / dt
             # the substeps' gravity is added back so the rake lands exactly on pose t
             lin[:, 1:, 2] += 9.81 * cfg.physics_dt * (self.substeps + 1) / 2
             sweep[:, 1:] = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=-1).max(axis=-1)
@@ -485,7 +446,7 @@ class ToolWorld:
                 break
             dx, dy = pos[0] - start[0], pos[1] - start[1]
             now = [pos[0] < rx, False, -dx > mt, dx > mt, dy > mt, -dy > mt]
-            first = _latch_events(now, fired, first, top, cfg,
+            first = latch_events(now, fired, first, top, cfg,
                                   lambda: contacts(rake, toy, physicsClientId=cid))
             if watched_i is not None and fired[watched_i]:
                 break
@@ -505,52 +466,6 @@ class ToolWorld:
         disp = (final[0] - float(start[0]), final[1] - float(start[1]))
         return Outcome(tuple(fired), first, disp, last, (float(final[0]), float(final[1])), False,
                        final_toy_yaw=toy_yaw_of(final_orn))
-
-    # ---------------------------------------------------------------- constraint drive (reference)
-    def _simulate_constraint(self, poses: np.ndarray, posture: int, q0: torch.Tensor, watched: str | None) -> Outcome:
-        """Every control step simulated, the rake dragged to its pose by a constraint."""
-        cfg, c = self.cfg, self.client
-        self.reset(posture)
-        start, start_yaw = np.array(self.toy_xy()), self.toy_yaw()
-        top = cfg.table_top + cfg.toy_size
-        fired = [False] * 6
-        first: str | None = None
-        blew_up = False
-        watched_i = None if watched is None else EVENTS.index(watched)
-        step = 0
-        targets_pos, targets_orn = self._rake_targets(poses)
-        targets_pos, targets_orn = targets_pos.tolist(), targets_orn.tolist()
-        for step in range(len(poses)):
-            self._set_rake(poses[step], teleport=False, target=(targets_pos[step], targets_orn[step]))
-            for _ in range(self.substeps):
-                c.stepSimulation()
-            pos, _ = c.getBasePositionAndOrientation(self.toy)
-            vel, _ = c.getBaseVelocity(self.toy)
-            if (
-                not all(map(math.isfinite, pos))
-                or math.sqrt(sum(v * v for v in vel)) > cfg.max_toy_speed
-                or abs(pos[2] - (cfg.table_top + cfg.toy_size / 2)) > cfg.max_toy_height
-            ):
-                blew_up = True
-                break
-            d = np.array(pos[:2]) - start
-            now = [
-                pos[0] < cfg.retrieve_x,
-                False,
-                -d[0] > cfg.move_threshold,
-                d[0] > cfg.move_threshold,
-                d[1] > cfg.move_threshold,
-                -d[1] > cfg.move_threshold,
-            ]
-            first = _latch_events(now, fired, first, top, cfg, lambda: c.getContactPoints(self.rake, self.toy))
-            if watched_i is not None and fired[watched_i]:
-                break
-        final = self.toy_xy()
-        if blew_up:
-            return Outcome((False,) * 6, None, (0.0, 0.0), step, tuple(float(v) for v in start), True,
-                           final_toy_yaw=start_yaw)
-        disp = (final[0] - float(start[0]), final[1] - float(start[1]))
-        return Outcome(tuple(fired), first, disp, step, final, False, final_toy_yaw=self.toy_yaw())
 
     # ------------------------------------------------------------------ camera
     def camera(self) -> tuple[list[float], list[float], list[float]]:
@@ -591,76 +506,3 @@ class ToolWorld:
         return {"image": image, "toy": toy, "rake": rake}
 
 
-def toy_yaw_of(quaternion) -> float:
-    """The turn about the vertical (rad) of a pybullet quaternion (x, y, z, w), folded into
-    [-pi/4, pi/4): the toy is a uniform cube, which looks and behaves the same every quarter turn."""
-    x, y, z, w = quaternion
-    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    quarter = math.pi / 2
-    return (yaw + quarter / 2) % quarter - quarter / 2
-
-
-def _latch_events(now: list, fired: list, first: str | None, top: float, cfg: WorldConfig,
-                  contact_points) -> str | None:
-    """Add "touch" to this step's events ``now`` from the rake-toy contacts (read only while touch
-    has not fired yet), latch every event that fires into ``fired`` and return the first event."""
-    if not fired[1]:
-        for cp in contact_points():
-            on_toy, normal = cp[6], cp[7]  # position on B (the toy), normal from B to A
-            if on_toy[2] >= top - cfg.touch_tolerance and abs(normal[2]) >= cfg.touch_normal_z:
-                now[1] = True
-                break
-    for i, f in enumerate(now):
-        if f and not fired[i]:
-            fired[i] = True
-            if first is None:
-                first = EVENTS[i]
-    return first
-
-
-def _quat_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Quaternions (..., 4) in pybullet's (x, y, z, w) order from rotation matrices (..., 3, 3)."""
-    m = R
-    t = np.stack([
-        1 + m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2],
-        1 + m[..., 0, 0] - m[..., 1, 1] - m[..., 2, 2],
-        1 - m[..., 0, 0] + m[..., 1, 1] - m[..., 2, 2],
-        1 - m[..., 0, 0] - m[..., 1, 1] + m[..., 2, 2],
-    ], axis=-1)
-    k = t.argmax(axis=-1)  # the numerically safest of the four branches
-    s = np.sqrt(np.maximum(np.take_along_axis(t, k[..., None], -1)[..., 0], 1e-12)) * 2  # 4 * |component|
-    qw = np.stack([(m[..., 2, 1] - m[..., 1, 2]) / s, (m[..., 0, 2] - m[..., 2, 0]) / s,
-                   (m[..., 1, 0] - m[..., 0, 1]) / s, s / 4], -1)
-    qx = np.stack([s / 4, (m[..., 0, 1] + m[..., 1, 0]) / s, (m[..., 0, 2] + m[..., 2, 0]) / s,
-                   (m[..., 2, 1] - m[..., 1, 2]) / s], -1)
-    qy = np.stack([(m[..., 0, 1] + m[..., 1, 0]) / s, s / 4, (m[..., 1, 2] + m[..., 2, 1]) / s,
-                   (m[..., 0, 2] - m[..., 2, 0]) / s], -1)
-    qz = np.stack([(m[..., 0, 2] + m[..., 2, 0]) / s, (m[..., 1, 2] + m[..., 2, 1]) / s, s / 4,
-                   (m[..., 1, 0] - m[..., 0, 1]) / s], -1)
-    q = np.select([k[..., None] == 0, k[..., None] == 1, k[..., None] == 2], [qw, qx, qy], qz)
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
-def _rotvec_between(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
-    """World-frame rotation vectors (..., 3) of the rotations taking q0 to q1 (q1 = r * q0)."""
-    x0, y0, z0, w0 = -q0[..., 0], -q0[..., 1], -q0[..., 2], q0[..., 3]  # conjugate of q0
-    x1, y1, z1, w1 = q1[..., 0], q1[..., 1], q1[..., 2], q1[..., 3]
-    w = w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0
-    v = np.stack([w1 * x0 + x1 * w0 + y1 * z0 - z1 * y0,
-                  w1 * y0 - x1 * z0 + y1 * w0 + z1 * x0,
-                  w1 * z0 + x1 * y0 - y1 * x0 + z1 * w0], -1)
-    sign = np.where(w < 0, -1.0, 1.0)[..., None]  # shortest way round
-    v, w = v * sign, np.abs(w)
-    n = np.linalg.norm(v, axis=-1)
-    angle = 2 * np.arctan2(n, w)
-    scale = np.where(n > 1e-12, angle / np.maximum(n, 1e-12), 2.0)
-    return v * scale[..., None]
-
-
-def colour_masks(image: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
-    """Colour filtering of an RGB image into the red-toy and green-rake maps (float 0/1)."""
-    rgb = np.asarray(image).astype(np.int16)  # integer arithmetic: exact, and 3-4x faster than float tensors
-    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
-    toy = (r > 60) & (r > 2 * g) & (r > 2 * b)
-    rake = (g > 60) & (g > 2 * r) & (g > 2 * b)
-    return torch.from_numpy(toy.astype(np.float32)), torch.from_numpy(rake.astype(np.float32))

@@ -1,0 +1,185 @@
+"""What a set of Experiment 5 individuals shows: group rates, Table 7.1 from the skill libraries,
+how the tool-far tests were solved (routes) and the thesis's must-show claims."""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from ..models.tool_use import EVENTS, N_POSTURES, Library
+
+if TYPE_CHECKING:
+    from .exp5_config import Exp5Config
+
+STRATEGIES = ("reactive", "planning")
+
+
+def table_7_1(results: list[dict]) -> dict:
+    """Which events exploration produced and which skills work, per posture, over all robots."""
+    seen = np.zeros((N_POSTURES, len(EVENTS)))
+    works = np.zeros((N_POSTURES, len(EVENTS)))
+    have = np.zeros(len(EVENTS))
+    for d in results:
+        lib = Library.from_state(d["library"])
+        seen += (np.array(lib.events_seen) > 0)
+        for s in lib.skills:
+            k = EVENTS.index(s.event)
+            have[k] += 1
+            works[:, k] += np.array(s.succeeds_from, dtype=float)
+    n = max(len(results), 1)
+    out = {}
+    for p in range(N_POSTURES):
+        out[f"posture-{p + 1}"] = {
+            "events": [int(v > 0) for v in seen[p]], "skills": [int(v > 0) for v in works[p]],
+            "events_share": [round(v / n, 3) for v in seen[p]],
+            "skills_share": [round(w / h, 3) if h else 0.0 for w, h in zip(works[p], have)]}
+    return out
+
+
+def _spearman(x, y) -> float | None:
+    from scipy.stats import spearmanr
+
+    if len(set(y)) < 2:
+        return None
+    return float(spearmanr(x, y).statistic)
+
+
+def group_rates(groups: list[dict]) -> dict[tuple, float]:
+    """Success rate of each group of summary.json ``groups``, keyed (hypothesis, level, situation, strategy)."""
+    return {(g["hypothesis"], g["level"], g["situation"], g["strategy"]): g["success_rate"] for g in groups}
+
+
+# Slack of every claim's comparison. Group rates are stored rounded to 4 decimals and are multiples
+# of 1 / n (n = 30 robots per run): a claim at its bound (rho exactly 0.8, a rise of exactly 10
+# points) must not be decided by rounding. 0.1 point is far less than one robot in 90.
+CLAIM_TOL = 1e-3
+
+
+def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
+    """The must-show claims of thesis section 7.1.3, each checked on this run's group rates.
+
+    Returns one dict per claim (``claim``, ``value``: the numbers it was judged on, ``holds``);
+    claims whose groups were not run are left out. Thresholds: tool behind >= 75 % at every age;
+    tool far at the youngest HP1 age <= 15 % ("about 0 %"); tool far before 18 months below every
+    tool-behind rate, and >= 10 points higher from 18 months on (Rat-Fischer et al., 2012);
+    Spearman's rho of tool far over the HP1 groups >= 0.8; the mean of the trained HP2 groups above
+    the untrained group; reactive and planning children within 25 points of each other in every group.
+    """
+    rate = group_rates(summary["groups"])
+    out = []
+    tol = CLAIM_TOL
+
+    def claim(what, value, holds):
+        out.append(dict(claim=what, value=value, holds=bool(holds)))
+
+    def pct(xs):
+        return ", ".join(f"{100 * x:.0f} %" for x in xs)
+
+    young = [i for i, a in enumerate(e.hp1_ages) if a < 18]
+    for strat in STRATEGIES:
+        behind = [rate.get(("hp1", k, "behind", strat)) for k in e.hp1_levels]
+        far = [rate.get(("hp1", k, "far", strat)) for k in e.hp1_levels]
+        if None not in behind:
+            claim(f"HP1 tool behind high at every age ({strat})", pct(behind), min(behind) >= 0.75 - tol)
+        if None in far:
+            continue
+        claim(f"HP1 tool far near zero at {e.hp1_ages[0]} months ({strat})", pct(far[:1]), far[0] <= 0.15 + tol)
+        if None not in behind and young:
+            claim(f"HP1 tool far low before 18 months against tool behind ({strat})",
+                  f"{pct([far[i] for i in young])} against >= {100 * min(behind):.0f} %",
+                  max(far[i] for i in young) < min(behind) - tol)
+        old = [i for i in range(len(far)) if i not in young]
+        if young and old:
+            before, after = np.mean([far[i] for i in young]), np.mean([far[i] for i in old])
+            claim(f"HP1 tool far appears from 18 months ({strat})",
+                  f"{100 * before:.0f} % before, {100 * after:.0f} % after", after - before >= 0.10 - tol)
+        rho = summary["checks"].get(f"hp1_far_spearman_{strat}")
+        claim(f"HP1 tool far rises with skills, Spearman rho >= 0.8 ({strat})",
+              f"{pct(far)}; rho {rho:.2f}" if rho is not None else pct(far), rho is not None and rho >= 0.8 - tol)
+    for strat in STRATEGIES:
+        for sit in e.situations:
+            hp2 = [rate.get(("hp2", t, sit, strat)) for t in e.hp2_trials]
+            if None in hp2 or len(hp2) < 2:
+                continue
+            trained = float(np.mean(hp2[1:]))
+            claim(f"HP2 tool {sit} improves with training ({strat})", f"{pct(hp2)}; trained mean {100 * trained:.0f} %",
+                  trained > hp2[0] + tol)
+    diff = summary["checks"].get("reactive_planning_max_abs_diff")
+    if diff is not None:
+        claim("reactive and planning children alike (largest difference <= 25 points)", f"{100 * diff:.0f} points",
+              diff <= 0.25 + tol)
+    return out
+
+
+ROUTES = ("pull", "moves_then_pull", "other")
+
+
+def success_route(actions: str) -> str:
+    """How one successful test sequence (``test_actions``, primitives joined by '>') brought the toy in.
+
+    ``pull``: one pull (the retrieve skill, or a spare copy of it) and nothing else;
+    ``moves_then_pull``: a pull as the last move, after one or more other moves (the thesis's route
+    from the tool-far situation, Fig. 7.8); ``other``: the last move, the one that brought the toy
+    into reach, was not a pull (touch or an interaction primitive).
+    """
+    moves = actions.split(">")
+    if not actions or not moves[-1]:
+        raise ValueError(f"empty action sequence {actions!r}")
+    if not _is_pull(moves[-1]):
+        return "other"
+    return "pull" if len(moves) == 1 else "moves_then_pull"
+
+
+def _is_pull(name: str) -> bool:
+    return name.rstrip("0123456789") == "retrieve"
+
+
+def success_routes(df: pd.DataFrame) -> list[dict]:
+    """Per tool-far group and strategy: the number of successes and how many took each route of
+    :func:`success_route` (summary.json key ``routes``)."""
+    out = []
+    far = df[df.situation == "far"]
+    for (h, lvl, strat), g in far.groupby(["hypothesis", "level", "strategy"], sort=False):
+        won = g[g.success == 1].test_actions.astype(str)
+        counts = won.map(success_route).value_counts()
+        row = dict(hypothesis=h, level=int(lvl), situation="far", strategy=strat, n=int(len(g)),
+                   successes=int(len(won)), **{k: int(counts.get(k, 0)) for k in ROUTES})
+        if "test_attempts" in g.columns:  # tests in which no PMC unit was active: the child did not move
+            row["no_move"] = int((g.test_attempts == 0).sum())
+        if {"routes_1", "routes_2"} <= set(g.columns):  # robots for which the world holds a 1-2 move retrieval
+            row["available"] = int(((g.routes_1 + g.routes_2) > 0).sum())
+        if {"imagined_1", "imagined_2", "imagined_true"} <= set(g.columns):  # ... and their mental images
+            row["imagined"] = int(((g.imagined_1 + g.imagined_2) > 0).sum())
+            row["imagined_true"] = int((g.imagined_true > 0).sum())
+        out.append(row)
+    return out
+
+
+def summarise(df: pd.DataFrame, e: Exp5Config) -> dict:
+    """Group rates, checks, success routes and must-show claims of the individuals in ``df``
+    (the rows of individuals.csv; one run's or several runs' pooled): summary.json keys ``groups``,
+    ``checks``, ``routes`` and ``claims``."""
+    grp_rows = []
+    for (h, lvl, sit, strat), g in df.groupby(["hypothesis", "level", "situation", "strategy"], sort=False):
+        grp_rows.append(dict(hypothesis=h, level=int(lvl), age_months=int(g["age_months"].iloc[0]), situation=sit,
+                             strategy=strat, n=int(len(g)), success_rate=round(float(g["success"].mean()), 4),
+                             mean_skills=round(float(g["n_skills"].mean()), 3)))
+    rate = group_rates(grp_rows)
+    checks = {}
+    for strat in STRATEGIES + ("pooled",):
+        ys = [np.mean([rate.get(("hp1", k, "far", s), np.nan) for s in (STRATEGIES if strat == "pooled" else (strat,))])
+              for k in e.hp1_levels]
+        checks[f"hp1_far_spearman_{strat}"] = _spearman(e.hp1_levels, ys)
+    diffs = [abs(rate[(h, lv, si, "reactive")] - rate[(h, lv, si, "planning")])
+             for (h, lv, si, st) in rate if st == "reactive" and (h, lv, si, "planning") in rate]
+    checks["reactive_planning_max_abs_diff"] = round(float(max(diffs)), 4) if diffs else None
+    # how the tool-far tests were solved (thesis: pulling only after a move that brings the tool
+    # behind the toy, Fig. 7.8; at 14 months "sometimes pulling after touching", l. 1692)
+    routes = success_routes(df)
+    young = [r for r in routes if r["hypothesis"] == "hp1" and r["level"] == e.hp1_levels[0] and r["situation"] == "far"]
+    checks["hp1_far_youngest_successes"] = int(sum(r["successes"] for r in young))
+    checks["hp1_far_youngest_single_pull"] = int(sum(r["pull"] for r in young))
+    out = {"groups": grp_rows, "checks": checks, "routes": routes}
+    out["claims"] = thesis_claims(out, e)
+    return out

@@ -1,0 +1,143 @@
+"""Action sequencing (thesis Fig. 7.6): a child chooses primitives by softmax over C1 + C4, a
+reactive child performs them, a planning child imagines their outcome through C3, and C4 learns
+by Q-learning (eq. 7.1)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import torch
+
+from ...nn.functional import softmax_select
+from .acquisition import Skill
+from .brain import ToolUseBrain
+from .common import Environment, Result, State, check_choice
+
+
+@dataclass
+class TrialRecord:
+    """One action-sequencing trial (Fig. 7.6)."""
+
+    actions: list[str]
+    rewards: list[float]
+    success: bool  # the toy was really retrieved
+    imagined_success: bool = False  # planning: the plan reached the goal in mind
+    frames: list[dict] = field(default_factory=list)  # optional film strip (real / imagined PC)
+
+
+class Outcomes:
+    """Deterministic real outcomes of skill sequences from an initial posture, computed once.
+
+    ``skills`` maps each primitive's name (:attr:`Skill.name`) to its skill. The physics is
+    deterministic, so the scene after primitives ``(a1, ..., an)`` (names) from posture ``p``
+    depends on nothing else; every individual sharing a skill library shares this cache.
+    """
+
+    def __init__(self, env: Environment, skills: dict[str, Skill], perceive: Callable[[State], torch.Tensor]):
+        self.env, self.skills, self.perceive = env, skills, perceive
+        self.table: dict[tuple, Result] = {}
+        self.rollouts = 0
+
+    def after(self, posture: int, events: tuple[str, ...]) -> Result | None:
+        if not events:
+            return None
+        key = (posture, events)
+        if key not in self.table:
+            prev = self.after(posture, events[:-1])
+            state = self.env.start(posture) if prev is None else prev.next_state
+            s = self.skills[events[-1]]
+            r = self.env.execute(s.theta.unsqueeze(0), state, s.event)[0]
+            if prev is not None and prev.retrieved:  # once in reach, the toy stays retrieved
+                r = Result((True,) + r.events[1:], r.next_state, r.fired_first)
+            self.table[key] = r
+            self.rollouts += 1
+        return self.table[key]
+
+    def image(self, posture: int, events: tuple[str, ...]) -> torch.Tensor:
+        r = self.after(posture, events)
+        return self.perceive(self.env.start(posture) if r is None else r.next_state)
+
+
+def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Skill], posture: int, strategy: str,
+                   training: bool, attempts: int, temperature: float, generator: torch.Generator,
+                   record_frames: bool = False, planning_test: str = "act",
+                   active_threshold: float = 0.0) -> TrialRecord:
+    """One trial of Fig. 7.6 from initial posture ``posture``.
+
+    Each attempt: feed the current PC image through C1 and C4, pick one acquired PMC unit with
+    softmax (among the active ones, ``active_threshold``), then a reactive child performs the
+    primitive (the real scene is perceived next) while a planning child imagines it through C3
+    (the mental image becomes the next input). The toy-related reward is read from that next
+    image (reactive: the retrieve detector). In training mode C4 learns by eq. 7.1; a planning
+    child trains in mind only.
+
+    The test (``training`` False) of a planning child, ``planning_test``:
+
+    * ``"act"``: every attempt starts from the real scene: the child chooses from what it sees
+      (C1 + the C4 it learnt in mind), imagines the outcome, performs the primitive and looks
+      again; it stops once the toy is really in reach.
+    * ``"plan"``: the whole plan (up to ``attempts`` primitives, until the mental image shows the
+      toy in reach) is made in mind from the initial image, then performed for real.
+
+    Test success is always the real retrieval.
+
+    ``active_threshold``: Fig. 7.6 draws among the *active* PMC units; with a threshold above 0
+    only the acquired units whose PMC activity (C1 + C4) exceeds it are candidates, and a child
+    with no active unit does not move (the trial ends). 0 (this function's default): every
+    acquired unit is a candidate; Experiment 5 uses ``Exp5Config.active_threshold`` (0.1).
+    """
+    if strategy not in ("reactive", "planning"):
+        raise ValueError(f"strategy must be 'reactive' or 'planning', got {strategy!r}")
+    check_choice("planning_test", planning_test)
+    env = outcomes.env
+    units = torch.tensor([s.unit for s in skills])
+    by_unit = {s.unit: s for s in skills}
+    done_events: tuple[str, ...] = ()
+    x0 = outcomes.image(posture, ())
+    rec = TrialRecord([], [], False)
+    if len(skills) == 0:
+        return rec
+    brain.train(training)
+    acting = strategy == "reactive" or (not training and planning_test == "act")
+    imagining = strategy == "planning"
+    for _ in range(attempts):
+        act = brain.pmc(x0)[units]
+        if active_threshold > 0:
+            active = act > active_threshold
+            if not bool(active.any()):
+                break  # nothing afforded here: the child does not move
+            act = act.masked_fill(~active, float("-inf"))
+        k = int(softmax_select(act.view(1, -1), temperature, generators=[generator])[0])
+        skill = by_unit[int(units[k])]
+        done_events = done_events + (skill.name,)
+        imagined = brain.imagine(x0, skill.unit) if imagining or record_frames else None
+        if imagining and float(env.reward(imagined)) > 0:
+            rec.imagined_success = True
+        if acting:
+            r = outcomes.after(posture, done_events)
+            x1 = outcomes.perceive(r.next_state)
+            reward = 1.0 if r.retrieved else 0.0
+        else:
+            x1 = imagined
+            reward = float(env.reward(x1))
+        rec.actions.append(skill.name)
+        rec.rewards.append(reward)
+        if record_frames:
+            rec.frames.append({"action": skill.name, "real": outcomes.image(posture, done_events),
+                               "imagined": imagined, "reward": reward})
+        if training:
+            brain.q_update(x0, skill.unit, reward, x1, done=reward > 0)
+        x0 = x1
+        if reward > 0:
+            break
+    if acting:
+        rec.success = bool(rec.rewards and rec.rewards[-1] > 0)
+    else:
+        rec.imagined_success = bool(rec.rewards and rec.rewards[-1] > 0)
+        # "plan" test: the plan is performed for real (prefixes are cached); stop once the toy is in reach
+        for n in range(1, 0 if training else len(rec.actions) + 1):
+            if outcomes.after(posture, tuple(rec.actions[:n])).retrieved:
+                rec.success = True
+                break
+    brain.eval()
+    return rec

@@ -1,0 +1,59 @@
+"""The reference rake drive: a fixed pybullet constraint drags the dynamic rake to every pose.
+
+Every control step is simulated (slower than the kinematic drive of :mod:`neuroimagery.robot.world`);
+kept to test the fast drive against (docs/robot.md).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from neuroimagery.robot.events import EVENTS, Outcome, latch_events
+
+
+def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor, watched: str | None) -> Outcome:
+    """Every control step simulated, the rake dragged to its pose by a constraint."""
+    cfg, c = world.cfg, world.client
+    world.reset(posture)
+    start, start_yaw = np.array(world.toy_xy()), world.toy_yaw()
+    top = cfg.table_top + cfg.toy_size
+    fired = [False] * 6
+    first: str | None = None
+    blew_up = False
+    watched_i = None if watched is None else EVENTS.index(watched)
+    step = 0
+    targets_pos, targets_orn = world._rake_targets(poses)
+    targets_pos, targets_orn = targets_pos.tolist(), targets_orn.tolist()
+    for step in range(len(poses)):
+        world._set_rake(poses[step], teleport=False, target=(targets_pos[step], targets_orn[step]))
+        for _ in range(world.substeps):
+            c.stepSimulation()
+        pos, _ = c.getBasePositionAndOrientation(world.toy)
+        vel, _ = c.getBaseVelocity(world.toy)
+        if (
+            not all(map(math.isfinite, pos))
+            or math.sqrt(sum(v * v for v in vel)) > cfg.max_toy_speed
+            or abs(pos[2] - (cfg.table_top + cfg.toy_size / 2)) > cfg.max_toy_height
+        ):
+            blew_up = True
+            break
+        d = np.array(pos[:2]) - start
+        now = [
+            pos[0] < cfg.retrieve_x,
+            False,
+            -d[0] > cfg.move_threshold,
+            d[0] > cfg.move_threshold,
+            d[1] > cfg.move_threshold,
+            -d[1] > cfg.move_threshold,
+        ]
+        first = latch_events(now, fired, first, top, cfg, lambda: c.getContactPoints(world.rake, world.toy))
+        if watched_i is not None and fired[watched_i]:
+            break
+    final = world.toy_xy()
+    if blew_up:
+        return Outcome((False,) * 6, None, (0.0, 0.0), step, tuple(float(v) for v in start), True,
+                       final_toy_yaw=start_yaw)
+    disp = (final[0] - float(start[0]), final[1] - float(start[1]))
+    return Outcome(tuple(fired), first, disp, step, final, False, final_toy_yaw=world.toy_yaw())

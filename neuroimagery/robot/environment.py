@@ -1,0 +1,217 @@
+"""The pybullet rake-and-toy world as the tool-use model's environment (thesis ch. 7).
+
+:class:`ToolWorldEnvironment` offers the model what it needs from a world (the ``Environment``
+protocol of :mod:`neuroimagery.models.tool_use`): start an initial situation, draw random
+movements around a posture, execute DMP primitives from any scene (:class:`State`) and return
+what they did (:class:`Result`), render the PC map of a scene and read the toy-related reward
+from an image. Its three choices (``ENV_CHOICES``) say how a primitive is replayed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from .eye import ToyReader
+
+# the values each choice of the environment accepts (Exp5Config checks the same table)
+ENV_CHOICES = {"goal_frame": ("relative", "absolute"), "reach_bound": ("path", "goal"), "toy_turn": ("keep", "reset")}
+
+
+def check_choice(key: str, value, choices: dict | None = None) -> None:
+    """Raise ``ValueError`` naming ``key`` when ``value`` is not one of ``choices[key]``."""
+    allowed = (choices or ENV_CHOICES)[key]
+    if value not in allowed:
+        raise ValueError(f"{key} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class State:
+    """A scene: the initial posture it started from, and (after moves) the arm and toy state.
+
+    ``q`` / ``toy_xy`` are None for the untouched initial situation of ``posture``; ``toy_yaw`` is
+    the toy's turn about the vertical (rad), None when it is square (or not tracked).
+    """
+
+    posture: int
+    q: tuple[float, ...] | None = None
+    toy_xy: tuple[float, float] | None = None
+    toy_yaw: float | None = None
+
+
+@dataclass(frozen=True)
+class Result:
+    """What executing one primitive did: events (``EVENTS`` order), the state it left."""
+
+    events: tuple[bool, ...]
+    next_state: State
+    fired_first: str | None = None
+    blew_up: bool = False  # the physics blew up (all events are then False)
+
+    def fired(self, name: str) -> bool:
+        from .events import event_index
+
+        return bool(self.events[event_index(name)])
+
+    @property
+    def retrieved(self) -> bool:
+        return bool(self.events[0])
+
+
+class ToolWorldEnvironment:
+    """:class:`Environment` over the pybullet rake-and-toy world (``robot.world.ToolWorld``).
+
+    Primitives are DMPs (``motor.dmp.DMP``, 7 goals + 28 shape weights) rolled out from the
+    arm's current joints. A scene after earlier moves (arm elsewhere, toy displaced) is restored
+    through ``ToolWorld.reset(q=..., toy_xy=..., toy_yaw=...)`` before the next rollout.
+
+    ``toy_turn`` says whether a scene keeps the toy's turn about the vertical: ``"keep"`` (the toy
+    is put back as the last move left it, the default) or ``"reset"`` (square again; the toy's
+    place is kept either way). A rollout from an initial situation is the same under both.
+
+    ``goal_frame`` says what the 7 goal numbers of a primitive mean:
+
+    * ``"relative"``: the joint displacement from wherever the arm starts (goal = start + offset).
+      The primitive is then one movement *shape*, translated in joint space: since the DMP's
+      forcing term scales with ``g - y0`` (eq. 7.3), the same parameters give the same joint
+      trajectory relative to the start from every posture, and what it does to the toy depends on
+      where the rake starts (the situation).
+    * ``"absolute"``: joint angles; every rollout of a primitive ends in the same arm posture
+      whatever the start, and its shape is rescaled by ``g - y0``.
+
+    Exploration draws goals as the start posture plus noise (clipped to the joint limits) in both
+    frames, so a discovered movement is the same either way; the frames differ only in how a
+    learnt primitive is replayed from another posture or after earlier moves.
+
+    ``reach_bound`` says how the reach of one movement (``DMP.max_goal_offset``, the world's
+    ``max_goal_offset_rad``) is enforced: ``"path"`` keeps every joint within it of its start at
+    every step; ``"goal"`` bounds only the DMP goal, so the shape term can carry a joint farther on
+    the way (learnt skills: a median 0.32 rad, some 0.6 rad, against the 0.15 rad bound).
+    """
+
+    def __init__(self, world_config=None, duration_s: float = 1.5, explore_goal_sigma: float = 0.35,
+                 explore_weight_sigma: float = 300.0, search_goal_sigma: float = 0.05,
+                 search_weight_sigma: float = 30.0, goal_frame: str = "absolute", reach_bound: str = "goal",
+                 toy_turn: str = "keep") -> None:
+        from ..motor.dmp import DMP
+        from .world import ToolWorld
+
+        class _World(ToolWorld):
+            """ToolWorld whose rollouts can start from a given arm and toy state."""
+
+            start_state: tuple | None = None
+
+            def reset(self, posture, q=None, toy_xy=None, toy_yaw=None):
+                if q is None and toy_xy is None and self.start_state is not None:
+                    q, toy_xy, toy_yaw = self.start_state
+                super().reset(posture, q=q, toy_xy=toy_xy, toy_yaw=toy_yaw)
+
+        check_choice("goal_frame", goal_frame)
+        check_choice("reach_bound", reach_bound)
+        check_choice("toy_turn", toy_turn)
+        self.goal_frame, self.reach_bound, self.toy_turn = goal_frame, reach_bound, toy_turn
+        self.world = _World(world_config)
+        self.dmp = DMP()
+        self.n_params = self.dmp.n_params
+        cfg = self.world.cfg
+        self.image_shape = (cfg.image_height, cfg.image_width)
+        self.duration_s, self.dt = float(duration_s), float(cfg.control_dt)
+        self.explore = (float(explore_goal_sigma), float(explore_weight_sigma))
+        J, B = self.dmp.n_joints, self.dmp.n_basis
+        self._sigma = torch.cat([torch.full((J,), float(search_goal_sigma)), torch.full((J * B,), float(search_weight_sigma))])
+        self._images: dict[State, torch.Tensor] = {}
+        self.reader = ToyReader(self.world)
+        self.timing = {"rollout_s": 0.0, "render_s": 0.0, "rollouts": 0, "renders": 0}
+
+    def close(self) -> None:
+        self.world.close()
+
+    def start(self, posture: int) -> State:
+        return State(int(posture))
+
+    def _q(self, state: State) -> torch.Tensor:
+        return self.world.initial_posture(state.posture) if state.q is None else torch.tensor(state.q)
+
+    def random_params(self, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
+        q0 = self.world.initial_posture(posture)
+        gs, ws = self.explore
+        goals = self.world.kin.clamp(q0 + gs * torch.randn(n, 7, generator=generator))
+        if self.goal_frame == "relative":
+            goals = goals - q0
+        weights = ws * torch.randn(n, 7, self.dmp.n_basis, generator=generator)
+        return self.dmp.pack(goals, weights)
+
+    def joint_params(self, params: torch.Tensor, q0: torch.Tensor) -> torch.Tensor:
+        """Parameters with absolute joint goals for a rollout starting at ``q0``."""
+        params = params.float()
+        if self.goal_frame == "absolute":
+            return params
+        out = params.clone()
+        out[:, :7] = params[:, :7] + q0.float()
+        return out
+
+    def search_sigma(self) -> torch.Tensor:
+        return self._sigma.clone()
+
+    def bounded(self, traj: torch.Tensor, q0: torch.Tensor) -> torch.Tensor:
+        """Joint trajectories (N, T, 7) kept inside the arm's limits and, with ``reach_bound`` =
+        ``"path"``, inside ``q0 +- max_goal_offset`` at every step (the DMP bounds only the goal:
+        its shape term can carry a joint 2-4 times farther on the way)."""
+        b = self.dmp.max_goal_offset
+        if self.reach_bound == "path" and b is not None:
+            q0 = q0.to(traj.dtype)
+            traj = torch.minimum(torch.maximum(traj, q0 - b), q0 + b)
+        return self.world.kin.clamp(traj)
+
+    def execute(self, params: torch.Tensor, state: State, watched: str | None) -> list[Result]:
+        import time
+
+        t0 = time.perf_counter()
+        q0 = self._q(state)
+        traj = self.bounded(self.dmp.rollout(self.joint_params(params, q0), q0, self.duration_s, self.dt), q0)
+        fresh = state.q is None and state.toy_xy is None and state.toy_yaw is None
+        self.world.start_state = None if fresh else (q0, state.toy_xy, state.toy_yaw)
+        try:
+            outs = self.world.rollout(traj, state.posture, watched=watched, use_filter=fresh)
+        finally:
+            self.world.start_state = None
+        res = []
+        for n, o in enumerate(outs):
+            q_end = tuple(round(float(v), 6) for v in traj[n, o.stop_step])
+            toy = tuple(round(float(v), 6) for v in o.final_toy_xy)
+            yaw = round(float(o.final_toy_yaw), 6) if self.toy_turn == "keep" else 0.0
+            res.append(Result(tuple(bool(e) for e in o.events), State(state.posture, q_end, toy, yaw or None),
+                              o.fired_first, bool(o.blew_up)))
+        self.timing["rollout_s"] += time.perf_counter() - t0
+        self.timing["rollouts"] += len(outs)
+        return res
+
+    def _observe(self, state: State) -> dict:
+        """The eye's view of ``state`` (``ToolWorld.observe`` after setting the scene up)."""
+        q = None if state.q is None else torch.tensor(state.q)
+        return self.world.observe(posture=state.posture, q=q, toy_xy=state.toy_xy, toy_yaw=state.toy_yaw)
+
+    def perceive(self, state: State) -> torch.Tensor:
+        import time
+
+        if state not in self._images:
+            t0 = time.perf_counter()
+            obs = self._observe(state)
+            self._images[state] = torch.stack([obs["toy"], obs["rake"]]).to(torch.uint8)
+            self.timing["render_s"] += time.perf_counter() - t0
+            self.timing["renders"] += 1
+        return self._images[state].float()
+
+    def eye_image(self, state: State) -> np.ndarray:
+        """The RGB image the eye sees in ``state`` (for figures)."""
+        return self._observe(state)["image"]
+
+    def reader_bias(self) -> float:
+        """Mean error (m) of the toy reader near the reachable area's border (``eye.ToyReader.bias``)."""
+        return self.reader.bias()
+
+    def reward(self, image: torch.Tensor) -> float:
+        """1 if the toy, read from the image (blob centre projected back onto the table, less the
+        reader's bias), lies in the reachable area."""
+        return 1.0 if self.reader.in_reach(image[0]) else 0.0

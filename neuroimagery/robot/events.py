@@ -1,0 +1,91 @@
+"""What a rollout of the tool-use world reports: the six events of thesis Fig. 7.3 and the outcome.
+
+Events (``EVENTS`` order, thesis Fig. 7.3 and Table 7.1), each named by what happens to the toy
+(compass seen from above with the robot at the south edge: south = toward the robot, -x; north =
+away, +x; west = the robot's left, +y; east = its right, -y):
+
+    retrieve  the toy's centre enters the reachable area (``WorldConfig.retrieve_x``)
+    touch     a rake-toy contact on the toy's top face
+    south, north, west, east
+              the toy's centre has moved more than ``move_threshold`` from where the rollout
+              started, in that direction (``WorldConfig.direction_rule``, docs/robot.md).
+
+Each event, once fired, stays fired for the rest of the rollout.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from neuroimagery.errors import UserInputError
+
+EVENTS = ("retrieve", "touch", "south", "north", "west", "east")
+
+
+def event_index(name: str) -> int:
+    """Index of event ``name`` in ``EVENTS``; a clear error for an unknown name."""
+    try:
+        return EVENTS.index(name)
+    except ValueError:
+        raise UserInputError(f"unknown event {name!r}; known events: {', '.join(EVENTS)}") from None
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What one rollout did.
+
+    events: one bool per entry of ``EVENTS`` (fired at any time before the stop).
+    fired_first: name of the first event to fire (ties broken in ``EVENTS`` order), or None.
+    toy_displacement: (dx, dy) of the toy's centre between the start and the stop, metres.
+    stop_step: index of the last trajectory point executed.
+    final_toy_xy: the toy's centre at the stop.
+    final_toy_yaw: the toy's turn about the vertical at the stop (rad in [-pi/4, pi/4): the cube
+        looks the same every quarter turn).
+    blew_up: the physics produced an absurd toy state (too fast or flying); events are then all
+        False, so a blow-up is never counted as an event.
+    simulated: False when the FK filter showed the rake never came near the toy and the
+        physics was skipped.
+    """
+
+    events: tuple[bool, ...]
+    fired_first: str | None
+    toy_displacement: tuple[float, float]
+    stop_step: int
+    final_toy_xy: tuple[float, float]
+    blew_up: bool = False
+    simulated: bool = True
+    min_gap: float = float("nan")  # closest the rake came to the toy's start box (m, FK; NaN if unknown)
+    final_toy_yaw: float = 0.0  # the toy's turn about the vertical at the stop (rad, folded by toy_yaw_of)
+
+    def fired(self, name: str) -> bool:
+        return self.events[event_index(name)]
+
+
+
+def toy_yaw_of(quaternion) -> float:
+    """The turn about the vertical (rad) of a pybullet quaternion (x, y, z, w), folded into
+    [-pi/4, pi/4): the toy is a uniform cube, which looks and behaves the same every quarter turn."""
+    x, y, z, w = quaternion
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    quarter = math.pi / 2
+    return (yaw + quarter / 2) % quarter - quarter / 2
+
+
+
+def latch_events(now: list, fired: list, first: str | None, top: float, cfg,
+                  contact_points) -> str | None:
+    """Add "touch" to this step's events ``now`` from the rake-toy contacts (read only while touch
+    has not fired yet), latch every event that fires into ``fired`` and return the first event."""
+    if not fired[1]:
+        for cp in contact_points():
+            on_toy, normal = cp[6], cp[7]  # position on B (the toy), normal from B to A
+            if on_toy[2] >= top - cfg.touch_tolerance and abs(normal[2]) >= cfg.touch_normal_z:
+                now[1] = True
+                break
+    for i, f in enumerate(now):
+        if f and not fired[i]:
+            fired[i] = True
+            if first is None:
+                first = EVENTS[i]
+    return first
+
