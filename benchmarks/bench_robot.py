@@ -1,18 +1,16 @@
-"""Speed of the tool-use world and motor primitives, and the PI^BB learning curve (not a test).
+"""Speed of the tool-use world and motor primitives (not a test).
 
-    python benchmarks/bench_robot.py [--skip-pibb] [--event south]
+    python benchmarks/bench_robot.py
 
 Prints: FK error against pybullet; rollouts/s for K = 10 babbling samples from each posture with and
 without the FK filter, and the share of time in physics, rendering and tensors; batched DMP rollouts/s
-against pydmps one rollout at a time (pydmps is imported lazily; `pip install pydmps`); then learns one
-skill with PI^BB and draws docs/figures/robot/pibb_curve.png.
+against pydmps one rollout at a time (pydmps is imported lazily; `pip install pydmps`).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 import torch
@@ -24,16 +22,15 @@ def bench_world(reps: int = 3) -> dict:
     Both rake drives: "kinematic" (default: imposed pose, far steps skipped) and "constraint"
     (the reference: every control step simulated, rake dragged by a constraint).
     """
-    from neuroimagery.motor.dmp import DMP
-    from neuroimagery.robot.babble import BabbleConfig, random_thetas, trajectories
     from neuroimagery.robot.config import WorldConfig
+    from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
     from neuroimagery.robot.world import ToolWorld
 
     out = {}
-    dmp = DMP()
+    dmp = world_dmp()
     for drive in ("kinematic", "constraint"):
         with ToolWorld(WorldConfig(rake_drive=drive)) as w:
-            cfg = BabbleConfig(dt=w.cfg.control_dt)
+            cfg = MovementConfig(dt=w.cfg.control_dt)
             for use_filter in (False, True):
                 g = torch.Generator().manual_seed(0)
                 w.timing.update(physics_s=0.0, tensor_s=0.0, render_s=0.0)
@@ -42,7 +39,8 @@ def bench_world(reps: int = 3) -> dict:
                 for _ in range(reps):
                     for k in range(1, 5):
                         t1 = time.perf_counter()
-                        traj = trajectories(w, dmp, random_thetas(w, dmp, k, 10, cfg, g), k, cfg)
+                        theta = goal_noise(w, dmp, random_primitives(w, dmp, 10, cfg, g), g)
+                        traj = trajectories(w, dmp, theta, w.initial_posture(k), cfg)
                         w.timing["tensor_s"] += time.perf_counter() - t1
                         w.rollout(traj, k, None, use_filter=use_filter)
                         w.observe()  # one camera image per batch, as a learner would look
@@ -107,44 +105,10 @@ def bench_fk() -> dict:
     return {"fk_configs_per_s": len(q) / (time.perf_counter() - t0)}
 
 
-def pibb_curve(event: str, seed: int, out_png: Path, cost: str = "graded") -> dict:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from neuroimagery.robot.skill import discover, learn
-    from neuroimagery.robot.world import ToolWorld
-
-    g = torch.Generator().manual_seed(seed)
-    with ToolWorld() as w:
-        theta0 = discover(w, event, 1, g)
-        curve = learn(w, theta0, event, n_updates=10, generator=g, cost=cost)
-    fig, ax = plt.subplots(figsize=(5, 3.2))
-    ax.plot(range(1, 11), curve.sample_success, "o-", label="exploration samples (40 per update)")
-    ax.plot(range(0, 11), curve.mean_success, "s--", label="mean DMP, 4 postures")
-    ax.set_xlabel("PI$^{BB}$ update")
-    ax.set_ylabel(f"success rate ({event}, {cost} cost)")
-    ax.set_ylim(-0.02, 1.02)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png, dpi=120)
-    return {"event": event, "cost": cost, "seed": seed, "sample_success": curve.sample_success, "mean_success": curve.mean_success}
-
-
 def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--skip-pibb", action="store_true")
-    ap.add_argument("--event", default="south")
-    ap.add_argument("--cost", default="graded", choices=("graded", "binary"))
-    ap.add_argument("--seed", type=int, default=0)
-    args = ap.parse_args()
+    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args()
     res = {"fk": bench_fk(), "dmp": bench_dmp(), "world": bench_world()}
     print(json.dumps(res, indent=2), flush=True)
-    if not args.skip_pibb:
-        png = Path(__file__).resolve().parents[1] / "docs" / "figures" / "robot" / "pibb_curve.png"
-        print(json.dumps(pibb_curve(args.event, args.seed, png, args.cost), indent=2))
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ from neuroimagery.models.tool_use import EVENTS, Result, State
 TOY = (0.6, 0.0)
 HEADS = {1: (0.7, 0.0), 2: (0.6, -0.15), 3: (0.45, -0.2), 4: (0.3, -0.3)}  # head at the 4 postures
 REACH_X = 0.45
+GOAL_BOX = ((0.25, -0.45), (0.85, 0.25))  # (x, y) low and high corners of the goals random DMPs draw
 MOVE = 0.03
 STEPS = 20
 
@@ -37,11 +38,18 @@ class StandInToolEnv:
         toy = TOY if state.toy_xy is None else state.toy_xy
         return torch.tensor(head, dtype=torch.float64), torch.tensor(toy, dtype=torch.float64)
 
-    def random_params(self, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
-        h = torch.tensor(HEADS[posture])
-        goal = h + self.explore_sigma * torch.randn(n, 2, generator=generator)
-        bend = self.explore_sigma * torch.randn(n, 2, generator=generator)
-        return torch.cat([goal, bend], dim=1)
+    def random_primitive(self, generator: torch.Generator) -> torch.Tensor:
+        """Goal uniform over the table part the head can reach, bend N(0, explore_sigma)."""
+        lo, hi = torch.tensor(GOAL_BOX[0]), torch.tensor(GOAL_BOX[1])
+        goal = lo + (hi - lo) * torch.rand(2, generator=generator)
+        return torch.cat([goal, self.explore_sigma * torch.randn(2, generator=generator)])
+
+    def explore_params(self, params: torch.Tensor, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
+        """Goal noise of a tenth of the goal box per axis."""
+        lo, hi = torch.tensor(GOAL_BOX[0]), torch.tensor(GOAL_BOX[1])
+        out = params.double().expand(n, -1).clone()
+        out[:, :2] += 0.1 * (hi - lo) * torch.randn(n, 2, generator=generator, dtype=out.dtype)
+        return out.float()
 
     def search_sigma(self) -> torch.Tensor:
         return torch.full((4,), self._search)

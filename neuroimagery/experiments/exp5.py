@@ -84,15 +84,16 @@ def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
                              competence_tolerance=e.competence_tolerance, c1_repeats=e.c1_repeats,
                              c2_repeats=e.c2_repeats, c3_repeats=e.c3_repeats, hip_threshold=e.hip_threshold,
                              explore_batch=e.explore_batch, explore_max_rollouts=e.explore_max_rollouts,
+                             explore_patience=e.explore_patience,
                              spare_dmps=e.spare_dmps, c3_outcomes=e.c3_outcomes)
 
 
-_ENV_KEYS = ("environment", "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
-             "search_weight_sigma", "goal_frame", "reach_bound", "posture_4", "retrieve_x", "toy_turn")
+_ENV_KEYS = ("environment", "duration_s", "explore_weight_sigma", "search_goal_sigma", "search_weight_sigma",
+             "toy_turn")
 # the settings a task's skill library depends on (Fig. 7.5); the other keys act only in Fig. 7.6
 _LIBRARY_KEYS = _ENV_KEYS + ("n_dmps", "pibb_samples", "pibb_temperature", "pibb_decay", "pibb_flat", "max_epochs",
                              "competence_tolerance", "c1_repeats", "c2_repeats", "c3_repeats", "hip_threshold",
-                             "explore_batch", "explore_max_rollouts", "spare_dmps", "c2_eta",
+                             "explore_batch", "explore_max_rollouts", "explore_patience", "spare_dmps", "c2_eta",
                              "share_library_across_situations")
 # settings that change no result (how the work is spread, where libraries come from)
 _ENGINE_KEYS = ("n_jobs", "reuse_libraries")
@@ -122,10 +123,9 @@ def make_environment(e: Exp5Config):
     if e.environment == "robot":
         from ..robot.environment import ToolWorldEnvironment
 
-        return ToolWorldEnvironment(WorldConfig(posture_4=e.posture_4, retrieve_x=e.retrieve_x), duration_s=e.duration_s, explore_goal_sigma=e.explore_goal_sigma,
-                                    explore_weight_sigma=e.explore_weight_sigma,
+        return ToolWorldEnvironment(WorldConfig(), duration_s=e.duration_s, explore_weight_sigma=e.explore_weight_sigma,
                                     search_goal_sigma=e.search_goal_sigma, search_weight_sigma=e.search_weight_sigma,
-                                    goal_frame=e.goal_frame, reach_bound=e.reach_bound, toy_turn=e.toy_turn)
+                                    toy_turn=e.toy_turn)
     mod, _, cls = e.environment.partition(":")
     try:
         return getattr(importlib.import_module(mod), cls)()
@@ -300,8 +300,7 @@ def _stored(path: Path) -> dict | None:
     if d is None:
         return None
     # written before these keys existed: their values then
-    d["config"] = {"posture_4": "right", "spare_dmps": "none", "retrieve_x": 0.48, "c3_outcomes": "success",
-                   "pibb_flat": "average", "toy_turn": "reset", "active_threshold": 0.0,
+    d["config"] = {"spare_dmps": "none", "c3_outcomes": "success", "pibb_flat": "average", "toy_turn": "reset",
                    **d["config"]}
     return d
 

@@ -6,7 +6,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..models.tool_use import CHOICES, EVENTS
-from ..robot.config import POSTURE_4, WorldConfig
 
 SITUATIONS = {"behind": 1, "far": 4}  # thesis: posture 1 = tool behind toy, posture 4 = tool far from toy
 THESIS = {  # read off Fig. 7.9-7.10 and the text of section 7.1.3 (approximate)
@@ -47,11 +46,10 @@ class Exp5Config:
     # real scene with the C4 learnt in mind, imagines, performs and looks again | 'plan' = the whole
     # plan is made in mind from the initial image, then performed. See docs/exp5.md.
     planning_test: str = "act"
-    # Fig. 7.6 "select one active neuron of PMC": only units whose PMC activity (C1 + C4) exceeds
-    # this are candidates for the softmax, and a child with none does not move. 0.1 is C1's
-    # smallest teaching signal (one success in ten PI^BB samples, Fig. 7.5 B) | 0 = every acquired
-    # unit is a candidate (the version before this key). See docs/exp5.md.
-    active_threshold: float = 0.1
+    # Fig. 7.6 "select one active neuron of PMC": a unit is active when its PMC activity (C1 + C4)
+    # is above this; 0 = above the maps' resting level (the default, docs/exp5.md). A child with
+    # no active unit does not move.
+    active_threshold: float = 0.0
     # --- skill acquisition (Fig. 7.5, eq. 7.6-7.8)
     n_dmps: int = 10  # M1 / PMC units (thesis: 10)
     pibb_samples: int = 10  # K samples per posture and update (thesis: 10)
@@ -79,27 +77,12 @@ class Exp5Config:
     hip_threshold: float = 0.5  # a distal goal (C2 -> HIP) this active makes an event "not new"
     explore_batch: int = 8  # exploration movements rolled out per batch (the first new event wins)
     explore_max_rollouts: int = 400  # give up looking for further events after this many movements
+    explore_patience: int = 40  # rollouts of one DMP without a new event before it is drawn afresh
     # --- movements (DMP eq. 7.2-7.5 on the pybullet world)
     duration_s: float = 1.5  # duration of one primitive (DMP time constant)
-    explore_goal_sigma: float = 0.35  # rad, goal noise of an exploratory movement
-    explore_weight_sigma: float = 300.0  # shape-weight noise of an exploratory movement
+    explore_weight_sigma: float = 300.0  # std of a random DMP's shape weights (goals: docs/robot.md)
     search_goal_sigma: float = 0.05  # rad, PI^BB exploration std of the goals
     search_weight_sigma: float = 30.0  # PI^BB exploration std of the shape weights
-    # what a primitive's 7 goal numbers are: 'relative' = joint displacement from the start (the
-    # same movement shape from every situation, so its effect depends on where the rake starts) |
-    # 'absolute' = joint angles (every start ends in the same arm posture). See docs/exp5.md.
-    goal_frame: str = "absolute"
-    # the reach of one movement (WorldConfig.max_goal_offset_rad = 0.15 rad): 'goal' = only the DMP
-    # goal is bounded, as in the world (the shape term can carry a joint 2-4 times farther on the
-    # way) | 'path' = every joint stays within the bound of its start at every step. See docs/exp5.md.
-    reach_bound: str = "goal"
-    # which joint vector is posture 4, the tool-far situation (WorldConfig.posture_4): 'right' =
-    # rake head at (0.60, -0.38), 17 cm from the toy | 'far' = (0.525, -0.43), 22.5 cm.
-    # See docs/robot.md and docs/exp5.md.
-    posture_4: str = "right"
-    # m, the reachable area: the retrieve event fires when the toy's centre comes nearer to the robot
-    # than this (WorldConfig.retrieve_x; the toy starts at x = 0.56). See docs/robot.md and docs/exp5.md.
-    retrieve_x: float = 0.48
     # the DMPs left free once every enabled event has its skill (n_dmps = 10 for 6 events):
     # 'none' = unused | 'unmastered' = exploration goes on and an event firing from a situation
     # where it is not yet mastered (distal goal off) is learnt again by a spare DMP. docs/exp5.md.
@@ -129,7 +112,7 @@ class Exp5Config:
         if self.name != "exp5":
             bad("name", "must be 'exp5'")
         for key in ("repetitions", "quick_repetitions", "attempts", "n_dmps", "pibb_samples", "max_epochs",
-                    "explore_batch", "explore_max_rollouts", "n_jobs"):
+                    "explore_batch", "explore_max_rollouts", "explore_patience", "n_jobs"):
             if int(getattr(self, key)) < 1:
                 bad(key, "must be >= 1")
         for key in ("hp1_training_trials", "c1_repeats", "c2_repeats", "c3_repeats", "filmstrip_repetition"):
@@ -155,7 +138,7 @@ class Exp5Config:
         if not 0 <= self.hip_threshold <= 1:
             bad("hip_threshold", "must be in [0, 1]")
         for key in ("temperature", "test_temperature", "pibb_temperature", "c3_sigma", "c3_action_gain",
-                    "duration_s", "explore_goal_sigma", "explore_weight_sigma", "search_goal_sigma",
+                    "duration_s", "explore_weight_sigma", "search_goal_sigma",
                     "search_weight_sigma"):
             if not getattr(self, key) > 0:
                 bad(key, "must be > 0")
@@ -174,11 +157,6 @@ class Exp5Config:
         for key, allowed in CHOICES.items():
             if getattr(self, key) not in allowed:
                 bad(key, f"must be one of {', '.join(map(repr, allowed))}")
-        if self.posture_4 not in POSTURE_4:
-            bad("posture_4", f"must be one of {sorted(POSTURE_4)}")
-        toy_x = WorldConfig().toy_xy[0]
-        if not 0.3 <= self.retrieve_x < toy_x:
-            bad("retrieve_x", f"must lie in [0.3, {toy_x}) m (the toy starts at x = {toy_x})")
         if self.environment != "robot" and ":" not in self.environment:
             bad("environment", "must be 'robot' or 'module:Class'")
         if self.reuse_libraries and not (Path(self.reuse_libraries) / "checkpoints").is_dir():

@@ -5,38 +5,32 @@ Units: metres, seconds, kilograms, radians.  Frames: the world frame of
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-from neuroimagery.motor.dmp import MAX_GOAL_OFFSET_RAD
-
 URDF_DIR = Path(__file__).resolve().parents[2] / "urdf"
 
-# Four initial arm postures (rad, joint order of kinematics.ARM_JOINTS).  Found once by a small
-# inverse-kinematics fit of the rake head's centre to a point on the table, the head plate upright
-# and spanning left-right and every joint at least 12 % of its range from a limit (docs/robot.md).
-# Rake head centre (x, y) with the toy at (0.56, -0.10); the plate is 16 cm wide (+-8 cm in y):
-#   1 (0.62, -0.10)  just beyond the toy (north of it): a pull toward the robot brings it in
-#   2 (0.56, -0.245) level with the toy, on its right (east); the plate's end 4 cm from the toy
-#   3 (0.64, -0.30)  beyond the toy and to its right; the plate's end 10 cm from the toy
-#   4 (0.60, -0.38)  far to the toy's right; the plate's end 17 cm from the toy
-#     (WorldConfig.posture_4 = "right", the default).
-#   4 (0.525, -0.43) posture_4 = "far": far to the toy's right and 3.5 cm nearer the robot, the
-#     plate's end 22.5 cm from the toy.  Chosen so that no learnt pull of the 60 libraries of an
-#     Exp 5 run retrieves the toy from it in one movement while the events random babbling fires
-#     from "right" still fire; not the default, because with it the tool-far success no longer
-#     rises with the number of skills (docs/robot.md, docs/exp5.md).
-POSTURE_4: dict[str, tuple[float, ...]] = {
-    "far": (-0.083, 0.683, -0.361, 1.462, -0.372, -0.331, 0.035),
-    "right": (-0.599, 0.543, -0.165, 0.971, -0.125, -0.260, -0.202),
-}
-DEFAULT_POSTURE_4 = "right"
-POSTURES_1_3: tuple[tuple[float, ...], ...] = (
-    (-0.464, 0.561, 0.119, 1.191, -0.456, 0.067, -0.188),
-    (-0.047, 0.546, -0.394, 1.594, -0.468, 0.075, 0.017),
-    (-0.850, 0.499, 0.047, 0.732, -0.129, -0.263, -0.239),
+# Four initial arm postures (rad, joint order of kinematics.ARM_JOINTS), fitted once by
+# ``python -m neuroimagery.robot.posture_fit`` to meet the scene criteria of docs/robot.md
+# (``robot.scene_check``). Centre of the rake head's plate (x, y), with the toy at (0.58, -0.10):
+#   1 (0.64, -0.10)  behind the toy: the plate's near face 1.7 cm beyond its north face
+#   2 (0.58, -0.245) level with the toy, on its right (east); plate end 4 cm from the toy
+#   3 (0.66, -0.30)  beyond the toy and to its right; 12 cm
+#   4 (0.62, -0.38)  far to the toy's right, the tool-far situation; 18 cm
+DEFAULT_POSTURES: tuple[tuple[float, ...], ...] = (
+    (-0.67, 0.601, 0.2, 1.07, -0.467, 0.077, -0.123),
+    (-0.194, 0.634, -0.328, 1.556, -0.474, 0.038, 0.124),
+    (-1.087, 0.495, 0.054, 0.513, -0.0, -0.236, -0.255),
+    (-0.812, 0.607, -0.024, 0.796, -0.136, -0.282, -0.19),
 )
-DEFAULT_POSTURES: tuple[tuple[float, ...], ...] = POSTURES_1_3 + (POSTURE_4[DEFAULT_POSTURE_4],)
+
+# The reachable area (docs/robot.md, robot.reach): the farthest x (m) the free left palm reaches at the
+# height of the toy's centre, per 2-cm band of y (REACH_YS, band centres); None: not reached at that y.
+REACH_YS: tuple[float, ...] = tuple(round(-0.30 + 0.02 * i, 2) for i in range(31))
+REACH_FRONTIER: tuple[float | None, ...] = (
+    None, None, None, 0.373, 0.391, 0.409, 0.420, 0.494, 0.504, 0.456, 0.517, 0.521, 0.525, 0.527, 0.527, 0.528,
+    0.528, 0.526, 0.523, 0.522, 0.519, 0.515, 0.509, 0.503, 0.492, 0.489, 0.478, 0.463, 0.451, 0.447, 0.434)
 
 # Hand (r_hand) -> rake transform of the fixed grasp: at the reference posture
 # (-0.9, 0.35, 0, 0.9, 0, 0, 0) the handle points straight ahead and 25 degrees down.
@@ -57,21 +51,24 @@ class WorldConfig:
 
     # --- body ---------------------------------------------------------------------------------
     root_height: float = 0.80  # height of the iCub's waist (root_link) above the floor
-    # which joint vector is posture 4 (the tool-far situation): "far" | "right" (the previous one)
-    posture_4: str = DEFAULT_POSTURE_4
-    # the four initial arm postures; None = POSTURES_1_3 + POSTURE_4[posture_4]
-    postures: tuple[tuple[float, ...], ...] | None = None
+    # the four initial arm postures (DEFAULT_POSTURES: fitted to the scene criteria, docs/robot.md)
+    postures: tuple[tuple[float, ...], ...] = DEFAULT_POSTURES
     grasp: tuple[tuple[float, ...], ...] = DEFAULT_GRASP  # fixed hand -> rake transform (4x4)
-    # reach of one movement: a DMP's goal lies within this many rad of its start posture in every
-    # joint (the bound ``motor.dmp.DMP`` applies by default; babbling and PI^BB use this key)
-    max_goal_offset_rad: float = MAX_GOAL_OFFSET_RAD
+    # a movement is bounded by the arm's joint limits only (the thesis states no other bound)
+    # exploration: a DMP's goal noise has this share of each joint's range as its standard
+    # deviation (the goal noise rule, docs/robot.md)
+    goal_noise_share: float = 0.1
     rake_length: float = 0.40  # grip -> end of the handle, where the head is fixed (urdf/rake.urdf)
-    # centre of the rake head's plate in the rake (grip) frame: the handle meets the plate 2 cm
-    # above its centre, so the handle clears a toy the head is placed behind (urdf/rake.urdf)
-    rake_head_offset: tuple[float, float, float] = (0.4085, 0.0, -0.0181)
+    # centre of the rake head's plate in the rake (grip) frame: the handle meets the plate 3.5 cm
+    # above its centre (5 mm below its top edge), so the handle clears a toy the head is placed
+    # behind by 2 cm (docs/robot.md, scene criteria; urdf/rake.urdf)
+    rake_head_offset: tuple[float, float, float] = (0.4148, 0.0, -0.0317)
+    # the head plate's box (thickness x, width y, height z), pitched -25 degrees about the rake's y
+    rake_plate: tuple[float, float, float] = (0.02, 0.16, 0.08)
     # --- scene --------------------------------------------------------------------------------
     table_top: float = 0.696  # height of the table's top surface (rake head rests 8 mm above)
-    toy_xy: tuple[float, float] = (0.56, -0.10)  # initial toy centre on the table
+    # initial toy centre on the table: at least one toy width beyond the reachable area (docs/robot.md)
+    toy_xy: tuple[float, float] = (0.58, -0.10)
     toy_size: float = 0.05  # side of the red toy cube (urdf/toy.urdf)
     toy_mass: float = 0.05  # kg
     rake_mass: float = 2.0  # kg; heavy enough that the 50 g toy barely deflects it between two
@@ -91,8 +88,9 @@ class WorldConfig:
     rest_speed: float = 0.005  # m/s; a toy slower than this is at rest: control steps in which the
     #                            rake cannot reach it are skipped (kinematic drive)
     # --- events -------------------------------------------------------------------------------
-    move_threshold: float = 0.02  # toy displacement (m) that counts as a south/north/west/east move
-    retrieve_x: float = 0.48  # reachable area: toy centre closer than this to the robot (x < ...)
+    # toy displacement (m) that counts as a south/north/west/east move (its direction within 45
+    # degrees of that compass direction); the reachable area (retrieve) is ``in_reach``
+    move_threshold: float = 0.02
     touch_tolerance: float = 0.006  # a rake-toy contact this close to the toy's top counts as touch
     touch_normal_z: float = 0.7  # and its normal must be this vertical (|n_z|)
     # --- FK filter ----------------------------------------------------------------------------
@@ -113,7 +111,7 @@ class WorldConfig:
         positive = (
             "root_height", "rake_length", "table_top", "toy_size", "toy_mass", "rake_mass",
             "rake_max_force", "physics_dt", "control_dt", "move_threshold", "touch_tolerance",
-            "filter_margin", "max_toy_speed", "max_toy_height", "camera_fov", "max_goal_offset_rad",
+            "filter_margin", "max_toy_speed", "max_toy_height", "camera_fov", "goal_noise_share",
         )
         for key in positive:
             if not float(getattr(self, key)) > 0:
@@ -134,10 +132,6 @@ class WorldConfig:
             )
         if self.settle_steps < 0:
             raise ValueError(f"WorldConfig.settle_steps must be >= 0, got {self.settle_steps}")
-        if self.posture_4 not in POSTURE_4:
-            raise ValueError(f"WorldConfig.posture_4 must be one of {sorted(POSTURE_4)}, got {self.posture_4!r}")
-        if self.postures is None:
-            self.postures = POSTURES_1_3 + (POSTURE_4[self.posture_4],)
         if len(self.postures) != 4 or any(len(p) != 7 for p in self.postures):
             raise ValueError("WorldConfig.postures must be 4 joint vectors of 7 angles")
         if len(self.grasp) != 4 or any(len(r) != 4 for r in self.grasp):
@@ -146,16 +140,27 @@ class WorldConfig:
             raise ValueError("WorldConfig.rake_head_offset must be (x, y, z)")
         if len(self.toy_xy) != 2:
             raise ValueError("WorldConfig.toy_xy must be (x, y)")
-        if not self.retrieve_x < self.toy_xy[0]:
-            raise ValueError(
-                f"WorldConfig.retrieve_x ({self.retrieve_x}) must be nearer than the toy's start "
-                f"x ({self.toy_xy[0]}): the toy starts out of reach"
-            )
+        if self.in_reach(*self.toy_xy):
+            raise ValueError(f"WorldConfig.toy_xy {self.toy_xy} lies in the reachable area: the toy must start out of reach")
+        if len(self.rake_plate) != 3 or not all(v > 0 for v in self.rake_plate):
+            raise ValueError("WorldConfig.rake_plate must be three positive sizes (x, y, z)")
         for key in ("image_width", "image_height"):
             if not 16 <= getattr(self, key) <= 4096:
                 raise ValueError(f"WorldConfig.{key} must be in [16, 4096], got {getattr(self, key)}")
         if not Path(self.urdf_dir).is_dir():
             raise ValueError(f"WorldConfig.urdf_dir {self.urdf_dir!r} is not a folder")
+
+    def reach_frontier_at(self, y: float) -> float:
+        """The reachable area's far edge (m) at table y: the running maximum of ``REACH_FRONTIER``
+        over the band of ``y`` and its two neighbours (-inf outside the bands the palm reaches)."""
+        i = int(round((float(y) - REACH_YS[0]) / (REACH_YS[1] - REACH_YS[0])))
+        near = [REACH_FRONTIER[j] for j in (i - 1, i, i + 1) if 0 <= j < len(REACH_FRONTIER)]
+        near = [x for x in near if x is not None]
+        return max(near) if near else -math.inf
+
+    def in_reach(self, x: float, y: float) -> bool:
+        """Whether a toy centred at (x, y) lies in the reachable area (the retrieve event)."""
+        return float(x) <= self.reach_frontier_at(y)
 
     @classmethod
     def keys(cls) -> tuple[str, ...]:

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import torch
 
-from neuroimagery.robot.events import EVENTS, Outcome, latch_events
+from neuroimagery.robot.events import EVENTS, Outcome, latch_events, toy_events
 
 
 def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor, watched: str | None) -> Outcome:
@@ -39,15 +39,7 @@ def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor
         ):
             blew_up = True
             break
-        d = np.array(pos[:2]) - start
-        now = [
-            pos[0] < cfg.retrieve_x,
-            False,
-            -d[0] > cfg.move_threshold,
-            d[0] > cfg.move_threshold,
-            d[1] > cfg.move_threshold,
-            -d[1] > cfg.move_threshold,
-        ]
+        now = toy_events(pos[0], pos[1], pos[0] - start[0], pos[1] - start[1], cfg)
         first = latch_events(now, fired, first, top, cfg, lambda: c.getContactPoints(world.rake, world.toy))
         if watched_i is not None and fired[watched_i]:
             break

@@ -16,7 +16,7 @@ import torch
 from .eye import ToyReader
 
 # the values each choice of the environment accepts (Exp5Config checks the same table)
-ENV_CHOICES = {"goal_frame": ("relative", "absolute"), "reach_bound": ("path", "goal"), "toy_turn": ("keep", "reset")}
+ENV_CHOICES = {"toy_turn": ("keep", "reset")}
 
 
 def check_choice(key: str, value, choices: dict | None = None) -> None:
@@ -70,31 +70,15 @@ class ToolWorldEnvironment:
     is put back as the last move left it, the default) or ``"reset"`` (square again; the toy's
     place is kept either way). A rollout from an initial situation is the same under both.
 
-    ``goal_frame`` says what the 7 goal numbers of a primitive mean:
-
-    * ``"relative"``: the joint displacement from wherever the arm starts (goal = start + offset).
-      The primitive is then one movement *shape*, translated in joint space: since the DMP's
-      forcing term scales with ``g - y0`` (eq. 7.3), the same parameters give the same joint
-      trajectory relative to the start from every posture, and what it does to the toy depends on
-      where the rake starts (the situation).
-    * ``"absolute"``: joint angles; every rollout of a primitive ends in the same arm posture
-      whatever the start, and its shape is rescaled by ``g - y0``.
-
-    Exploration draws goals as the start posture plus noise (clipped to the joint limits) in both
-    frames, so a discovered movement is the same either way; the frames differ only in how a
-    learnt primitive is replayed from another posture or after earlier moves.
-
-    ``reach_bound`` says how the reach of one movement (``DMP.max_goal_offset``, the world's
-    ``max_goal_offset_rad``) is enforced: ``"path"`` keeps every joint within it of its start at
-    every step; ``"goal"`` bounds only the DMP goal, so the shape term can carry a joint farther on
-    the way (learnt skills: a median 0.32 rad, some 0.6 rad, against the 0.15 rad bound).
+    A primitive's 7 goal numbers are joint angles (thesis: 7 goal parameters, one per joint):
+    every rollout of a primitive ends in the same arm posture whatever the start, its shape
+    rescaled by ``g - y0`` (eq. 7.3). A movement is bounded by the joint limits only. Random
+    primitives and their goal noise follow ``robot.movements`` (docs/robot.md).
     """
 
-    def __init__(self, world_config=None, duration_s: float = 1.5, explore_goal_sigma: float = 0.35,
-                 explore_weight_sigma: float = 300.0, search_goal_sigma: float = 0.05,
-                 search_weight_sigma: float = 30.0, goal_frame: str = "absolute", reach_bound: str = "goal",
-                 toy_turn: str = "keep") -> None:
-        from ..motor.dmp import DMP
+    def __init__(self, world_config=None, duration_s: float = 1.5, explore_weight_sigma: float = 300.0,
+                 search_goal_sigma: float = 0.05, search_weight_sigma: float = 30.0, toy_turn: str = "keep") -> None:
+        from .movements import MovementConfig, world_dmp
         from .world import ToolWorld
 
         class _World(ToolWorld):
@@ -107,17 +91,16 @@ class ToolWorldEnvironment:
                     q, toy_xy, toy_yaw = self.start_state
                 super().reset(posture, q=q, toy_xy=toy_xy, toy_yaw=toy_yaw)
 
-        check_choice("goal_frame", goal_frame)
-        check_choice("reach_bound", reach_bound)
         check_choice("toy_turn", toy_turn)
-        self.goal_frame, self.reach_bound, self.toy_turn = goal_frame, reach_bound, toy_turn
+        self.toy_turn = toy_turn
         self.world = _World(world_config)
-        self.dmp = DMP()
+        self.dmp = world_dmp()
         self.n_params = self.dmp.n_params
         cfg = self.world.cfg
         self.image_shape = (cfg.image_height, cfg.image_width)
         self.duration_s, self.dt = float(duration_s), float(cfg.control_dt)
-        self.explore = (float(explore_goal_sigma), float(explore_weight_sigma))
+        self.moves = MovementConfig(weight_sigma=float(explore_weight_sigma), duration_s=float(duration_s),
+                                    dt=float(cfg.control_dt))
         J, B = self.dmp.n_joints, self.dmp.n_basis
         self._sigma = torch.cat([torch.full((J,), float(search_goal_sigma)), torch.full((J * B,), float(search_weight_sigma))])
         self._images: dict[State, torch.Tensor] = {}
@@ -133,43 +116,27 @@ class ToolWorldEnvironment:
     def _q(self, state: State) -> torch.Tensor:
         return self.world.initial_posture(state.posture) if state.q is None else torch.tensor(state.q)
 
-    def random_params(self, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
-        q0 = self.world.initial_posture(posture)
-        gs, ws = self.explore
-        goals = self.world.kin.clamp(q0 + gs * torch.randn(n, 7, generator=generator))
-        if self.goal_frame == "relative":
-            goals = goals - q0
-        weights = ws * torch.randn(n, 7, self.dmp.n_basis, generator=generator)
-        return self.dmp.pack(goals, weights)
+    def random_primitive(self, generator: torch.Generator) -> torch.Tensor:
+        """A free DMP's random parameters (``robot.movements.random_primitives``)."""
+        from .movements import random_primitives
 
-    def joint_params(self, params: torch.Tensor, q0: torch.Tensor) -> torch.Tensor:
-        """Parameters with absolute joint goals for a rollout starting at ``q0``."""
-        params = params.float()
-        if self.goal_frame == "absolute":
-            return params
-        out = params.clone()
-        out[:, :7] = params[:, :7] + q0.float()
-        return out
+        return random_primitives(self.world, self.dmp, 1, self.moves, generator)[0]
+
+    def explore_params(self, params: torch.Tensor, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
+        """``n`` exploratory rollouts of a DMP: its goals plus noise (``robot.movements.goal_noise``)."""
+        from .movements import goal_noise
+
+        return goal_noise(self.world, self.dmp, params.float().expand(n, -1), generator)
 
     def search_sigma(self) -> torch.Tensor:
         return self._sigma.clone()
-
-    def bounded(self, traj: torch.Tensor, q0: torch.Tensor) -> torch.Tensor:
-        """Joint trajectories (N, T, 7) kept inside the arm's limits and, with ``reach_bound`` =
-        ``"path"``, inside ``q0 +- max_goal_offset`` at every step (the DMP bounds only the goal:
-        its shape term can carry a joint 2-4 times farther on the way)."""
-        b = self.dmp.max_goal_offset
-        if self.reach_bound == "path" and b is not None:
-            q0 = q0.to(traj.dtype)
-            traj = torch.minimum(torch.maximum(traj, q0 - b), q0 + b)
-        return self.world.kin.clamp(traj)
 
     def execute(self, params: torch.Tensor, state: State, watched: str | None) -> list[Result]:
         import time
 
         t0 = time.perf_counter()
         q0 = self._q(state)
-        traj = self.bounded(self.dmp.rollout(self.joint_params(params, q0), q0, self.duration_s, self.dt), q0)
+        traj = self.world.kin.clamp(self.dmp.rollout(params.float(), q0, self.duration_s, self.dt))
         fresh = state.q is None and state.toy_xy is None and state.toy_yaw is None
         self.world.start_state = None if fresh else (q0, state.toy_xy, state.toy_yaw)
         try:

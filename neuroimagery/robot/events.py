@@ -4,11 +4,12 @@ Events (``EVENTS`` order, thesis Fig. 7.3 and Table 7.1), each named by what hap
 (compass seen from above with the robot at the south edge: south = toward the robot, -x; north =
 away, +x; west = the robot's left, +y; east = its right, -y):
 
-    retrieve  the toy's centre enters the reachable area (``WorldConfig.retrieve_x``)
+    retrieve  the toy's centre enters the reachable area of the free left hand
+              (``WorldConfig.in_reach``, ``robot.reach``)
     touch     a rake-toy contact on the toy's top face
     south, north, west, east
               the toy's centre has moved more than ``move_threshold`` from where the rollout
-              started, in that direction (``WorldConfig.direction_rule``, docs/robot.md).
+              started, in a direction within 45 degrees of that compass direction (docs/robot.md).
 
 Each event, once fired, stays fired for the rest of the rollout.
 """
@@ -89,3 +90,18 @@ def latch_events(now: list, fired: list, first: str | None, top: float, cfg,
                 first = EVENTS[i]
     return first
 
+
+
+def toy_events(x: float, y: float, dx: float, dy: float, cfg) -> list[bool]:
+    """This step's events from the toy's place ``(x, y)`` and its displacement ``(dx, dy)`` from
+    the rollout's start (touch, read from the contacts, is left False; ``EVENTS`` order).
+
+    retrieve: ``(x, y)`` in the reachable area. A direction event: the displacement longer than
+    ``cfg.move_threshold`` and pointing within 45 degrees of that direction (south -x, north +x,
+    west +y, east -y), so one displacement fires one direction.
+    """
+    moved = dx * dx + dy * dy > cfg.move_threshold * cfg.move_threshold
+    along_x = abs(dx) >= abs(dy)
+    return [cfg.in_reach(x, y), False,
+            moved and along_x and dx < 0, moved and along_x and dx > 0,
+            moved and not along_x and dy > 0, moved and not along_x and dy < 0]

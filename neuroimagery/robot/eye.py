@@ -50,37 +50,44 @@ class ToyReader:
         pt = p0 + t * (p1 - p0)
         return float(pt[0]), float(pt[1])
 
-    def toy_x(self, toy: torch.Tensor) -> float | None:
-        """World x of the toy read from its colour map: the blob's centre projected onto the plane
-        of the toy's centre (None if no toy is seen)."""
+    def toy_xy(self, toy: torch.Tensor) -> tuple[float, float] | None:
+        """World (x, y) of the toy read from its colour map: the blob's centre projected onto the
+        plane of the toy's centre (None if no toy is seen)."""
         m = float(toy.sum())
         if m < 1.0:
             return None
         cols, rows = toy.sum(0), toy.sum(1)  # the blob's centre from its two marginals
         u = float((torch.arange(len(cols), dtype=cols.dtype) * cols).sum()) / m
         v = float((torch.arange(len(rows), dtype=rows.dtype) * rows).sum()) / m
-        return self.table_point(u, v)[0]
+        return self.table_point(u, v)
+
+    def toy_x(self, toy: torch.Tensor) -> float | None:
+        """World x of the toy read from its colour map (None if no toy is seen)."""
+        xy = self.toy_xy(toy)
+        return None if xy is None else xy[0]
 
     def bias(self) -> float:
-        """Mean error (m) of :meth:`toy_x` for a toy near the reachable area's border.
+        """Mean error (m) of the read x for a toy near the reachable area's border.
 
         The eye sees the toy's top and its near face, so the blob's centre lies a little beyond
         the toy's centre; a retrieving pull stops as soon as the toy's centre crosses the border,
         often less than that inside it. The bias is measured once, on the toy rendered alone at 15
-        known points within 4 mm of the border, and taken off every reading.
+        known points within 4 mm of the border (at y = toy's start y and 5 cm either side), and
+        taken off every reading.
         """
         if self._bias is None:
-            bx = self.world.cfg.retrieve_x
+            cfg = self.world.cfg
             errors = []
-            for dx in (-0.004, -0.002, 0.0, 0.002, 0.004):
-                for y in (-0.05, 0.0, 0.05):
+            for y in (cfg.toy_xy[1] - 0.05, cfg.toy_xy[1], cfg.toy_xy[1] + 0.05):
+                bx = cfg.reach_frontier_at(y)
+                for dx in (-0.004, -0.002, 0.0, 0.002, 0.004):
                     toy = self.world.observe(posture=4, toy_xy=(bx + dx, y))["toy"]
                     errors.append(self.toy_x(torch.as_tensor(toy, dtype=torch.float32)) - (bx + dx))
             self._bias = float(np.mean(errors))
         return self._bias
 
     def in_reach(self, toy: torch.Tensor) -> bool:
-        """Whether the toy map shows the toy in the reachable area (its read x, less the bias,
-        nearer than ``retrieve_x``)."""
-        x = self.toy_x(toy)
-        return x is not None and x - self.bias() < self.world.cfg.retrieve_x
+        """Whether the toy map shows the toy in the reachable area (its read place, x less the
+        bias, in ``WorldConfig.in_reach``)."""
+        xy = self.toy_xy(toy)
+        return xy is not None and self.world.cfg.in_reach(xy[0] - self.bias(), xy[1])

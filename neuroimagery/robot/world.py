@@ -22,12 +22,12 @@ Compass convention (seen from above, robot at the south edge looking north):
     west  = the robot's left (+y),  east  = the robot's right (-y).
 
 Events (``EVENTS`` order, thesis Fig. 7.3):
-    retrieve  the toy's centre enters the reachable area ``x < WorldConfig.retrieve_x``
+    retrieve  the toy's centre enters the free left hand's reachable area (``WorldConfig.in_reach``)
     touch     a rake-toy contact on the toy's top face (contact point within
               ``touch_tolerance`` of the top, normal with ``|n_z| >= touch_normal_z``)
     south, north, west, east
-              the toy's centre has moved more than ``move_threshold`` in that direction from
-              where the rollout started.
+              the toy's centre has moved more than ``move_threshold`` from where the rollout
+              started, in a direction within 45 degrees of that one (``events.toy_events``).
 Each event, once fired, stays fired for the rest of the rollout.  A rollout stops at the first
 control step where the watched event has fired (the thesis stops the arm as soon as the event
 of interest happens).
@@ -46,7 +46,7 @@ from neuroimagery.errors import UserInputError
 from neuroimagery.native import quiet_native_output
 from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.constraint_drive import simulate_constraint
-from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, toy_yaw_of
+from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, toy_events, toy_yaw_of
 from neuroimagery.robot.eye import colour_masks
 from neuroimagery.robot.kinematics import ArmKinematics
 from neuroimagery.robot.rake_pose import quat_from_matrix, rotvec_between
@@ -251,9 +251,9 @@ class ToolWorld:
         handle = [(x, 0.0, 0.0) for x in np.linspace(0.0, L, 11)]
         c, s = math.cos(-0.4363323), math.sin(-0.4363323)  # head plate pitch (urdf/rake.urdf)
         head = []
-        for dx in (-0.01, 0.01):
-            for dy in np.linspace(-0.08, 0.08, 5):
-                for dz in (-0.025, 0.0, 0.025):
+        for dx in (-self.cfg.rake_plate[0] / 2, self.cfg.rake_plate[0] / 2):
+            for dy in np.linspace(-self.cfg.rake_plate[1] / 2, self.cfg.rake_plate[1] / 2, 5):
+                for dz in np.linspace(-self.cfg.rake_plate[2] / 2, self.cfg.rake_plate[2] / 2, 5):
                     head.append((hx + c * dx + s * dz, hy + dy, hz - s * dx + c * dz))
         pts = torch.tensor(handle + head, dtype=torch.float32)
         return torch.cat([pts, torch.ones(len(pts), 1)], dim=1)
@@ -418,7 +418,7 @@ class ToolWorld:
         rake, toy = self.rake, self.toy
         reset_pose, reset_vel, step_sim = p.resetBasePositionAndOrientation, p.resetBaseVelocity, p.stepSimulation
         get_pose, get_vel, contacts = p.getBasePositionAndOrientation, p.getBaseVelocity, p.getContactPoints
-        mt, rx, v_rest = cfg.move_threshold, cfg.retrieve_x, cfg.rest_speed
+        v_rest = cfg.rest_speed
         resting = True  # the toy is still (so steps far from it cannot change anything)
         last = 0
         t = 1
@@ -444,8 +444,7 @@ class ToolWorld:
             ):
                 blew_up = True
                 break
-            dx, dy = pos[0] - start[0], pos[1] - start[1]
-            now = [pos[0] < rx, False, -dx > mt, dx > mt, dy > mt, -dy > mt]
+            now = toy_events(pos[0], pos[1], pos[0] - start[0], pos[1] - start[1], cfg)
             first = latch_events(now, fired, first, top, cfg,
                                   lambda: contacts(rake, toy, physicsClientId=cid))
             if watched_i is not None and fired[watched_i]:

@@ -37,6 +37,9 @@ class AcquisitionConfig:
     hip_threshold: float = 0.5
     explore_batch: int = 8
     explore_max_rollouts: int = 400
+    # rollouts of one DMP without a new event before it is given back with fresh random
+    # parameters (one PI^BB epoch's worth: 4 postures x 10 samples; docs/exp5.md)
+    explore_patience: int = 40
     # the DMPs left free once every enabled event has its skill: 'none' = unused | 'unmastered' =
     # exploration goes on, and an enabled event firing from a situation whose distal goal (HIP) is
     # not active there is learnt again by a free DMP (thesis: the extra DMPs serve events one DMP
@@ -120,9 +123,13 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionCon
                    progress: Callable[[str], None] | None = None) -> Library:
     """Skill acquisition, Fig. 7.5, with the IM detectors ``enabled`` switched on.
 
-    A. Exploration: pick a free DMP at random; roll out random movements from random initial
-       postures until one makes a new event happen (an enabled detector whose skill is not yet
-       acquired and whose distal goal, C2 -> HIP, is not already active for that situation).
+    A. Exploration: every DMP starts with random parameters (``env.random_primitive``); pick a
+       free DMP at random and roll it out from random initial postures, with noise added to its
+       goals (``env.explore_params``), until one rollout makes a new event happen (an enabled
+       detector whose skill is not yet acquired and whose distal goal, C2 -> HIP, is not already
+       active for that situation). A DMP explored ``explore_patience`` times without a new event
+       is given back with fresh random parameters and a free DMP is picked again; the search for
+       one skill gives up after ``explore_max_rollouts``.
     B. Learning: PI^BB (eq. 7.6-7.8) from the captured parameters, K samples per posture and one
        update per posture; after each posture C1 is trained ``c1_repeats`` times with the teaching
        signal successes / K. After each epoch the mean movement is tried from the four postures:
@@ -144,6 +151,7 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionCon
     free = list(range(cfg.n_dmps))
     wanted = [e for e in EVENTS if e in enabled]
     hip_cache: dict[int, torch.Tensor] = {}
+    primitives = [env.random_primitive(generator) for _ in range(cfg.n_dmps)]  # "10 free DMPs", random
 
     def mastered(e: str, p: int) -> bool:
         if brain is not None:
@@ -152,8 +160,15 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionCon
             return bool(hip_cache[p][EVENTS.index(e)] >= cfg.hip_threshold)
         return any(s.event == e and s.succeeds_from[p - 1] for s in lib.skills)
 
-    def acquire(slot: int, events: list[str]) -> Skill | None:
-        found = _explore(env, events, cfg, generator, lib, mastered)
+    def acquire(events: list[str]) -> Skill | None:
+        tried, found = 0, None
+        while found is None and tried < cfg.explore_max_rollouts:
+            slot = free[int(torch.randint(len(free), (1,), generator=generator))]
+            budget = min(cfg.explore_patience, cfg.explore_max_rollouts - tried)
+            found, n = _explore(env, events, cfg, generator, lib, mastered, primitives[slot], budget)
+            tried += n
+            if found is None:
+                primitives[slot] = env.random_primitive(generator)  # given back, drawn afresh
         if found is None:
             return None
         event, theta, p0 = found
@@ -169,7 +184,7 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionCon
         return skill
 
     while wanted and free:
-        skill = acquire(free[int(torch.randint(len(free), (1,), generator=generator))], wanted)
+        skill = acquire(wanted)
         if skill is None:
             lib.missing.extend(wanted)
             break
@@ -177,23 +192,26 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionCon
     if cfg.spare_dmps == "unmastered":
         again = [e for e in EVENTS if e in enabled and e not in lib.missing]
         while again and free:
-            if acquire(free[int(torch.randint(len(free), (1,), generator=generator))], again) is None:
+            if acquire(again) is None:
                 break
     return lib
 
 
 def _explore(env, events: Sequence[str], cfg: AcquisitionConfig, generator, lib: Library,
-             mastered: Callable[[str, int], bool]) -> tuple[str, torch.Tensor, int] | None:
-    """Part A of Fig. 7.5: random movements from random postures (batched) until one fires an
-    event of ``events`` not yet mastered from its posture; the first such rollout in draw order
-    wins, every rollout is counted in ``lib``. Returns (event, parameters, posture) or None."""
+             mastered: Callable[[str, int], bool], primitive: torch.Tensor, budget: int
+             ) -> tuple[tuple[str, torch.Tensor, int] | None, int]:
+    """Part A of Fig. 7.5 for one DMP: ``primitive`` with goal noise, from random postures
+    (batched), until a rollout fires an event of ``events`` not yet mastered from its posture or
+    ``budget`` rollouts are spent; the first such rollout in draw order wins, every rollout is
+    counted in ``lib``. Returns ((event, parameters, posture) or None, rollouts spent)."""
     tried = 0
-    while tried < cfg.explore_max_rollouts:
-        postures = torch.randint(1, N_POSTURES + 1, (cfg.explore_batch,), generator=generator).tolist()
+    while tried < budget:
+        postures = torch.randint(1, N_POSTURES + 1, (min(cfg.explore_batch, budget - tried),),
+                                 generator=generator).tolist()
         results: list[tuple[int, torch.Tensor, Result]] = []
         for p in sorted(set(postures)):
             idx = [i for i, q in enumerate(postures) if q == p]
-            theta = env.random_params(p, len(idx), generator)
+            theta = env.explore_params(primitive, p, len(idx), generator)
             for i, th, r in zip(idx, theta, env.execute(theta, env.start(p), None)):
                 results.append((i, th, r))
         results.sort(key=lambda t: t[0])
@@ -209,8 +227,8 @@ def _explore(env, events: Sequence[str], cfg: AcquisitionConfig, generator, lib:
                 if e is not None and not mastered(e, p):
                     found = (e, th.clone(), p)
         if found is not None:
-            return found
-    return None
+            return found, tried
+    return None, tried
 
 
 def _learn_skill(env, skill: Skill, cfg: AcquisitionConfig, generator, brain, perceive, lib: Library) -> None:

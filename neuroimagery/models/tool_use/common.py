@@ -35,8 +35,11 @@ class Environment(Protocol):
 
     def start(self, posture: int) -> State: ...
 
-    def random_params(self, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
-        """``n`` random movements around ``posture`` (the exploration step of Fig. 7.5)."""
+    def random_primitive(self, generator: torch.Generator) -> torch.Tensor:
+        """A free DMP's random parameters (Fig. 7.5 initialisation)."""
+
+    def explore_params(self, params: torch.Tensor, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
+        """``n`` exploratory rollouts of ``params`` from ``posture``: noise added to the goals."""
 
     def search_sigma(self) -> torch.Tensor:
         """Standard deviation of the PI^BB exploration noise per parameter (eq. 7.6)."""

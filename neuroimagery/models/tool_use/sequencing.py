@@ -81,10 +81,9 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
 
     Test success is always the real retrieval.
 
-    ``active_threshold``: Fig. 7.6 draws among the *active* PMC units; with a threshold above 0
-    only the acquired units whose PMC activity (C1 + C4) exceeds it are candidates, and a child
-    with no active unit does not move (the trial ends). 0 (this function's default): every
-    acquired unit is a candidate; Experiment 5 uses ``Exp5Config.active_threshold`` (0.1).
+    ``active_threshold``: Fig. 7.6 draws among the *active* PMC units: the acquired units whose
+    PMC activity (C1 + C4) is above it (0: above the maps' resting level); a child with no active
+    unit does not move (the trial ends).
     """
     if strategy not in ("reactive", "planning"):
         raise ValueError(f"strategy must be 'reactive' or 'planning', got {strategy!r}")
@@ -102,11 +101,10 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     imagining = strategy == "planning"
     for _ in range(attempts):
         act = brain.pmc(x0)[units]
-        if active_threshold > 0:
-            active = act > active_threshold
-            if not bool(active.any()):
-                break  # nothing afforded here: the child does not move
-            act = act.masked_fill(~active, float("-inf"))
+        active = act > active_threshold
+        if not bool(active.any()):
+            break  # nothing afforded here: the child does not move
+        act = act.masked_fill(~active, float("-inf"))
         k = int(softmax_select(act.view(1, -1), temperature, generators=[generator])[0])
         skill = by_unit[int(units[k])]
         done_events = done_events + (skill.name,)
