@@ -6,9 +6,10 @@ import pytest
 import torch
 
 from neuroimagery.errors import UserInputError
-from neuroimagery.motor.dmp import DMP
-from neuroimagery.robot.babble import BabbleConfig, random_thetas, trajectories
 from neuroimagery.robot.config import WorldConfig
+from neuroimagery.robot.events import toy_events
+from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
+from neuroimagery.robot.scene_check import check_scene, scene_geometry
 from neuroimagery.robot.world import EVENTS, ToolWorld, toy_yaw_of
 
 
@@ -36,24 +37,90 @@ def _line(world, posture, head_target_delta, T=150):
     return (q0 + s * (q1 - q0)).unsqueeze(0)
 
 
+def _path(world, posture, deltas, T=60):
+    """Joint trajectory through head waypoints: each of ``deltas`` moves the head on from the last."""
+    q = world.initial_posture(posture)
+    parts = []
+    for d in deltas:
+        seg = _line_from(world, q, d, T)
+        parts.append(seg[0])
+        q = seg[0, -1]
+    return torch.cat(parts).unsqueeze(0)
+
+
+def _line_from(world, q0, delta, T):
+    start = world.kin.rake_head_position(q0)
+    target = start + torch.tensor(delta)
+    q = q0.clone().requires_grad_(True)
+    opt = torch.optim.Adam([q], lr=0.01)
+    for _ in range(300):
+        opt.zero_grad()
+        ((world.kin.rake_head_position(world.kin.clamp(q)) - target) ** 2).sum().backward()
+        opt.step()
+    q1 = world.kin.clamp(q.detach())
+    s = torch.linspace(0, 1, T).unsqueeze(1)
+    s = 3 * s**2 - 2 * s**3
+    return (q0 + s * (q1 - q0)).unsqueeze(0)
+
+
 def test_config_errors_name_the_key():
     with pytest.raises(ValueError, match="toy_mass"):
         WorldConfig(toy_mass=-1.0)
-    with pytest.raises(ValueError, match="retrieve_x"):
-        WorldConfig(retrieve_x=0.9)
+    with pytest.raises(ValueError, match="toy_xy"):
+        WorldConfig(toy_xy=(0.30, -0.10))  # inside the reachable area: the toy must start out of reach
     with pytest.raises(ValueError, match="rake_drive"):
         WorldConfig(rake_drive="magnetic")
-    with pytest.raises(ValueError, match="posture_4"):
-        WorldConfig(posture_4="behind")
 
 
-def test_posture_4_places_the_rake_far_right_of_the_toy():
-    """posture_4 = "right" (default): rake head at (0.60, -0.38); "far": (0.525, -0.43)."""
-    for key, xy in (("far", (0.525, -0.43)), ("right", (0.60, -0.38))):
-        with ToolWorld(WorldConfig(posture_4=key)) as w:
-            head = w.kin.rake_head_position(w.initial_posture(4).double())
-            assert abs(float(head[0]) - xy[0]) < 0.005 and abs(float(head[1]) - xy[1]) < 0.005, (key, head)
-    assert WorldConfig().postures[3] == WorldConfig(posture_4="right").postures[3]
+def test_scene_meets_its_written_criteria():
+    """docs/robot.md, scene criteria: all met by the default scene, and a posture moved onto the
+    toy, a handle lowered onto it or a posture 4 brought near are each caught."""
+    assert check_scene() == []
+    g = scene_geometry()
+    assert g[0]["behind"] and all(not p["behind"] for p in g[1:])
+    assert [p["gap"] for p in g] == sorted(p["gap"] for p in g) and g[3]["gap"] >= 0.16
+    swapped = WorldConfig(postures=(WorldConfig().postures[3],) + WorldConfig().postures[1:])
+    assert any("posture 1" in m for m in check_scene(swapped))
+    near4 = WorldConfig(postures=WorldConfig().postures[:3] + (WorldConfig().postures[1],))
+    assert any("gap" in m for m in check_scene(near4))
+
+
+def test_reachable_area_is_the_free_hands_reach():
+    """retrieve = the toy's centre within the left palm's reach at table height (robot.reach);
+    the toy starts beyond it by a toy width; a point past the frontier is out of reach."""
+    cfg = WorldConfig()
+    y = cfg.toy_xy[1]
+    edge = cfg.reach_frontier_at(y)
+    assert 0.3 < edge < cfg.toy_xy[0] - cfg.toy_size
+    assert cfg.in_reach(edge - 0.001, y) and not cfg.in_reach(edge + 0.001, y)
+    assert not cfg.in_reach(*cfg.toy_xy)
+    assert not cfg.in_reach(0.2, -0.9)  # far to the right: no band of the frontier
+
+
+def test_direction_events_take_one_direction_per_displacement():
+    cfg = WorldConfig()
+    far = cfg.toy_xy[0]
+    # (retrieve, touch, south, north, west, east) for displacements from the start
+    assert toy_events(far, 0.0, -0.03, -0.02, cfg) == [False, False, True, False, False, False]  # diagonal: south
+    assert toy_events(far, 0.0, 0.01, 0.025, cfg) == [False, False, False, False, True, False]
+    assert toy_events(far, 0.0, 0.005, -0.03, cfg) == [False, False, False, False, False, True]
+    assert toy_events(far, 0.0, 0.03, 0.0, cfg) == [False, False, False, True, False, False]
+    assert toy_events(far, 0.0, -0.015, -0.01, cfg) == [False] * 6  # 1.8 cm: below the threshold
+    assert toy_events(0.3, cfg.toy_xy[1], -0.28, 0.0, cfg)[0]  # in reach
+
+
+def test_thesis_events_fire_from_their_postures(world):
+    """Table 7.1: retrieve (with south) from posture 1 by a pull; west from posture 2 by a sweep;
+    touch from posture 2 by lifting the head over the toy and lowering it onto its top."""
+    pull = world.rollout(_path(world, 1, [(-0.22, 0.0, 0.0)]), 1, None)[0]
+    assert pull.fired("retrieve") and pull.fired("south") and not pull.fired("north"), pull
+    sweep = world.rollout(_path(world, 2, [(0.0, 0.16, 0.0)]), 2, None)[0]
+    assert sweep.fired("west") and not sweep.fired("east") and not sweep.fired("retrieve"), sweep
+    toy_y = world.cfg.toy_xy[1]
+    head = world.kin.rake_head_position(world.initial_posture(2))
+    over = (0.0, toy_y - float(head[1]), 0.10)
+    touch = world.rollout(_path(world, 2, [over, (0.0, 0.0, -0.09)]), 2, "touch")[0]
+    assert touch.fired("touch") and not touch.fired("retrieve"), touch
 
 
 def test_scene_is_at_rest(world):
@@ -81,21 +148,20 @@ def test_direction_events_agree_with_displacement(world):
         out = world.rollout(_line(world, k, delta), k, None)[0]
         dx, dy = out.toy_displacement
         assert np.hypot(dx, dy) > thr  # the sweep did push the toy
-        # a direction once passed stays fired, so the final displacement implies the event
-        assert (not dx < -thr) or out.fired("south")
-        assert (not dx > thr) or out.fired("north")
-        assert (not dy > thr) or out.fired("west")
-        assert (not dy < -thr) or out.fired("east")
+        # these pushes keep their direction, so the final displacement's sector has fired
+        sector = ("south" if dx < 0 else "north") if abs(dx) >= abs(dy) else ("west" if dy > 0 else "east")
+        assert out.fired(sector), (sector, out)
 
 
 def test_fk_filter_and_skipped_steps_never_change_an_outcome(world):
     """Reference: the same world simulating every control step of every rollout."""
-    dmp = DMP()
+    dmp = world_dmp()
     gen = torch.Generator().manual_seed(5)
-    cfg = BabbleConfig()
+    cfg = MovementConfig()
     with ToolWorld(WorldConfig(skip_far_steps=False)) as full:
         for k in (1, 2, 4):
-            traj = trajectories(world, dmp, random_thetas(world, dmp, k, 16, cfg, gen), k, cfg)
+            theta = goal_noise(world, dmp, random_primitives(world, dmp, 16, cfg, gen), gen)
+            traj = trajectories(world, dmp, theta, world.initial_posture(k), cfg)
             fast = world.rollout(traj, k, None, use_filter=True)
             slow = full.rollout(traj, k, None, use_filter=False)
             assert any(a.simulated for a in fast)

@@ -248,7 +248,12 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
             if (sit, key) not in routes:
                 r1, r2 = routes_available(outcomes, posture, [s.name for s in sub.skills])
                 i1, i2, i_true = imagined_routes(built[key], outcomes, posture, sub.skills)
-                routes[(sit, key)] = dict(routes_1=r1, routes_2=r2, imagined_1=i1, imagined_2=i2, imagined_true=i_true)
+                pulls = [s.name for s in sub.skills if s.event == "retrieve"]
+                # the mechanism check of the tool-far test: does a learnt pull alone bring the toy in?
+                # (-1: the robot has no pull)
+                pull_alone = int(any(outcomes.after(posture, (a,)).retrieved for a in pulls)) if pulls else -1
+                routes[(sit, key)] = dict(routes_1=r1, routes_2=r2, imagined_1=i1, imagined_2=i2, imagined_true=i_true,
+                                          pull_alone=pull_alone)
             for strategy in STRATEGIES:
                 # only C4 learns in Fig. 7.6: every individual starts from the built brain with a fresh C4
                 brain = built[key]
