@@ -39,17 +39,19 @@ class StandInToolEnv:
         return torch.tensor(head, dtype=torch.float64), torch.tensor(toy, dtype=torch.float64)
 
     def random_primitive(self, generator: torch.Generator) -> torch.Tensor:
-        """Goal uniform over the table part the head can reach, bend N(0, explore_sigma)."""
+        """A random primitive: goal uniform over the part of the table the head can reach, bend
+        N(0, explore_sigma)."""
         lo, hi = torch.tensor(GOAL_BOX[0]), torch.tensor(GOAL_BOX[1])
         goal = lo + (hi - lo) * torch.rand(2, generator=generator)
         return torch.cat([goal, self.explore_sigma * torch.randn(2, generator=generator)])
 
     def explore_params(self, params: torch.Tensor, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
-        """Goal noise of a tenth of the goal box per axis."""
-        lo, hi = torch.tensor(GOAL_BOX[0]), torch.tensor(GOAL_BOX[1])
-        out = params.double().expand(n, -1).clone()
-        out[:, :2] += 0.1 * (hi - lo) * torch.randn(n, 2, generator=generator, dtype=out.dtype)
-        return out.float()
+        """The stand-in explores around the head's start whatever the primitive (its cheap world
+        needs no more): goal = head + N(0, explore_sigma), bend N(0, explore_sigma)."""
+        h = torch.tensor(HEADS[posture])
+        goal = h + self.explore_sigma * torch.randn(n, 2, generator=generator)
+        bend = self.explore_sigma * torch.randn(n, 2, generator=generator)
+        return torch.cat([goal, bend], dim=1)
 
     def search_sigma(self) -> torch.Tensor:
         return torch.full((4,), self._search)

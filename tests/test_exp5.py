@@ -49,9 +49,8 @@ def test_config_composes_and_validates():
 
 @pytest.mark.parametrize("key,value", [("q_form", "sideways"), ("attempts", 0), ("gamma", 1.5),
                                        ("hp1_ages", [14]), ("situations", ["near"]), ("temperature", 0.0),
-                                       ("c3_recall", "nearest"), ("planning_test", "dream"), ("reach_bound", "far"),
-                                       ("posture_4", "near"), ("retrieve_x", 0.6),
-                                       ("pibb_flat", "never")])
+                                       ("c3_recall", "nearest"), ("planning_test", "dream"),
+                                       ("explore_patience", 0), ("pibb_flat", "never")])
 def test_config_rejects_bad_values_naming_the_key(key, value):
     with pytest.raises(ValueError, match=key):
         exp5.Exp5Config(**{key: value})
@@ -157,30 +156,15 @@ def test_practised_recall_recognises_a_situation_where_nothing_succeeded():
     assert torch.allclose(imagined["situation"][1], out_a, atol=1e-3)
 
 
-def test_path_reach_bound_keeps_every_step_near_the_start():
-    from types import SimpleNamespace
-
-    from neuroimagery.models.tool_use import ToolWorldEnvironment
-
-    q0 = torch.zeros(7)
-    t = torch.linspace(0, 1, 20).view(1, 20, 1)
-    traj = 0.5 * torch.sin(3.14 * t).expand(1, 20, 7) + 0.1 * t  # overshoots to 0.5 rad, ends at 0.1
-    kin = SimpleNamespace(clamp=lambda q: q.clamp(-3, 3))
-    env = SimpleNamespace(dmp=SimpleNamespace(max_goal_offset=0.15), world=SimpleNamespace(kin=kin))
-    env.reach_bound = "path"
-    path = ToolWorldEnvironment.bounded(env, traj, q0)
-    assert float(path.abs().max()) <= 0.15 + 1e-6 and torch.allclose(path[:, -1], traj[:, -1])
-    env.reach_bound = "goal"
-    assert torch.equal(ToolWorldEnvironment.bounded(env, traj, q0), traj)
-
-
 # ---------------------------------------------------------------------------------- algorithms
 @pytest.fixture(scope="module")
 def acquired():
     env = StandInToolEnv()
     brain = ToolUseBrain(env.image_shape)
     brain.train()
-    lib = acquire_skills(env, ["retrieve", "touch", "west"], small_acq(), torch.Generator().manual_seed(1), brain=brain)
+    # seed 2: a library whose pull works from posture 1 (the tests below need the tool-behind pull)
+    lib = acquire_skills(env, ["retrieve", "touch", "west"], small_acq(), torch.Generator().manual_seed(2), brain=brain)
+    assert any(s.event == "retrieve" and s.succeeds_from[0] for s in lib.skills)
     return env, brain, lib
 
 
@@ -266,7 +250,9 @@ def test_every_c3_outcome_imagines_where_a_primitive_leads_from_every_practised_
     every = build_brain(env, lib, small_acq(c3_repeats=50, c3_outcomes="every"), ToolUseBrain(env.image_shape),
                         torch.Generator().manual_seed(0))
     assert torch.equal(every.c1.weight, only.c1.weight) and torch.equal(every.c2.weight, only.c2.weight)
-    missed = [(s, p) for s in lib.skills for p in range(1, 5) if not s.succeeds_from[p - 1]]
+    # the situations where a skill never achieved its event in a competence check
+    missed = [(s, p) for s in lib.skills for p in range(1, 5)
+              if p not in {op[1] for op in s.log if op[0] == "c23"}]
     assert missed, "the stand-in world should leave some skill failing from some posture"
     for s, p in missed:
         label = (p - 1) * only.n_dmps + s.unit
@@ -496,12 +482,6 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
     del d["config"]["toy_turn"]  # one written before toy_turn existed squared the toy between moves
     torch.save(d, path)
     assert exp5._valid(path, e, 0) is None and exp5._valid(path, dataclasses.replace(e, toy_turn="reset"), 0) is not None
-    e_old = dataclasses.replace(e, toy_turn="reset")  # ... and one written before active_threshold let every unit compete
-    del d["config"]["active_threshold"]
-    torch.save(d, path)
-    assert exp5._valid(path, e_old, 0) is None
-    assert exp5._valid(path, dataclasses.replace(e_old, active_threshold=0.0), 0) is not None
-    assert exp5._library_of(exp5._stored(path), e_old, 0) is not None  # its skill library still serves
     with pytest.raises(ValueError, match="reuse_libraries"):
         dataclasses.replace(e, reuse_libraries=str(tmp_path / "nowhere"))
 
@@ -634,16 +614,6 @@ def test_brain_learns_through_its_connections_as_the_equations_say():
     c.train_c3(x, unit=2, posture=3, outcome=x1, times=20, generator=g)
     via_som = c.c3.backward(c._c3_b(x, 2)).reshape(2, 6, 8).clamp(0, 1)
     assert torch.allclose(c.imagine(x, 2), via_som, atol=1e-6)
-    # relative goals: the same parameters give the same goal displacement from any start
-    from neuroimagery.models.tool_use import ToolWorldEnvironment
-
-    theta = torch.randn(2, 35, generator=g)
-    rel = SimpleNamespace(goal_frame="relative")
-    q0a, q0b = torch.zeros(7), torch.linspace(-0.5, 0.5, 7)
-    ja = ToolWorldEnvironment.joint_params(rel, theta, q0a)
-    jb = ToolWorldEnvironment.joint_params(rel, theta, q0b)
-    assert torch.allclose(ja[:, :7] - q0a, jb[:, :7] - q0b, atol=1e-6) and torch.equal(ja[:, 7:], jb[:, 7:])
-    assert torch.equal(ToolWorldEnvironment.joint_params(SimpleNamespace(goal_frame="absolute"), theta, q0b), theta)
 
 
 # ---------------------------------------------------------------------------------- the thesis's claims
@@ -711,9 +681,9 @@ def test_eye_reads_a_toy_on_either_side_of_the_reachable_border():
     from neuroimagery.models.tool_use import State, ToolWorldEnvironment
 
     env = ToolWorldEnvironment()
-    bx = env.world.cfg.retrieve_x
     assert 0.0005 < env.reader_bias() < 0.003
-    for y in (-0.08, 0.0, 0.06):
+    for y in (-0.15, -0.10, -0.05):
+        bx = env.world.cfg.reach_frontier_at(y)
         for p in (1, 4):
             inside, outside = env.perceive(State(p, None, (bx - 0.0005, y))), env.perceive(State(p, None, (bx + 0.0005, y)))
             assert env.reward(inside) == 1.0 and env.reward(outside) == 0.0, (y, p)
