@@ -87,7 +87,7 @@ CONFIG_CASES = [
     (["experiment=demo", "experiment.noise=inf"], "experiment.noise"),
     (["experiment=exp4", "vision.gamma=nan"], "vision.gamma"),
     (["experiment=exp4", "experiment.ppc_angles=[0,nan]"], "experiment.ppc_angles"),
-    (["experiment=exp5", "experiment.retrieve_x=-inf"], "experiment.retrieve_x"),
+    (["experiment=exp5", "experiment.explore_patience=0"], "experiment.explore_patience"),
     (["experiment=exp1", "participants=0"], "participants"),
     (["experiment=exp3", "seed=-1"], "seed"),
     (["experiment=exp4", "preset=huge"], "preset"),
