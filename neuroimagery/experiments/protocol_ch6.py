@@ -25,7 +25,8 @@ import torch
 
 from .. import progress
 from ..errors import UserInputError
-from ..nn import seeding
+from ..nn import monitor, seeding
+from ..analysis import figures
 from ..analysis.summary import TRIAL_COLUMNS
 
 
@@ -158,7 +159,9 @@ def train_delta_binary(conn, X: torch.Tensor, Y: torch.Tensor, eta: float, batch
     rows_of = Wt.view(P * (I + 1), O)  # participant p's weight column i is row p (I + 1) + i
     base = (torch.arange(P) * (I + 1)).view(P, 1, 1)
     N = X.shape[1]
-    for s in progress.bar(range(0, N, batch), what="forward model", unit="batch"):
+    # the training curve: squared error of the mini-batches before their change
+    curve = monitor.Curve(f"train/{conn.name or 'forward_model'}/squared_error", -(-N // batch)) if monitor.active() else None
+    for b, s in enumerate(progress.bar(range(0, N, batch), what="forward model", unit="batch")):
         x, y = X[:, s:s + batch], Y[:, s:s + batch]
         on = x > 0.5
         K = int(on.sum(-1).max())
@@ -171,6 +174,8 @@ def train_delta_binary(conn, X: torch.Tensor, Y: torch.Tensor, eta: float, batch
         out = rows_of[rows[..., 0]]
         for k in range(1, K):
             out = out + rows_of[rows[..., k]]  # (P, b, O)
+        if curve is not None:
+            curve.add(b, (y - out).pow(2).sum(-1).mean())
         err = eta * (y - out)
         rows_of.index_add_(0, rows.reshape(-1), err.unsqueeze(2).expand(-1, -1, K, -1).reshape(-1, O))
         Wt[:, I] = 0
@@ -228,11 +233,48 @@ def sample_generators(seed: int, participants: Sequence[int], stream: int):
     return seeding.participant_generators(seed, list(participants), stream=stream)
 
 
-def log_history(logger, history: list, prefix: str) -> None:
-    """Every map of every step of recorded sample trials to TensorBoard."""
+def sample_rows(table: pd.DataFrame, n: int) -> list[int]:
+    """The rows of a test's trial table shown step by step (figures, TensorBoard): ``n`` pairs at
+    the test's largest disparity, a same pair first, then a mirror pair, alternating, each the
+    first of its kind in the table's order. The labels only choose what is displayed; the model
+    runs every trial alike."""
+    if n <= 0 or table.empty:
+        return []
+    big = table[table["disparity"] == table["disparity"].max()]
+    kinds = [list(big.index[big["same"].astype(bool)]), list(big.index[~big["same"].astype(bool)])]
+    out: list[int] = []
+    while len(out) < n and any(kinds):
+        for rows in kinds:
+            if rows and len(out) < n:
+                out.append(int(table.index.get_loc(rows.pop(0))))
+    return out
+
+
+def sample_names(table: pd.DataFrame, rows: Sequence[int]) -> list[str]:
+    """``same_135deg`` / ``mirror_135deg`` names of the sample trials ``rows``."""
+    t = table.iloc[list(rows)]
+    return [f"{'same' if s else 'mirror'}_{int(d)}deg" for s, d in zip(t["same"].astype(bool), t["disparity"])]
+
+
+def log_history(logger, history: list, prefix: str, names: Sequence[str] | None = None) -> None:
+    """Every map of every step of the recorded sample trials to TensorBoard, as image series whose
+    step is the rotation step (1 = the first)."""
     for trial_k, steps in enumerate(history):
+        name = names[trial_k] if names is not None else f"trial{trial_k}"
         for s, maps in enumerate(steps):
-            logger.maps({k: torch.as_tensor(v) for k, v in maps.items()}, step=s + 1, prefix=f"{prefix}/trial{trial_k}/")
+            logger.maps({k: torch.as_tensor(v) for k, v in maps.items()}, step=s + 1, prefix=f"{prefix}/{name}/")
+
+
+def sample_panels(path, key: str, history: list, names: Sequence[str]):
+    """One figure of the sample trials of ``key``: one row per rotation step of each trial."""
+    steps, labels = [], []
+    for name, trial in zip(names, history):
+        for i, st in enumerate(trial):
+            steps.append({k: torch.as_tensor(v).numpy() for k, v in st.items()})
+            labels.append(f"{name.replace('_', ' ')}, step {i + 1}")
+    if not steps:
+        return None
+    return figures.map_panels(steps, path, title=f"{key}: sample trials, one row per rotation step", row_labels=labels)
 
 
 def train_posture_maps_and_freeze(cfg, eye, model, soms, angles: Sequence[float], generators, ids):

@@ -32,7 +32,7 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from . import seeding
+from . import monitor, seeding
 from .functional import as_batched, check_rate, check_tensor, checks_enabled, grid_coords, squared_norms
 from .rules import Kohonen, SupervisedKohonen
 from .som_windowed import (WINDOWED_BLOCK, fit_windowed, fit_windowed_many, form_windowed_weights,  # noqa: F401
@@ -205,9 +205,24 @@ class SOM(nn.Module):
         if method == "windowed":
             if labels is not None:
                 raise ValueError("method='windowed' trains unsupervised maps; use 'factored' with labels")
-            return fit_windowed(self, X, order)
-        fn = self._fit_factored if method == "factored" else self._fit_online
-        return fn(X, order, labels, it)
+            winners = fit_windowed(self, X, order)
+        else:
+            fn = self._fit_factored if method == "factored" else self._fit_online
+            winners = fn(X, order, labels, it)
+        if monitor.active():  # the trained map's final state, at its own step count
+            tag = f"train/som/{self.name or 'som'}"
+            monitor.record(f"{tag}/quantisation_error_final", self.quantization_error(X).mean(), int(self.steps))
+            if self.units > 1:
+                monitor.record(f"{tag}/topographic_error_final", self.topographic_error(X).mean(), int(self.steps))
+        return winners
+
+    def _curve(self, T: int) -> monitor.Curve | None:
+        """The running curve of a fit of ``T`` steps (the mean distance of the presented patterns to
+        their winners, or to their labelled units), or None when no reader listens."""
+        if not monitor.active():
+            return None
+        what = "label" if self.supervised else "winner"
+        return monitor.Curve(f"train/som/{self.name or 'som'}/{what}_distance", T, offset=int(self.steps))
 
     def _order_generators(self) -> list[torch.Generator]:
         if self.order_generators is None:
@@ -221,10 +236,14 @@ class SOM(nn.Module):
         P = self.participants
         p = torch.arange(P, device=order.device)
         winners = torch.empty_like(order)
+        curve = self._curve(order.shape[1])
         for t in it:
             s = order[:, t]
             x = X[p, s]
             w = None if labels is None else labels[p, s]
+            if curve is not None:  # distance before this step's change, as in the factored form
+                d2 = self.distances(x.unsqueeze(1))[:, 0]  # (P, U)
+                curve.add(t, (d2.min(-1).values if w is None else d2[p, w]).sqrt().mean())
             winners[:, t] = self.step(x, w)
         return winners
 
@@ -255,12 +274,15 @@ class SOM(nn.Module):
         normalise = isinstance(self.rule, SupervisedKohonen) and self.rule.normalise
         winners = torch.empty_like(order)
         t0 = int(self.steps)
+        curve = self._curve(order.shape[1])
         for t in it:
             s = order[:, t]
             Gs = G[p, s]  # (P, N)
             Ds = c * Q[p, s]  # (P, U)  w_k . x_s
             win = (nrm - 2 * Ds).argmin(-1) if labels is None else labels[p, s]
             winners[:, t] = win
+            if curve is not None:  # |w_win - x_s| from the invariants
+                curve.add(t, (nrm[p, win] - 2 * Ds[p, win] + Gs[p, s]).clamp_min(0).sqrt().mean())
             eta, sigma = self.rule.schedule(t0 + t)
             a = float(eta) * self.rule.neighbourhood(grid, win, sigma.to(dt))  # (P, U)
             b = 1 - a
