@@ -119,7 +119,7 @@ TARGETS = {
 }
 
 
-def _effects(df) -> list[dict]:
+def effects(df) -> list[dict]:
     """The effect the thesis states (line 697): RT rises with |disparity|, per test and rotated
     object, each judged with the participant as the unit; Holm's correction over the family."""
     rows = []
@@ -233,7 +233,7 @@ def evaluate(cfg, run, trained) -> dict:
     # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
     summary = {"experiment": "exp1", "participants": int(df["participant"].nunique()), "tests": tests,
                "overall_rotation_success_rate": round(float(both["rotated_ok"].mean()), 4),
-               "targets": TARGETS, "effects": _effects(df)}
+               "targets": TARGETS, "effects": effects(df)}
     # figures: Fig. 5.4 a/b (a success, a failure, participant 0) and Fig. 5.5 a/b (RT profiles)
     rec = df[(df["test"] == "recognition") & (df["participant"] == 0)].reset_index(drop=True)
     succ = rec.index[(rec["rotated_ok"]) & (rec["rotation_steps"] >= 3) & rec["same"]]

@@ -193,7 +193,7 @@ def evaluate(cfg, run, trained) -> dict:
                                   "correct_mismatch_vs_none": compare_rates(mis["correct"], base["correct"])},
                "object_type_anova": {"F": round(float(f.statistic), 4) if np.isfinite(f.statistic) else None,
                                      "p": float(f.pvalue) if np.isfinite(f.pvalue) else None},
-               "targets": TARGETS, "effects": _effects(base, mis, mat)}
+               "targets": TARGETS, "effects": effects(df)}
     shown = {}
     b0 = base[base["participant"] == 0].reset_index(drop=True)
     succ = b0.index[b0["rotated_ok"] & (b0["rotation_steps"] >= 3)]
@@ -220,9 +220,11 @@ def evaluate(cfg, run, trained) -> dict:
     return record_figures_and_scalars(run, summary, shown, tests, "exp2")
 
 
-def _effects(base, mis, mat) -> list[dict]:
-    """The effects the thesis states (section 5.2.3, thesis lines 859 and 869), each with the
-    participant as the unit; Holm's correction over the family."""
+def effects(df) -> list[dict]:
+    """The effects the thesis states (section 5.2.3, thesis lines 859 and 869) on the trials of
+    test ``all``, each with the participant as the unit; Holm's correction over the family."""
+    a = df[df["test"] == "all"]
+    base, mis = a[a["condition"] == "none"], a[a["condition"] == "mismatch"]
     rows = [effect("RT rises with disparity (none)", ">0", slope_by_participant(base), "mean_slope"),
             effect("RT: mismatch slower than none", ">0", paired_by_participant(mis, base, "rt")),
             effect("correct rate: mismatch = none", "~0",

@@ -180,7 +180,7 @@ def evaluate(cfg, run, trained) -> dict:
     # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
     summary = {"experiment": "exp3", "participants": int(df["participant"].nunique()), "tests": tests,
                "targets": {k: {"error_rate": v} for k, v in THESIS.items()}, "forward_model_iou": iou,
-               "effects": _effects(df)}
+               "effects": effects(df)}
     for key, hist in histories.items():
         pc.log_history(run.logger, hist["trials"], key, hist["names"])
     f = run.figures
@@ -195,7 +195,7 @@ def evaluate(cfg, run, trained) -> dict:
     return summary
 
 
-def _effects(df) -> list[dict]:
+def effects(df) -> list[dict]:
     """The effects the thesis states (section 6.1.2), each judged with the participant as the unit;
     Holm's correction over the family."""
     d = df.assign(error=(~df["correct"].astype(bool)).astype(float))

@@ -258,7 +258,7 @@ def _stats(df: pd.DataFrame) -> dict:
     return out
 
 
-def _effects(df: pd.DataFrame) -> list[dict]:
+def effects(df: pd.DataFrame) -> list[dict]:
     """The effects the thesis states (section 6.2.3), each judged with the participant as the unit:
     paired t-tests over participants on their mean RT or correct rate, one-sample t-tests of their
     RT-disparity slopes; Holm's correction over the family."""
@@ -341,7 +341,7 @@ def evaluate(cfg, run, trained) -> dict:
     # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
     summary = {"experiment": "exp4", "participants": int(df["participant"].nunique()), "tests": tests,
                "targets": {k: {"correct_rate": v} for k, v in THESIS.items()},
-               "effects": _effects(df), "statistics": _stats(df), "statistics_by_disparity": _stats_by_disparity(df),
+               "effects": effects(df), "statistics": _stats(df), "statistics_by_disparity": _stats_by_disparity(df),
                "rt_by_rotation_steps": _rt_vs_steps(df),
                "rt_by_required_steps": _rt_vs_required_steps(df, e.step_deg)}
     # generalisation of the three-dot forward models to the test shapes
