@@ -12,7 +12,8 @@ from support_numerics import assert_same_threshold, assert_same_winner, assert_w
 from support_runs import reused_run
 
 from neuroimagery.experiments.exp2 import Exp2Config
-from neuroimagery.nn.som import fit_windowed as som_fit_windowed, squared_norms
+from neuroimagery.nn.som_windowed import fit_windowed as som_fit_windowed
+from neuroimagery.nn.functional import squared_norms
 from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
 from neuroimagery.nn import SOM, participant_generators
 from neuroimagery.nn.numerics import cast_bound, rounding_bound_nonneg

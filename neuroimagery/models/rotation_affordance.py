@@ -31,7 +31,7 @@ from torch import nn
 from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators, seeding
 from ..nn.functional import intra_op_threads
 from ..nn.hebbian_closed_form import hebbian_shared
-from ..nn.som import fit_windowed as som_fit_windowed, windowed_factors
+from ..nn.som_windowed import windowed_factors
 from .factor_checkpoint import FactorCheckpoint
 
 
@@ -122,11 +122,9 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         self.pfc2.train()
         order = seeding.randint(participant_generators(self.seed, P, stream=4), X.shape[0], (e.som_iterations,))
         with intra_op_threads(e.som_threads, cap=True):  # each SOM step is small: extra threads only add hand-offs
-            if e.som_method == "windowed":
-                som_fit_windowed(self.pfc2, X, order)
-                fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
-            else:
-                self.pfc2.fit(X, order=order, method=e.som_method)
+            self.pfc2.fit(X, order=order, method=e.som_method)
+        if e.som_method == "windowed":  # the other methods leave no factors: the weights are saved in full
+            fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
         act, _ = self.pfc2_activity(X[:, :1024].expand(P, -1, -1), X[:, 1024:].expand(P, -1, -1))
         yes = torch.tensor([i == j for i, j in pairs])
         target = self.answer_code(yes)  # (4, 200)

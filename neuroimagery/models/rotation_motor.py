@@ -20,7 +20,7 @@ SS posture, its image); and C9, C10 and C2 learn after the SOM M1_1 has finished
 The competition inside SS (forward prediction + weaker proprioception, which also pre-activates
 the field) and inside PMC_2 is a dynamic field run to threshold; the SS field runs along the
 wrist-angle axis (100 units). The SOMs train by the batched windowed form of the online rule
-(``nn.som.fit_windowed_many``) unless ``som_method`` says otherwise. RT =
+(``SOM.fit(method='windowed')``) unless ``som_method`` says otherwise. RT =
 SS competition cycles over the rotation steps + PMC_2 cycles (1 cycle = 1 ms).
 """
 from __future__ import annotations
@@ -29,7 +29,8 @@ import torch
 from torch import nn
 
 from ..nn.hebbian_closed_form import hebbian_indexed_many, hebbian_shared
-from ..nn.som import fit_windowed_many, squared_norms, windowed_factors
+from ..nn.functional import squared_norms
+from ..nn.som_windowed import windowed_factors
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 from ..nn.functional import intra_op_threads
 from .factor_checkpoint import FactorCheckpoint
@@ -127,14 +128,13 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         ``e.som_method``.
 
         All three methods run the same online rule and return the same winners; they differ in
-        cost only. ``windowed`` trains the maps together (``nn.som.fit_windowed_many``; ``parts``
-        names the input segments whose distinct pieces it works with). The per-step work is
-        small, so it runs on ``e.som_threads`` intra-op threads.
+        cost only (``windowed`` works with the distinct pieces of the input segments ``parts``).
+        The per-step work is small, so it runs on ``e.som_threads`` intra-op threads.
         """
+        m = self.e.som_method
         with intra_op_threads(self.e.som_threads, cap=True):
-            if self.e.som_method == "windowed":
-                return fit_windowed_many(jobs)
-            return [som.fit(X, order=order, method=self.e.som_method) for som, X, order, _ in jobs]
+            return [som.fit(X, order=order, method=m, parts=parts if m == "windowed" else None)
+                    for som, X, order, parts in jobs]
 
     @torch.no_grad()
     def babble(self, steps: int) -> dict:
