@@ -73,6 +73,20 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
     return save(fig, path)
 
 
+def correct_bars(df: pd.DataFrame, path: str | Path, title: str, by: str = "test") -> Path:
+    """Mean share of ``correct`` trials (+- SD over participants), in %, one bar per ``by`` group."""
+    per = df.groupby([by, "participant"])["correct"].mean().unstack()
+    order = [k for k in per.index]
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    m, s = 100 * per.mean(axis=1), 100 * per.std(axis=1, ddof=1).fillna(0)
+    ax.bar(range(len(order)), m.values, yerr=s.values, capsize=4)
+    ax.set_xticks(range(len(order)), order)
+    ax.set_ylabel("correct responses (%)")
+    ax.set_ylim(0, 100)
+    ax.set_title(title)
+    return save(fig, path)
+
+
 def save(fig, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -21,7 +21,6 @@ from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import effect, holm, paired_by_participant, slope_by_participant, summarise_trials
 from ..nn import seeding
 from . import protocol_ch6 as pc
-from .exp4 import _bar
 
 TESTS = ("recog", "gen1", "gen2")
 THESIS = {"recog/none": 0.187, "gen1/none": 0.247, "gen2/none": 0.543}  # error rates, Fig. 6.5b
@@ -117,7 +116,7 @@ def ineffective_keys(cfg) -> dict[str, str]:
 def _model(cfg, ids):
     from ..models.rotation_generalising import RotationGeneralising
 
-    return RotationGeneralising(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0))
+    return RotationGeneralising(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0), ids)
 
 
 def train_model(cfg, ids, eye=None):
@@ -127,8 +126,8 @@ def train_model(cfg, ids, eye=None):
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
     n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
     X, Y, _ = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner, offsets=(0, 1, 2))
-    pc.train_delta_binary(model.c6, X, Y, e.eta_fm, e.fm_batch)
-    return pc.train_posture_maps_and_freeze(cfg, eye, model, (model.c2, model.c3), e.posture_angles, gens, ids)
+    model.fit_forward_model(X, Y, e.fm_batch, progress=pc.batches_bar("forward model"))
+    return pc.train_posture_maps(cfg, eye, model, e.posture_angles, gens)
 
 
 def train(cfg, run):
@@ -145,8 +144,7 @@ def load(cfg, checkpoint_dir):
 def run_tests(cfg, model, eye=None, record: int = 0):
     e = cfg.experiment
     eye = pc.make_eye(cfg) if eye is None else eye
-    P = model.c2.weight.shape[0]
-    ids = getattr(model, "participant_ids", list(range(cfg.participants)))[:P]
+    ids, P = model.participant_ids, model.participants
     if cfg.stimuli.kind == "folder":
         sets = {"custom": pc.stimulus_set(cfg, e.recog_set)}
     else:
@@ -184,7 +182,7 @@ def evaluate(cfg, run, trained) -> dict:
         pc.log_history(run.logger, hist, key)
     f = run.figures
     figures.rt_by_disparity(df, f / "fig6_5a_rt.png", groups=("test",), title="Fig. 6.5a RT (rotation steps)")
-    _bar(df.assign(correct=~df["correct"].astype(bool)), f / "fig6_5b_error.png", "Fig. 6.5b error rates")
+    figures.correct_bars(df.assign(correct=~df["correct"].astype(bool)), f / "fig6_5b_error.png", "Fig. 6.5b error rates")
     figures.rate_by_disparity(df, f / "fig6_5c_error.png", groups=("test",), title="Fig. 6.5c error rate by disparity")
     for key, hist in histories.items():
         if hist and hist[0]:

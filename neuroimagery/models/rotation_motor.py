@@ -28,7 +28,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ..nn.hebbian_closed_form import hebbian_indexed_many, hebbian_shared
+from ..nn.learning import IndexedRows
 from ..nn.functional import squared_norms
 from ..nn.som_windowed import windowed_factors
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
@@ -179,12 +179,10 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         seq = list(range(14)) * e.c1_epochs
         # what each trained weight is formed from, for compact_state (key: the state_dict entry)
         self._factors = fx = {}
-        self.c1.weight.copy_(hebbian_shared(self.c1.weight, img[seq], all7.expand(len(seq), -1), e.hebb_eta))
-        fx["c1.weight"] = {"kind": "hebbian_shared", "pre": img[seq], "post": all7.expand(len(seq), -1).contiguous(),
-                           "eta": e.hebb_eta}
+        self.train()
+        self.c1.learn(img[seq], all7.expand(len(seq), -1), sequence=True)
         own = self.pmc1_code(torch.tensor([a for _, a in items]), e.bias)
-        self.c6.weight.copy_(hebbian_shared(self.c6.weight, img[seq], own[seq], e.hebb_eta))
-        fx["c6.weight"] = {"kind": "hebbian_shared", "pre": img[seq], "post": own[seq], "eta": e.hebb_eta}
+        self.c6.learn(img[seq], own[seq], sequence=True)
         # babbling stream: the SOM M1_1 (C7, C8) first, over all som_iterations steps; then C9, C10 and
         # C2 on the first hebb_steps steps of the same stream, C9 and C10 from the trained M1_1's clusters
         # (the thesis trains them step by step alongside the SOM; Table 5.1 gives C2 84 cycles, not 1,960)
@@ -199,8 +197,6 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         pairs = [(i, j) for i in range(14) for j in range(14)]
         Y = torch.stack([torch.cat([img[i], img[j]]) for i, j in pairs])
         gens = participant_generators(self.seed, P, stream=9)
-        self.m11.train()
-        self.pfc2.train()
         self.fit_soms([(self.m11, X, pat[:, : e.som_iterations], (3100, 3100)),  # [SS, PMC_1]
                        (self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som_iterations,)), (1024, 1024))])  # [PP, PFC_1]
         if e.som_method == "windowed":  # the other methods leave no factors: their weights are saved in full
@@ -215,25 +211,22 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         ss_set = self.ss_code(torch.tensor([o for o, _ in items]), torch.tensor([a for _, a in items]))  # (14, 3100)
         # C9 and C10 see the same M1_1 sequence (participant p: m_act[p, pat[p, :Th]], Th x 4096)
         # of the finished SOM; C9: M1_1 cluster -> executed command, C10: M1_1 cluster -> next SS posture
-        hf = []  # factors of C9, C10, C2, C5 in that order
-        w9, w10 = hebbian_indexed_many(lambda p: m_act[p, pat[p, :Th]], [(self.c9.weight, b["act"][:, :Th] + 1, acts),
-                                                                         (self.c10.weight, nxt_idx, ss_set)], e.hebb_eta, hf)
-        self.c9.weight.copy_(w9)
-        self.c10.weight.copy_(w10)
+        m11_seq = IndexedRows(m_act, pat[:, :Th])
+        self.c9.learn(m11_seq, IndexedRows(acts, b["act"][:, :Th] + 1), sequence=True)
+        self.c10.learn(m11_seq, IndexedRows(ss_set, nxt_idx), sequence=True)
         # C2: next SS posture -> its image, on the same hebb_steps babbling steps (1,960 presentations of
         # the 14 posture/image pairs; Table 5.1 lists C2 with 14 patterns and 84 cycles, as C1 and C6)
-        (w2,) = hebbian_indexed_many(lambda p: ss_set[nxt_idx[p]], [(self.c2.weight, nxt_idx, img)], e.hebb_eta, hf)
-        self.c2.weight.copy_(w2)
+        self.c2.learn(IndexedRows(ss_set, nxt_idx), IndexedRows(img, nxt_idx), sequence=True)
         # C5: PFC_2's cluster to the answer clusters
         same = torch.tensor([items[i][0] == items[j][0] for i, j in pairs])
         order = torch.stack([torch.cat([torch.randperm(196, generator=g_) for _ in range(e.c5_epochs)]) for g_ in gens])
         p_act = self.som_bump(self.pfc2, Y.expand(P, -1, -1))
         ans = self.pmc2.flat(self.pmc2.encode(torch.tensor([[4.5, 4.5], [4.5, 14.5]])))
-        (w5,) = hebbian_indexed_many(lambda p: p_act[p, order[p]], [(self.c5.weight, (~same[order]).long(), ans)],
-                                     e.hebb_eta, hf)
-        self.c5.weight.copy_(w5)
-        for k, f in zip(("c9.weight", "c10.weight", "c2.weight", "c5.weight"), hf):
-            fx[k] = {"kind": "hebbian_indexed", **f}
+        self.c5.learn(IndexedRows(p_act, order), IndexedRows(ans, (~same[order]).long()), sequence=True)
+        for k in ("c1", "c6", "c9", "c10", "c2", "c5"):  # what each closed form formed the weights from
+            f = getattr(self, k).learnt_factors
+            if f is not None:
+                fx[f"{k}.weight"] = f
         self.eval()
         return {"m11_patterns": X, "pfc2_patterns": Y}
 
