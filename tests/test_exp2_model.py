@@ -165,7 +165,7 @@ def test_row_cache_and_distinct_rows_agree_with_the_direct_products():
     products have other shapes, which BLAS may block and sum in another order (with oneMKL on
     AVX-512, 8-row and larger products round differently), so they agree within the rounding
     bound of their 4096-term sums, with the same strongest output on every row."""
-    from neuroimagery.models.rotation_motor import RowCache, distinct_rows
+    from neuroimagery.nn.row_cache import RowCache, distinct_rows
 
     g = torch.Generator().manual_seed(0)
     P, n_keys, n_in, n_out = 3, 40, 4096, 300  # the sizes of C9
