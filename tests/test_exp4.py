@@ -43,7 +43,8 @@ def test_sparse_delta_equals_connection_learn():
     Y = torch.rand(2, 12, 6, generator=g)
     a = AllToAll(9, 6, participants=2, seed=3, rules=Delta(0.1))
     b = AllToAll(9, 6, participants=2, seed=3, rules=Delta(0.1))
-    pc.train_delta_binary(a, X, Y, 0.1, batch=4)
+    a.learn(X, None, sequence=True, batch=4, target=Y)  # the binary kernel (0/1 inputs, CPU)
+    assert a.learnt_factors is None
     for s in range(0, 12, 4):
         x = X[:, s:s + 4]
         b.learn(pre=x, post=b(x), target=Y[:, s:s + 4])

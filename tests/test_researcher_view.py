@@ -114,16 +114,18 @@ def test_som_training_curve_falls_and_reports_the_final_state(method):
     assert seen == [] and not monitor.active()
 
 
-def test_forward_model_training_curve_falls():
-    from neuroimagery.nn import AllToAll, monitor
+@pytest.mark.parametrize("method", ["delta_binary", "plain"])
+def test_forward_model_training_curve_falls(method):
+    from neuroimagery.nn import AllToAll, Delta, monitor
 
     g = torch.Generator().manual_seed(0)
     X = (torch.rand(1, 400, 30, generator=g) < 0.2).float()
     Y = X.roll(1, dims=-1)  # a learnable map: each unit copies its neighbour
-    conn = AllToAll(30, 30, participants=1, generators=[torch.Generator().manual_seed(1)], name="C1")
+    conn = AllToAll(30, 30, participants=1, generators=[torch.Generator().manual_seed(1)], rules=Delta(0.1),
+                    name="C1")
     seen = []
     with monitor.to(lambda tag, v, step: seen.append((tag, v, step))):
-        pc.train_delta_binary(conn, X, Y, eta=0.1, batch=4)
+        conn.learn(X, sequence=True, batch=4, method=method, target=Y)
     curve = [v for t, v, _ in seen if t == "train/C1/squared_error"]
     assert len(curve) == 100
     assert np.mean(curve[-10:]) < 0.2 * np.mean(curve[:10])

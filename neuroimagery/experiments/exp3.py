@@ -117,7 +117,7 @@ def ineffective_keys(cfg) -> dict[str, str]:
 def _model(cfg, ids):
     from ..models.rotation_generalising import RotationGeneralising
 
-    return RotationGeneralising(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0))
+    return RotationGeneralising(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0), ids)
 
 
 def train_model(cfg, ids, eye=None):
@@ -127,8 +127,8 @@ def train_model(cfg, ids, eye=None):
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
     n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
     X, Y, _ = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner, offsets=(0, 1, 2))
-    pc.train_delta_binary(model.c6, X, Y, e.eta_fm, e.fm_batch)
-    return pc.train_posture_maps_and_freeze(cfg, eye, model, (model.c2, model.c3), e.posture_angles, gens, ids)
+    model.fit_forward_model(X, Y, e.fm_batch, progress=pc.batches_bar("forward model"))
+    return pc.train_posture_maps(cfg, eye, model, e.posture_angles, gens)
 
 
 def train(cfg, run):
@@ -145,8 +145,7 @@ def load(cfg, checkpoint_dir):
 def run_tests(cfg, model, eye=None, record: int = 0):
     e = cfg.experiment
     eye = pc.make_eye(cfg) if eye is None else eye
-    P = model.c2.weight.shape[0]
-    ids = getattr(model, "participant_ids", list(range(cfg.participants)))[:P]
+    ids, P = model.participant_ids, model.participants
     if cfg.stimuli.kind == "folder":
         sets = {"custom": pc.stimulus_set(cfg, e.recog_set)}
     else:

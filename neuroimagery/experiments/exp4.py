@@ -156,7 +156,7 @@ def _ids(cfg) -> list[int]:
 def _model(cfg, ids):
     from ..models.rotation_embodied import RotationEmbodied
 
-    return RotationEmbodied(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0))
+    return RotationEmbodied(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0), ids)
 
 
 def train_model(cfg, ids, eye=None):
@@ -167,23 +167,8 @@ def train_model(cfg, ids, eye=None):
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
     n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
     X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner)
-    for m, conn in enumerate(model.fm):
-        Xm, Ym = _images_of_move(X, Y, moves, m)
-        pc.train_delta_binary(conn, Xm, Ym, e.eta_fm, e.fm_batch)
-    return pc.train_posture_maps_and_freeze(cfg, eye, model, (model.c16, model.c17), e.ppc_angles, gens, ids)
-
-
-def _images_of_move(X, Y, moves, m):
-    """The training pairs whose randomly drawn movement is ``m``, in their order, per participant
-    (padded at the end with empty images, which the delta rule leaves without effect), so each
-    forward model sees mini-batches of ``fm_batch`` of its own images."""
-    P = X.shape[0]
-    rows = [(moves[k] == m).nonzero().squeeze(-1) for k in range(P)]
-    L = max(int(r.numel()) for r in rows)
-    Xm, Ym = torch.zeros(P, L, X.shape[-1]), torch.zeros(P, L, Y.shape[-1])
-    for k, r in enumerate(rows):
-        Xm[k, :r.numel()], Ym[k, :r.numel()] = X[k, r], Y[k, r]
-    return Xm, Ym
+    model.fit_forward_models(X, Y, moves, e.fm_batch, progress=pc.batches_bar("forward model"))
+    return pc.train_posture_maps(cfg, eye, model, e.ppc_angles, gens)
 
 
 def train(cfg, run):
@@ -215,8 +200,7 @@ def run_tests(cfg, model, eye=None, record: int = 0):
     """All tests and conditions -> (trials DataFrame, sample histories, banks)."""
     e = cfg.experiment
     eye = pc.make_eye(cfg) if eye is None else eye
-    P = model.c16.weight.shape[0]
-    ids = getattr(model, "participant_ids", _ids(cfg))[:P]
+    ids, P = model.participant_ids, model.participants
     frames, histories, banks = [], {}, {}
     k = 0
     for test, sset in _test_sets(cfg).items():
@@ -348,8 +332,8 @@ def evaluate(cfg, run, trained) -> dict:
     iou = {}
     for test, bank in banks.items():
         iou[test] = pc.generalisation_iou(lambda x: trained.forward_step(
-            x.expand(trained.c16.weight.shape[0], -1, -1) if x.shape[0] == 1 else x,
-            torch.zeros(trained.c16.weight.shape[0], x.shape[1], dtype=torch.long)), bank, e.step_deg, 3, e.map_size)
+            x.expand(trained.participants, -1, -1) if x.shape[0] == 1 else x,
+            torch.zeros(trained.participants, x.shape[1], dtype=torch.long)), bank, e.step_deg, 3, e.map_size)
     summary["forward_model_iou"] = iou
     for key, hist in histories.items():
         pc.log_history(run.logger, hist["trials"], key, hist["names"])

@@ -35,9 +35,10 @@ MOVES = ("n1", "n2", "n3")
 class RotationGeneralising(nn.Module):
     """The Experiment 3 network for ``P`` participants (``generators``: one per participant)."""
 
-    def __init__(self, p, generators: Sequence[torch.Generator]) -> None:
+    def __init__(self, p, generators: Sequence[torch.Generator], participant_ids: Sequence[int] | None = None) -> None:
         super().__init__()
         self.p = p
+        self.participant_ids = list(range(len(generators)) if participant_ids is None else participant_ids)
         n = p.map_size * p.map_size
         self.n, self.size = n, p.map_size
         self.step_angles = (-float(p.step_deg), 0.0, float(p.step_deg))  # n1 cw, n2 none, n3 ccw
@@ -47,6 +48,33 @@ class RotationGeneralising(nn.Module):
         # M1_1 -> M1_2 hard-wired masks: lower-left -> n1, diagonal -> n2, upper-right -> n3
         self.register_buffer("m1_masks", triangle_weights(nu))
         self._table: torch.Tensor | None = None
+
+    @property
+    def participants(self) -> int:
+        return self.c2.weight.shape[0]
+
+    def fit_forward_model(self, X: torch.Tensor, Y: torch.Tensor, batch: int, progress=None) -> None:
+        """C6 by the delta rule (eq. 6.4) in mini-batches of ``batch`` on the pairs ``X`` ``(P, N, 3n)``
+        (the image in the PP_1 block of its movement) -> ``Y`` ``(P, N, n)``."""
+        self.train()
+        self.c6.learn(X, None, sequence=True, batch=batch, target=Y, progress=progress)
+
+    def fit_posture_maps(self, maps: torch.Tensor, labels: torch.Tensor, generators, progress=None) -> None:
+        """C2 and C3 (supervised Kohonen, eq. 6.7-6.8) on edge ``maps`` ``(N, n)`` labelled with
+        their posture units; ``progress`` optionally wraps the list of maps."""
+        self.train()
+        soms = [self.c2, self.c3]
+        for som in (progress(soms) if progress is not None else soms):
+            som.fit(maps, labels=labels, generators=generators, method="factored")
+
+    def train(self, mode: bool = True):
+        """``eval()`` caches the transposed C6 weights of the binary fast path; ``train()`` drops it."""
+        super().train(mode)
+        if mode:
+            self._table = None
+        else:
+            self.freeze()
+        return self
 
     def freeze(self) -> None:
         self._table = self.c6.weight.transpose(1, 2).contiguous()
