@@ -38,7 +38,7 @@ def som_equivalence(steps: int) -> None:
     from neuroimagery.experiments.exp2 import Exp2Config
     from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
     from neuroimagery.nn import SOM, participant_generators
-    from neuroimagery.nn.som import fit_windowed
+    from neuroimagery.nn.som_windowed import fit_windowed
 
     e = Exp2Config(som_iterations=steps)
     m = MotorRotationModel(e, 2, 0)

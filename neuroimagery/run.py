@@ -242,7 +242,7 @@ def train(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
     with intra_op_threads(conf.threads or auto_threads()):  # restored afterwards
         try:
             t0 = time.perf_counter()
-            with progress.phase(f"{conf.experiment.name} train", conf.progress):
+            with progress.phase(f"{conf.experiment.name} train", conf.progress), run.logger.training_curves():
                 module.train(conf, run)
             run.timings["train"] = round(time.perf_counter() - t0, 3)
             # experiments whose simulated subjects are not cfg.participants say how many they trained
@@ -271,7 +271,8 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
                     run.timings.update(read_json(tj, "training record").get("runtime_s", {}))
             else:
                 t0 = time.perf_counter()
-                with progress.phase(f"{conf.experiment.name} train", conf.progress):
+                # the blocks' training curves go to tb/ (train/...)
+                with progress.phase(f"{conf.experiment.name} train", conf.progress), run.logger.training_curves():
                     trained = module.train(conf, run)
                 run.timings["train"] = round(time.perf_counter() - t0, 3)
             t0 = time.perf_counter()
@@ -289,6 +290,9 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
                     summary["custom_vs_chance"] = chance
             summary["runtime_s"] = dict(run.timings)
             run.write_json("summary.json", summary)
+            from .analysis.summary import headline
+
+            run.logger.hparams(run.manifest["settings"] if run.manifest else mf.flatten(conf), headline(summary))
             if hasattr(module, "report"):
                 module.report(conf, run, summary)
             return summary
