@@ -160,3 +160,22 @@ def figure_caption(stem: str, number: int, errorbars: str = "") -> str:
         return f"Figure {number}. {stem.replace('_', ' ')}{'. ' + errorbars if errorbars else ''}"
     eb = f" {errorbars}." if errorbars else ""
     return f"Figure {number}. ({f.label}) {f.shows[0].upper() + f.shows[1:]}.{eb} Thesis: {f.states} (line {f.line})."
+
+
+# Experiment 5
+# Section 7.1.3: HP1 (Fig. 7.9, line 1690: tool behind about 90 % at every age, 100 % at 14 months;
+# line 1692: tool far about 0, 10, 40, 45, 60 % for 2..6 skills) and HP2 (Fig. 7.10, line 1699: no
+# training about 60 % behind and 20 % far). Keyed by hypothesis, situation and level (skills or trials).
+EXP5 = {
+    "hp1": {"behind": {2: 1.0, 3: 0.9, 4: 0.9, 5: 0.9, 6: 0.9}, "far": {2: 0.0, 3: 0.1, 4: 0.4, 5: 0.45, 6: 0.6}},
+    "hp2": {"behind": {0: 0.6}, "far": {0: 0.2}},
+}
+EXP5_LINES = {"hp1/behind": 1690, "hp1/far": 1692, "hp2": 1699, "table_7_1": 1439}
+# Table 7.1 (line 1439): which interesting events (retrieve, touch, south, north, west, east) each
+# initial posture can produce, and from which postures each skill (P, T, S, N, W, E) can be learnt
+EXP5_TABLE_7_1 = {
+    "posture-1": {"events": [1, 0, 1, 0, 1, 0], "skills": [1, 0, 1, 0, 1, 0]},
+    "posture-2": {"events": [0, 1, 1, 0, 1, 0], "skills": [1, 1, 1, 0, 1, 0]},
+    "posture-3": {"events": [0, 1, 1, 1, 1, 1], "skills": [0, 1, 1, 1, 1, 1]},
+    "posture-4": {"events": [0, 1, 1, 1, 1, 1], "skills": [0, 1, 1, 1, 1, 1]},
+}

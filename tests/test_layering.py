@@ -50,8 +50,7 @@ def test_models_know_no_experiment():
     assert _violations("models") == []
 
 
-# Experiment 5's modules are checked once their own split lands
-PRIVATE_IMPORT_EXEMPT = {"experiments/exp5_pool.py"}
+PRIVATE_IMPORT_EXEMPT: set[str] = set()
 
 
 def test_no_module_imports_a_private_name_of_another():

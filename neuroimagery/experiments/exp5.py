@@ -41,8 +41,8 @@ from ..nn.seeding import participant_seed
 from ..robot.config import WorldConfig
 from . import exp5_tasks as task_files
 from .exp5_config import SITUATIONS, THESIS, THESIS_TABLE_7_1, Exp5Config  # noqa: F401 (public names)
-from .exp5_summary import (ROUTES, STRATEGIES, group_rates, success_route, success_routes, summarise,  # noqa: F401
-                           table_7_1, thesis_claims)
+from .exp5_summary import (ROUTES, STRATEGIES, group_rates, library_columns, success_route,  # noqa: F401
+                           success_routes, summarise, table_7_1, thesis_claims)
 
 
 CONFIG = Exp5Config
@@ -96,7 +96,7 @@ _LIBRARY_KEYS = _ENV_KEYS + ("n_dmps", "pibb_samples", "pibb_temperature", "pibb
                              "explore_batch", "explore_max_rollouts", "explore_patience", "spare_dmps", "c2_eta",
                              "share_library_across_situations")
 # settings that change no result (how the work is spread, where libraries come from)
-_ENGINE_KEYS = ("n_jobs", "reuse_libraries")
+ENGINE_KEYS = ("n_jobs", "reuse_libraries")
 _WORKER_ENV: dict[tuple, object] = {}  # one world per worker process, reused by its tasks
 
 
@@ -312,7 +312,7 @@ def _stored(path: Path) -> dict | None:
 
 def _same(stored: dict, e: Exp5Config, keys=None) -> bool:
     now = asdict(e)
-    keys = [k for k in now if k not in _ENGINE_KEYS] if keys is None else keys
+    keys = [k for k in now if k not in ENGINE_KEYS] if keys is None else keys
     return all(stored.get(k) == now[k] for k in keys)
 
 
@@ -394,6 +394,7 @@ def evaluate(cfg, run, trained) -> dict:
     results = trained["results"]
     df = pd.DataFrame([row for d in results for row in d["rows"]])
     df.insert(0, "individual", df["library"] + "_" + df["situation"])
+    df = library_columns(df, results)
     run.write_csv("individuals.csv", df)
     rates = summarise(df, e)
     grp_rows, checks, routes = rates["groups"], rates["checks"], rates["routes"]
@@ -411,6 +412,7 @@ def evaluate(cfg, run, trained) -> dict:
         },
         "checks": checks,
         "routes": routes,
+        "mechanism": rates["mechanism"],
         "repetitions": repetitions(cfg),
         # one individual = one robot of one group (repetition x situation), tested as both strategies
         "individuals": int(len(df) // len(STRATEGIES)),

@@ -6,19 +6,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..models.tool_use import CHOICES, EVENTS
+from ..thesis import EXP5, EXP5_TABLE_7_1
 
 SITUATIONS = {"behind": 1, "far": 4}  # thesis: posture 1 = tool behind toy, posture 4 = tool far from toy
-THESIS = {  # read off Fig. 7.9-7.10 and the text of section 7.1.3 (approximate)
-    "hp1": {"behind": {2: 1.0, 3: 0.9, 4: 0.9, 5: 0.9, 6: 0.9}, "far": {2: 0.0, 3: 0.1, 4: 0.4, 5: 0.45, 6: 0.6}},
-    "hp2": {"behind": {0: 0.6}, "far": {0: 0.2}},
-}
-THESIS_TABLE_7_1 = {
-    "posture-1": {"events": [1, 0, 1, 0, 1, 0], "skills": [1, 0, 1, 0, 1, 0]},
-    "posture-2": {"events": [0, 1, 1, 0, 1, 0], "skills": [1, 1, 1, 0, 1, 0]},
-    "posture-3": {"events": [0, 1, 1, 1, 1, 1], "skills": [0, 1, 1, 1, 1, 1]},
-    "posture-4": {"events": [0, 1, 1, 1, 1, 1], "skills": [0, 1, 1, 1, 1, 1]},
-}
-
+THESIS = EXP5  # the thesis's HP1 / HP2 numbers (neuroimagery.thesis, "Experiment 5")
+THESIS_TABLE_7_1 = EXP5_TABLE_7_1
 
 @dataclass
 class Exp5Config:

@@ -245,6 +245,20 @@ def write_report(cfg, run, summary: dict) -> None:
                   + (["robots with a 1-2 move retrieval"] if has_avail else [])
                   + (["robots with an imagined 1-2 move retrieval (true)"] if has_imag else [])
                   + (["did not move, reactive / planning"] if has_still else []), rows)
+    mech = summary.get("mechanism") or {}
+    if mech:
+        rep.h("The mechanism of the tool-far test")
+        rep.p("Table 7.1 forbids a retrieving pull from posture 4; Fig. 7.8 solves the tool-far situation by an "
+              "interaction skill that brings the tool behind the toy, then a pull. Counts over the tool-far robots "
+              "(summary.json `mechanism`).")
+        labels = {"far_single_pull": ("a learnt pull alone retrieves from posture 4", "retrieve", "robots"),
+                  "far_interaction_from_4": ("an interaction skill learnt elsewhere works from posture 4", "carry_over",
+                                             "robots"),
+                  "oldest_far_moves_then_pull": (f"tool-far successes at {e.hp1_ages[-1]} months that move first, "
+                                                 "then pull", "moves_then_pull", "successes")}
+        rep.table(["check", "count", "share"],
+                  [[labels[k][0], f"{v[labels[k][1]]} of {v[labels[k][2]]}", fmt(v["share"], pct=True)]
+                   for k, v in mech.items() if k in labels])
     rep.h("Table 7.1: what the robots discovered")
     rows = []
     for p in range(1, N_POSTURES + 1):
@@ -252,11 +266,16 @@ def write_report(cfg, run, summary: dict) -> None:
         m, t = summary["table_7_1"][k], THESIS_TABLE_7_1[k]
         rows.append([k, " ".join(map(str, m["events"])), " ".join(map(str, t["events"])),
                      " ".join(map(str, m["skills"])), " ".join(map(str, t["skills"])),
-                     " ".join(f"{v:.2f}" for v in m["skills_share"])])
+                     " ".join(f"{v:.2f}" for v in m["events_share"]),
+                     " ".join(f"{v:.2f} [{lo:.2f}, {hi:.2f}]" for v, (lo, hi) in
+                              zip(m["skills_share"], m.get("skills_share_ci95", [(0, 0)] * len(m["skills_share"]))))])
     rep.p(f"Events in order {', '.join(EVENTS)}; skills {', '.join(SKILL_LETTERS)}. 1 = happened / worked for at "
-          "least one robot; the share column gives, per skill, the fraction of robots whose learnt skill works from "
-          "that posture.")
-    rep.table(["posture", "events (run)", "events (thesis)", "skills (run)", "skills (thesis)", "skill share"], rows)
+          "least one robot; the event share is the fraction of robots whose exploration produced the event from "
+          "that posture; the skill share, per skill, the fraction of robots whose learnt skill works from that "
+          "posture, with its 95 % Wilson interval. The rates of random movements (Table 7.1's events measured "
+          "apart from learning) come from `python -m neuroimagery.robot.babble`.")
+    rep.table(["posture", "events (run)", "events (thesis)", "skills (run)", "skills (thesis)", "event share",
+               "skill share [95 %]"], rows)
     for key, cap in (("situations", "The eye's view of the four initial situations and their PC maps"),
                      ("filmstrip", "One retrieval by a planning child: imagined outcome (C3) above the real scene")):
         if key in summary.get("figures", {}):
@@ -265,15 +284,14 @@ def write_report(cfg, run, summary: dict) -> None:
     t71 = summary["table_7_1"]
     p_share = [t71[f"posture-{p}"]["skills_share"][0] for p in range(1, N_POSTURES + 1)]
     p_note = ("The thesis's HP1 pattern needs the pulling skill P to work only from postures 1-2 (Table 7.1). Here the "
-              "learnt P works from postures 1-4 for " + ", ".join(f"{100 * v:.0f} %" for v in p_share) + " of the robots "
-              "(PI^BB trains one movement from all four postures)")
+              "learnt P works from postures 1-4 for " + ", ".join(f"{100 * v:.0f} %" for v in p_share) + " of the robots")
     n_young, n_single = c.get("hp1_far_youngest_successes"), c.get("hp1_far_youngest_single_pull")
     p_note += "."
     if n_young:
         p_note += (f" Of the {n_young} tool-far successes of the youngest HP1 group (both strategies), {n_single} "
-                   "were one pull from posture 4 (its path swings round the toy) and "
+                   "were one pull from posture 4 and "
                    f"{n_young - n_single} other moves or sequences; the thesis expects almost none (\"sometimes, "
-                   "performing pulling after touching can succeed\"). docs/exp5.md traces both routes.")
+                   "performing pulling after touching can succeed\").")
     old = [r for r in summary.get("routes", []) if r["hypothesis"] == "hp1" and r["level"] == e.hp1_levels[-1]]
     bullets = [p_note]
     if old and sum(r["successes"] for r in old):

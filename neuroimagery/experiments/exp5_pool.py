@@ -28,11 +28,11 @@ from omegaconf import OmegaConf
 from ..analysis.report import Report
 from ..analysis.tables import read_whole_csv
 from ..errors import UserInputError
-from .exp5 import _ENGINE_KEYS, STRATEGIES, Exp5Config, group_rates, summarise
+from .exp5 import ENGINE_KEYS, STRATEGIES, Exp5Config, group_rates, summarise
 from .exp5_figures import group_table
 
 # settings that may differ between pooled runs: how the work was spread, and how many robots
-_FREE_KEYS = _ENGINE_KEYS + ("filmstrip_repetition", "repetitions", "quick_repetitions")
+_FREE_KEYS = ENGINE_KEYS + ("filmstrip_repetition", "repetitions", "quick_repetitions")
 
 
 def read_config(run_dir: str | Path) -> tuple[Exp5Config, int]:

@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 
 from ..models.tool_use import EVENTS, N_POSTURES, Library
+from ..robot.babble import wilson
 
 if TYPE_CHECKING:
     from .exp5_config import Exp5Config
@@ -33,7 +34,53 @@ def table_7_1(results: list[dict]) -> dict:
         out[f"posture-{p + 1}"] = {
             "events": [int(v > 0) for v in seen[p]], "skills": [int(v > 0) for v in works[p]],
             "events_share": [round(v / n, 3) for v in seen[p]],
-            "skills_share": [round(w / h, 3) if h else 0.0 for w, h in zip(works[p], have)]}
+            "skills_share": [round(w / h, 3) if h else 0.0 for w, h in zip(works[p], have)],
+            # 95 % Wilson intervals: over the libraries (events), over the skills of each event (skills)
+            "events_share_ci95": [[round(x, 3) for x in wilson(int(v), n)] for v in seen[p]],
+            "skills_share_ci95": [[round(x, 3) for x in wilson(int(w), int(h))] for w, h in zip(works[p], have)]}
+    return out
+
+
+def library_columns(df: pd.DataFrame, results: list[dict]) -> pd.DataFrame:
+    """individuals.csv column ``interaction_from_4``, read from each robot's skill library: 1 if one
+    of its interaction skills (touch, south, north, west, east) learnt from another posture also
+    achieves its event from posture 4 (its last competence check), 0 if none does, -1 if it has none."""
+    libs = {d["task"]["key"]: {s.name: s for s in Library.from_state(d["library"]).skills} for d in results}
+
+    def carry(row) -> int:
+        skills = libs.get(row["library"], {})
+        other = [skills[n] for n in str(row["skills"]).split("+") if n in skills
+                 and skills[n].event != "retrieve" and skills[n].found_from != N_POSTURES]
+        return int(any(s.succeeds_from[N_POSTURES - 1] for s in other)) if other else -1
+
+    df = df.copy()
+    df["interaction_from_4"] = [carry(r) for _, r in df.iterrows()] if len(df) else []
+    return df
+
+
+def mechanism(df: pd.DataFrame, e: "Exp5Config") -> dict:
+    """How the tool-far tests can be and were solved (summary.json ``mechanism``).
+
+    ``far_single_pull``: of the tool-far robots with a learnt pull, the share whose pull alone
+    brings the toy in from posture 4 (Table 7.1 forbids it). ``far_interaction_from_4``: of the
+    tool-far robots with an interaction skill learnt from another posture, the share with one that
+    achieves its event from posture 4 too (skills carry over). ``oldest_far_moves_then_pull``: of
+    the tool-far successes at the oldest HP1 age, the share that moved first and then pulled
+    (Fig. 7.8's route). Each with its counts; a check whose column is absent is left out.
+    """
+    out: dict = {}
+    far = df[(df.situation == "far") & (df.strategy == STRATEGIES[0])]
+    for key, col, name in (("far_single_pull", "pull_alone", "retrieve"),
+                           ("far_interaction_from_4", "interaction_from_4", "carry_over")):
+        if col in far.columns:
+            has = far[far[col] >= 0]
+            out[key] = {"robots": int(len(has)), name: int(has[col].sum()),
+                        "share": round(float(has[col].mean()), 4) if len(has) else None}
+    routes = [r for r in success_routes(df) if r["hypothesis"] == "hp1" and r["level"] == max(e.hp1_levels)]
+    wins = sum(r["successes"] for r in routes)
+    mtp = sum(r["moves_then_pull"] for r in routes)
+    out["oldest_far_moves_then_pull"] = dict(successes=int(wins), moves_then_pull=int(mtp),
+                                             share=round(mtp / wins, 4) if wins else None)
     return out
 
 
@@ -109,6 +156,19 @@ def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
     if diff is not None:
         claim("reactive and planning children alike (largest difference <= 25 points)", f"{100 * diff:.0f} points",
               diff <= 0.25 + tol)
+    # the mechanism (Table 7.1, Fig. 7.8): no retrieving pull from posture 4, skills that carry over
+    # to it, and the tool-far successes of the oldest robots made by moving first, then pulling
+    m = summary.get("mechanism", {})
+    sp, ca, mp = m.get("far_single_pull"), m.get("far_interaction_from_4"), m.get("oldest_far_moves_then_pull")
+    if sp and sp["share"] is not None:
+        claim("from posture 4 a learnt pull alone retrieves for under 5 % of the robots",
+              f"{sp['retrieve']} of {sp['robots']}", sp["share"] < 0.05)
+    if ca and ca["share"] is not None:
+        claim("interaction skills learnt elsewhere work from posture 4 for more than half of the robots",
+              f"{ca['carry_over']} of {ca['robots']}", ca["share"] > 0.5)
+    if mp and mp["share"] is not None:
+        claim(f"at {e.hp1_ages[-1]} months at least half of the tool-far successes move first, then pull",
+              f"{mp['moves_then_pull']} of {mp['successes']}", mp["share"] >= 0.5 - tol)
     return out
 
 
@@ -180,6 +240,6 @@ def summarise(df: pd.DataFrame, e: Exp5Config) -> dict:
     young = [r for r in routes if r["hypothesis"] == "hp1" and r["level"] == e.hp1_levels[0] and r["situation"] == "far"]
     checks["hp1_far_youngest_successes"] = int(sum(r["successes"] for r in young))
     checks["hp1_far_youngest_single_pull"] = int(sum(r["pull"] for r in young))
-    out = {"groups": grp_rows, "checks": checks, "routes": routes}
+    out = {"groups": grp_rows, "checks": checks, "routes": routes, "mechanism": mechanism(df, e)}
     out["claims"] = thesis_claims(out, e)
     return out

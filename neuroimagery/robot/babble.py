@@ -27,20 +27,11 @@ import torch
 from neuroimagery.errors import UserInputError
 from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.world import EVENTS, ToolWorld
+from neuroimagery.thesis import EXP5_TABLE_7_1
 
-# Table 7.1 of the thesis (line 1439): events and skills (retrieve/P, touch/T, south, north, west, east).
-THESIS_EVENTS = {
-    "posture-1": [1, 0, 1, 0, 1, 0],
-    "posture-2": [0, 1, 1, 0, 1, 0],
-    "posture-3": [0, 1, 1, 1, 1, 1],
-    "posture-4": [0, 1, 1, 1, 1, 1],
-}
-THESIS_SKILLS = {
-    "posture-1": [1, 0, 1, 0, 1, 0],
-    "posture-2": [1, 1, 1, 0, 1, 0],
-    "posture-3": [0, 1, 1, 1, 1, 1],
-    "posture-4": [0, 1, 1, 1, 1, 1],
-}
+# Table 7.1 of the thesis (line 1439), events and skills, from neuroimagery.thesis
+THESIS_EVENTS = {k: v["events"] for k, v in EXP5_TABLE_7_1.items()}
+THESIS_SKILLS = {k: v["skills"] for k, v in EXP5_TABLE_7_1.items()}
 # "possible" = rate above 1 %: an event that rare is still met with probability 0.63 by a robot's
 # exploration of about 100 movements from a posture (400 over four postures); docs/robot.md
 POSSIBLE_RATE = 0.01

@@ -70,6 +70,11 @@ def icub_urdf_text(model: str = ICUB_MODEL, keep_geometry: bool = True) -> str:
     return text
 
 
+def world_T_root(root_height: float) -> torch.Tensor:
+    """World pose of the URDF root frame (a half turn about z, lifted by ``root_height``)."""
+    return _world_T_root(root_height)
+
+
 def _world_T_root(root_height: float) -> torch.Tensor:
     T = torch.eye(4)
     T[0, 0] = -1.0

@@ -8,7 +8,6 @@ postures and the scene criteria they meet or fail (``robot.scene_check``).
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import torch
@@ -20,14 +19,14 @@ def fit_posture(cfg: WorldConfig, target_xy, q_ref, clearance: float = 0.005, ma
     from scipy.optimize import least_squares
 
     from .kinematics import ArmKinematics
-    from .scene_check import _plate_points
+    from .scene_check import plate_points
 
     kin = ArmKinematics(root_height=cfg.root_height, grasp=torch.tensor(cfg.grasp, dtype=torch.float32),
                         rake_head_offset=tuple(cfg.rake_head_offset))
     lim = kin.joint_limits.double().numpy()
     lo = lim[:, 0] + margin * (lim[:, 1] - lim[:, 0])
     hi = lim[:, 1] - margin * (lim[:, 1] - lim[:, 0])
-    plate = _plate_points(cfg)
+    plate = plate_points(cfg)
     centre = np.array([*cfg.rake_head_offset, 1.0])
     R_ref = kin.rake_pose_np(np.asarray(q_ref, dtype=np.float64)[None])[0][:3, :3]
 

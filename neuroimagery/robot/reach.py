@@ -17,7 +17,7 @@ import argparse
 import numpy as np
 import torch
 
-from .kinematics import ICUB_MODEL, _world_T_root, icub_urdf_text
+from .kinematics import ICUB_MODEL, icub_urdf_text, world_T_root
 
 LEFT_CHAIN = ("torso_pitch", "torso_roll", "torso_yaw", "l_shoulder_pitch", "l_shoulder_roll", "l_shoulder_yaw",
               "l_elbow", "l_wrist_prosup", "l_wrist_pitch", "l_wrist_yaw")
@@ -37,7 +37,7 @@ def left_palm_chain(dtype=torch.float64):
 
 def palm_positions(chain, q: torch.Tensor, root_height: float) -> torch.Tensor:
     """World positions (N, 3) of the left palm for joint vectors ``q`` (N, J)."""
-    T = _world_T_root(root_height).to(q.dtype) @ chain.forward_kinematics(q).get_matrix()
+    T = world_T_root(root_height).to(q.dtype) @ chain.forward_kinematics(q).get_matrix()
     return T[:, :3, 3]
 
 

@@ -13,13 +13,12 @@ import math
 import numpy as np
 
 from .config import WorldConfig
-from .reach import LEFT_CHAIN  # noqa: F401 (the reach side of the criteria lives in robot.reach)
 
 PLATE_PITCH = -0.4363323  # the plate's pitch about the rake's y axis (urdf/rake.urdf)
 HANDLE_RADIUS = 0.008
 
 
-def _plate_points(cfg: WorldConfig) -> np.ndarray:
+def plate_points(cfg: WorldConfig) -> np.ndarray:
     hx, hy, hz = cfg.rake_head_offset
     c, s = math.cos(PLATE_PITCH), math.sin(PLATE_PITCH)
     PLATE = cfg.rake_plate
@@ -47,7 +46,7 @@ def scene_geometry(cfg: WorldConfig | None = None, frontier=None) -> list[dict]:
     tx, ty = cfg.toy_xy
     h = cfg.toy_size / 2
     top = cfg.table_top + cfg.toy_size
-    plate = _plate_points(cfg)
+    plate = plate_points(cfg)
     handle = np.array([(x, 0.0, 0.0, 1.0) for x in np.linspace(0.0, cfg.rake_length, 161)])
     lim = kin.joint_limits.double().numpy()
     out = []
