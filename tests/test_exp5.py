@@ -710,3 +710,20 @@ def test_a_scene_between_moves_keeps_the_toy_turn_when_asked(toy_turn):
         assert after.toy_yaw is None
     with pytest.raises(ValueError, match="toy_turn"):
         ToolWorldEnvironment(toy_turn="spin")
+
+
+def test_each_alternative_config_changes_one_choice_of_the_default():
+    """conf/experiment/exp5/*.yaml: every studied alternative composes, validates, and differs from
+    the default Experiment 5 in the one key it names."""
+    from dataclasses import asdict
+    from pathlib import Path
+
+    from neuroimagery.config import validate
+
+    base = asdict(validate(compose()).experiment)
+    files = sorted((Path(__file__).resolve().parents[1] / "conf" / "experiment" / "exp5").glob("*.yaml"))
+    assert len(files) >= 8
+    for f in files:
+        alt = asdict(validate(make_cfg(f"experiment=exp5/{f.stem}")).experiment)
+        changed = [k for k in base if alt[k] != base[k]]
+        assert len(changed) == 1, (f.name, changed)
