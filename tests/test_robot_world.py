@@ -269,3 +269,23 @@ def test_colour_masks_apply_the_thresholds_exactly():
     assert toy.dtype == rake.dtype == torch.float32
     assert toy.tolist() == [[1, 0, 0, 1, 0], [0, 0, 0, 0, 0]]
     assert rake.tolist() == [[0, 0, 0, 0, 0], [1, 0, 0, 1, 0]]
+
+
+def test_babble_writes_rates_intervals_and_the_agreement_curve(tmp_path):
+    """``python -m neuroimagery.robot.babble``: table_7_1.json keeps ``events`` and ``rates`` and adds
+    ``rates_ci95`` and the agreement at several thresholds; a bad count is one error line."""
+    import json
+
+    from neuroimagery.robot import babble
+
+    assert babble.main(["--rollouts", "25", "--seeds", "1", "--out", str(tmp_path)]) == 0
+    t = json.loads((tmp_path / "table_7_1.json").read_text())
+    for k in ("posture-1", "posture-2", "posture-3", "posture-4"):
+        row = t[k]
+        assert row["rollouts"] == 25 and len(row["events"]) == len(row["rates"]) == len(row["rates_ci95"]) == 6
+        assert all(lo <= r <= hi for r, (lo, hi) in zip(row["rates"], row["rates_ci95"]))
+        assert row["events"] == [int(r > babble.POSSIBLE_RATE) for r in row["rates"]]
+    assert set(t["agreement"]) == {str(x) for x in babble.CURVE_THRESHOLDS}
+    assert t["posture-1"]["rates"][EVENTS.index("south")] > 0  # random pulls from behind the toy move it south
+    assert babble.main(["--rollouts", "0", "--out", str(tmp_path)]) == 2
+    assert babble.wilson(0, 100)[0] == 0.0 and 0.0 < babble.wilson(0, 100)[1] < 0.05

@@ -175,6 +175,12 @@ def report(summary: dict, e: Exp5Config) -> Report:
     rep.p(f"{sum(c['holds'] for c in claims)} of {len(claims)} hold on the pool ({n} robots per group or more). "
           "Per run: " + "; ".join(f"seed {r['seed']}: {r['claims_holding']} of {r['claims']}" for r in runs) + ".")
     rep.table(["claim", "pooled", "holds"], [[c["claim"], c["value"], "yes" if c["holds"] else "**no**"] for c in claims])
+    mech = summary.get("mechanism") or {}
+    if mech:
+        rep.h("The mechanism of the tool-far test, pooled")
+        rep.table(["check", "count", "share"],
+                  [[k, ", ".join(f"{n} {v}" for n, v in m.items() if n != "share"),
+                    "n/a" if m["share"] is None else f"{100 * m['share']:.0f} %"] for k, m in mech.items()])
     rep.h("Runs")
     rep.bullets([f"`{r['run']}`: seed {r['seed']}, {r['individuals']} robots" for r in runs])
     return rep
