@@ -567,8 +567,6 @@ def test_batched_c1_and_c3_updates_equal_repeated_single_steps():
 def test_brain_learns_through_its_connections_as_the_equations_say():
     """C1/C2 (eq. 4.2, gated outstar) and C4 (eq. 7.1) learn through ``Connection.learn``, with the
     numbers of the equations written out step by step; C3's read-out equals the SOM block's."""
-    from types import SimpleNamespace
-
     from neuroimagery.nn.connections import Connection
 
     g = torch.Generator().manual_seed(1)

@@ -1,6 +1,4 @@
 """The rake/toy/table world: events from physics, FK filter, errors, camera."""
-import dataclasses
-
 import numpy as np
 import pytest
 import torch
