@@ -17,20 +17,9 @@ Rake drive (``WorldConfig.rake_drive``):
         pose and every control step is simulated (the slower reference).
 pybullet resolves the contacts; the toy moves only when pushed.
 
-Compass convention (seen from above, robot at the south edge looking north):
-    south = toward the robot (-x), north = away from it (+x),
-    west  = the robot's left (+y),  east  = the robot's right (-y).
-
-Events (``EVENTS`` order, thesis Fig. 7.3):
-    retrieve  the toy's centre enters the free left hand's reachable area (``WorldConfig.in_reach``)
-    touch     a rake-toy contact on the toy's top face (contact point within
-              ``touch_tolerance`` of the top, normal with ``|n_z| >= touch_normal_z``)
-    south, north, west, east
-              the toy's centre has moved more than ``move_threshold`` from where the rollout
-              started, in a direction within 45 degrees of that one (``events.toy_events``).
-Each event, once fired, stays fired for the rest of the rollout.  A rollout stops at the first
-control step where the watched event has fired (the thesis stops the arm as soon as the event
-of interest happens).
+Compass and events: :mod:`neuroimagery.robot.events` (south = toward the robot, -x; west = its
+left, +y). Each event, once fired, stays fired; a rollout stops at the first control step where the
+watched event has fired (the thesis stops the arm as soon as the event of interest happens).
 """
 from __future__ import annotations
 
