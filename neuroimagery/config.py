@@ -80,6 +80,26 @@ def experiment_module(name: str):
     return importlib.import_module(f"neuroimagery.experiments.{name}")
 
 
+def moved_key_hint(message: str) -> str:
+    """For a refusal naming a key its experiment's schema no longer has (``Key 'k' not in
+    'XConfig'``), where that key went (the module's ``MOVED_KEYS``), as `` (k: ...)``; else ''."""
+    import re
+
+    m = re.search(r"Key '(\w+)' not in '(\w+)'", message)
+    if not m:
+        return ""
+    for name in EXPERIMENTS:
+        try:
+            mod = experiment_module(name)
+        except ModuleNotFoundError:
+            continue
+        schema = getattr(mod, "CONFIG", None)
+        moved = getattr(mod, "MOVED_KEYS", {})
+        if schema is not None and schema.__name__ == m.group(2) and m.group(1) in moved:
+            return f" ({m.group(1)}: {moved[m.group(1)]})"
+    return ""
+
+
 def register_configs() -> None:
     """Store the schemas in Hydra's ConfigStore (called before composing)."""
     cs = ConfigStore.instance()

@@ -725,3 +725,13 @@ def test_each_alternative_config_changes_one_choice_of_the_default():
         alt = asdict(validate(make_cfg(f"experiment=exp5/{f.stem}")).experiment)
         changed = [k for k in base if alt[k] != base[k]]
         assert len(changed) == 1, (f.name, changed)
+
+
+def test_a_removed_key_is_refused_naming_where_it_went():
+    from neuroimagery.config import moved_key_hint
+
+    hint = moved_key_hint("Could not override 'experiment.retrieve_x'; Key 'retrieve_x' not in 'Exp5Config'")
+    assert "reachable area" in hint and "docs/robot.md" in hint
+    assert moved_key_hint("Key 'attempt' not in 'Exp5Config'") == ""
+    with pytest.raises(ConfigCompositionException, match="retrieve_x"):
+        compose("experiment.retrieve_x=0.4")
