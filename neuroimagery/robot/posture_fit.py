@@ -46,7 +46,8 @@ def main() -> int:
     from .scene_check import check_scene, scene_geometry
 
     cfg = WorldConfig()
-    # targets: the plate centres of the previous postures, moved with the toy (+2 cm north)
+    # targets: the plate centres of the four situations (docs/robot.md, "Initial postures"); the
+    # references for the orientation: the stored postures
     targets = [(0.64, -0.10), (0.58, -0.245), (0.66, -0.30), (0.62, -0.38)]
     fitted = tuple(tuple(round(float(v), 3) for v in fit_posture(cfg, t, q)) for t, q in zip(targets, DEFAULT_POSTURES))
     print("POSTURES =", fitted)
