@@ -32,7 +32,7 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from . import seeding
+from . import seeding, som_online
 from .functional import as_batched, check_rate, check_tensor, checks_enabled, grid_coords, squared_norms
 from .rules import Kohonen, SupervisedKohonen
 from .som_windowed import (WINDOWED_BLOCK, fit_windowed, fit_windowed_many, form_windowed_weights,  # noqa: F401
@@ -218,6 +218,8 @@ class SOM(nn.Module):
         return self.order_generators
 
     def _fit_online(self, X, order, labels, it) -> torch.Tensor:
+        if self.weight.device.type != "meta" and som_online.supports(self.rule):
+            return som_online.fit_online(self, X, order, labels, it)  # the same step, fused (nn/som_online.py)
         P = self.participants
         p = torch.arange(P, device=order.device)
         winners = torch.empty_like(order)
