@@ -5,7 +5,8 @@ Weights ``(P, units, in)``: row ``k`` of participant ``p`` is unit ``k``'s proto
 online (one pattern per participant per iteration, as in the thesis's algorithm) and batched over
 participants. Two exact implementations of the same online rule are offered:
 
-* ``method='online'`` updates the weight matrix at every step (cost ``units x in`` per step);
+* ``method='online'`` updates every unit's weights with every presentation (cost ``units x in``
+  per step; the fused kernel of :mod:`neuroimagery.nn.som_online` for the Kohonen rules);
 * ``method='factored'`` never touches the weights while training. Every weight vector stays a
   scaled combination ``w_k = c_k (w0_k + sum_n R_kn x_n)`` of its initial value and the ``N``
   training patterns, so the step ``w_k <- (1 - a_k) w_k + a_k x_s`` only rescales ``c_k`` and
