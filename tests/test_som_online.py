@@ -136,3 +136,14 @@ def test_kernel_declines_a_rule_that_changes_the_step():
     plain(a, X, order)
     b.fit(X, order=order, method="online")  # the plain loop, with the subclass's delta
     assert torch.allclose(a.weight, b.weight, atol=1e-7)
+
+
+@pytest.mark.slow
+def test_online_kernel_equals_plain_step_at_full_size():
+    # PFC_2's size (64x64 units, 2,048 inputs, 196 sparse patterns), the schedule compressed so that
+    # sigma runs from 32 to 0.5 in 200 steps: map-wide and narrow neighbourhoods both occur
+    X = (torch.rand(196, 2048, generator=torch.Generator().manual_seed(0)) > 0.9).float()
+    a, b = pair((64, 64), 2048, participants=2, seed=0, iterations=200)
+    order = seeding.randint(participant_generators(1, 2), 196, (200,))
+    assert torch.equal(plain(a, X, order), b.fit(X, order=order, method="online"))
+    assert torch.allclose(a.weight, b.weight, atol=1e-5)
