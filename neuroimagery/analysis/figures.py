@@ -107,25 +107,53 @@ def rate_bars(df: pd.DataFrame, path: str | Path, title: str = "", by: str = "te
     return save(fig, path)
 
 
+CELL = 48  # pixels of one map's cell in a panel grid
+GAP = 4  # pixels between cells
+
+
+def _cell(a: np.ndarray) -> np.ndarray:
+    """A map scaled to [0, 1] by its own range and resampled by nearest neighbour onto a
+    ``CELL x CELL`` square (a 1-D map onto a strip a third as tall, across the middle); NaN
+    around it (drawn blank)."""
+    a = np.asarray(a, dtype=float)
+    if a.ndim == 1:
+        a = a[None, :]
+    if a.size:
+        a = a - a.min()
+        m = a.max()
+        a = a / m if m > 0 else a
+    h, w = a.shape
+    rows = CELL // 3 if h == 1 else CELL
+    img = a[np.arange(rows) * h // rows][:, np.arange(CELL) * w // CELL]
+    out = np.full((CELL, CELL), np.nan)
+    r0 = (CELL - rows) // 2
+    out[r0:r0 + rows] = img
+    return out
+
+
 def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, title: str = "",
                row_labels: Sequence[str] | None = None) -> Path:
-    """A grid of map activities: one row per step, one column per map (as Fig. 5.4, 6.12)."""
+    """A grid of map activities: one row per step, one column per map (as Fig. 5.4, 6.12), drawn
+    as one mosaic image (each map scaled by its own range), so a long trial stays cheap to draw."""
     names = list(steps[0].keys())
-    fig, axes = plt.subplots(len(steps), len(names), figsize=(1.6 * len(names), 1.6 * len(steps)), squeeze=False)
+    R, C = len(steps), len(names)
+    pitch = CELL + GAP
+    mosaic = np.full((R * pitch - GAP, C * pitch - GAP), np.nan)
     for r, st in enumerate(steps):
         for c, n in enumerate(names):
-            a = np.asarray(st[n], dtype=float)
-            if a.ndim == 1:
-                a = a[None, :]
-            ax = axes[r, c]
-            ax.imshow(a, cmap="viridis", aspect="auto", interpolation="nearest")
-            ax.set_xticks([])
-            ax.set_yticks([])
-            if r == 0:
-                ax.set_title(n, fontsize=7)
-            if c == 0 and row_labels is not None:
-                ax.set_ylabel(row_labels[r], fontsize=7)
-    fig.suptitle(title, fontsize=9)
+            mosaic[r * pitch:r * pitch + CELL, c * pitch:c * pitch + CELL] = _cell(st[n])
+    fig, ax = plt.subplots(figsize=(0.75 * C + 1.6, 0.75 * R + 0.9))
+    cmap = plt.get_cmap("viridis").copy()
+    cmap.set_bad("white")
+    ax.imshow(np.ma.masked_invalid(mosaic), cmap=cmap, vmin=0, vmax=1, interpolation="nearest")
+    ax.set_xticks([c * pitch + CELL / 2 for c in range(C)], names, fontsize=7, rotation=45, ha="left")
+    ax.xaxis.tick_top()
+    ax.set_yticks([r * pitch + CELL / 2 for r in range(R)], row_labels if row_labels is not None else [""] * R,
+                  fontsize=7)
+    ax.tick_params(length=0)
+    for side in ax.spines.values():
+        side.set_visible(False)
+    ax.set_title(title, fontsize=9)
     return save(fig, path)
 
 
