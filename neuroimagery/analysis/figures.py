@@ -134,7 +134,8 @@ def _cell(a: np.ndarray) -> np.ndarray:
 def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, title: str = "",
                row_labels: Sequence[str] | None = None) -> Path:
     """A grid of map activities: one row per step, one column per map (as Fig. 5.4, 6.12), drawn
-    as one mosaic image (each map scaled by its own range), so a long trial stays cheap to draw."""
+    as one mosaic at its own pixel size (each map scaled by its own range, viridis, blank around
+    it), with the map names above and the row labels on the left; cheap however long the trial."""
     names = list(steps[0].keys())
     R, C = len(steps), len(names)
     pitch = CELL + GAP
@@ -142,19 +143,24 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
     for r, st in enumerate(steps):
         for c, n in enumerate(names):
             mosaic[r * pitch:r * pitch + CELL, c * pitch:c * pitch + CELL] = _cell(st[n])
-    fig, ax = plt.subplots(figsize=(0.75 * C + 1.6, 0.75 * R + 0.9))
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("white")
-    ax.imshow(np.ma.masked_invalid(mosaic), cmap=cmap, vmin=0, vmax=1, interpolation="nearest")
-    ax.set_xticks([c * pitch + CELL / 2 for c in range(C)], names, fontsize=7, rotation=45, ha="left")
-    ax.xaxis.tick_top()
-    ax.set_yticks([r * pitch + CELL / 2 for r in range(R)], row_labels if row_labels is not None else [""] * R,
-                  fontsize=7)
-    ax.tick_params(length=0)
-    for side in ax.spines.values():
-        side.set_visible(False)
-    ax.set_title(title, fontsize=9)
-    return save(fig, path)
+    rgba = plt.get_cmap("viridis")(np.nan_to_num(mosaic))
+    rgba[np.isnan(mosaic)] = 1.0
+    dpi, left, top, pad = 100, 170, 70, 10
+    H, W = mosaic.shape
+    fw, fh = W + left + pad, H + top + pad
+    fig = plt.figure(figsize=(fw / dpi, fh / dpi), dpi=dpi)
+    fig.figimage(rgba, xo=left, yo=pad, origin="upper")
+    fig.text(0.5, 1 - 8 / fh, title, ha="center", va="top", fontsize=9)
+    for c, n in enumerate(names):
+        fig.text((left + c * pitch + CELL / 2) / fw, (pad + H + 6) / fh, n, ha="left", va="bottom", fontsize=7,
+                 rotation=45)
+    for r, lab in enumerate(row_labels if row_labels is not None else []):
+        fig.text((left - 6) / fw, (pad + H - r * pitch - CELL / 2) / fh, lab, ha="right", va="center", fontsize=7)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi, metadata={"Software": None})
+    plt.close(fig)
+    return path
 
 
 def save(fig, path: str | Path) -> Path:
