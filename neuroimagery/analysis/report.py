@@ -112,6 +112,7 @@ class Report:
 
 def reproducibility_note(seed: int) -> str:
     return (f"Seed {seed}. With the same seed and configuration every file of this run is reproduced "
-            "exactly, except measured times (`runtime_s` in summary.json and train.json, exp5's `cost` "
+            "exactly, except measured times and memory (`runtime_s` and `peak_rss_mb` in summary.json and "
+            "train.json, exp5's `cost` "
             "times and task checkpoints' `timing`, any times printed in this report) and the TensorBoard "
             "event files (which carry timestamps).")

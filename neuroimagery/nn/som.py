@@ -4,8 +4,9 @@
 Weights ``(P, units, in)``: row ``k`` of participant ``p`` is unit ``k``'s prototype. Training is
 online (one pattern per participant per iteration, as in the thesis's algorithm) and batched over
 participants. :meth:`SOM.fit` trains by one of the registered implementations of that online
-rule (:mod:`neuroimagery.nn.som_trainers`): ``method='online'`` (the plain rule, one
-:meth:`SOM.step` per step), ``'factored'`` (:mod:`~neuroimagery.nn.som_factored`: the weights
+rule (:mod:`neuroimagery.nn.som_trainers`): ``method='online'`` (every unit updated at every
+presentation: the fused kernel of :mod:`neuroimagery.nn.som_online` for the Kohonen rules, one
+:meth:`SOM.step` per step otherwise), ``'factored'`` (:mod:`~neuroimagery.nn.som_factored`: the weights
 never touched while training) or ``'windowed'`` (:mod:`~neuroimagery.nn.som_windowed`: the
 factored form per participant neighbourhood window, unsupervised 2-D maps, CPU). They give the
 same winners and the same weights up to float rounding (``tests/test_som.py``).
