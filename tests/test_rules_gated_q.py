@@ -84,3 +84,29 @@ def test_q_learning_batch_changes_are_computed_at_the_same_weights():
         w = w0.clone()
         rule.apply_(w, pre, **kw)
         assert torch.allclose(w, w0 + rule.delta(w0, pre, **kw), atol=1e-6)
+
+
+def test_gated_hebbian_and_q_learning_learn_on_meta_and_agree_off_host(monkeypatch):
+    """Off the host (meta here; a GPU alike) the rules form the same change with tensor operations."""
+    import neuroimagery.nn.rules as rules
+
+    c = AllToAll(8, 3, init="zeros", rules=GatedHebbian(0.2)).to("meta")
+    c.learn(pre=torch.ones(1, 8, device="meta"), post=torch.ones(1, 3, device="meta"),
+            gate=torch.ones(1, 3, device="meta"), repeats=3)
+    assert c.weight.device.type == "meta"
+    g = torch.Generator().manual_seed(7)
+    x = (torch.rand(1, 1, 8, generator=g) < 0.5).float()
+    w0 = torch.rand(1, 3, 8, generator=g)
+    y, gate = torch.tensor([[[0.0, 0.4, 0.0]]]), torch.tensor([[0.0, 1.0, 0.0]])
+    host, off = w0.clone(), w0.clone()
+    GatedHebbian(0.2).apply_(host, x, y, gate=gate, repeats=4)
+    monkeypatch.setattr(rules, "_on_host", lambda w: False)
+    GatedHebbian(0.2).apply_(off, x, y, gate=gate, repeats=4)
+    assert torch.allclose(host, off, atol=1e-6)
+    q_host, q_off = w0.clone(), w0.clone()
+    kw = dict(action=torch.tensor([[2]]), reward=torch.tensor([[1.0]]), next_pre=x.clone())
+    monkeypatch.undo()
+    QLearning(0.1).apply_(q_host, x, **kw)
+    monkeypatch.setattr(rules, "_on_host", lambda w: False)
+    QLearning(0.1).apply_(q_off, x, **kw)
+    assert torch.allclose(q_host, q_off, atol=1e-6)

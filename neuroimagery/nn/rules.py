@@ -20,6 +20,13 @@ def _reduce(x: torch.Tensor, reduction: str, batch: int) -> torch.Tensor:
     return x / batch if reduction == "mean" else x
 
 
+def _on_host(weight: torch.Tensor) -> bool:
+    """Whether a rule may read values on the host (CPU weights, not traced by ``torch.compile``):
+    the exact scalar forms of :class:`GatedHebbian` and :class:`QLearning` run there; elsewhere the
+    same change is formed with tensor operations only (equal up to float rounding)."""
+    return weight.device.type == "cpu" and not torch.compiler.is_compiling()
+
+
 def _check_reduction(reduction: str) -> str:
     if reduction not in ("sum", "mean"):
         raise ValueError(f"reduction must be 'sum' or 'mean', got {reduction!r}")
@@ -106,9 +113,14 @@ class GatedHebbian(Hebbian):
         return new - weight
 
     def apply_(self, weight, pre, post, gate=None, repeats: int = 1, **_) -> None:
-        self._check(pre, gate, repeats)
         if int(repeats) < 1:
             return
+        if not _on_host(weight):  # on a device, on meta or while compiling: k plain steps, no value reads
+            g = (torch.ones_like(post) if gate is None else gate.unsqueeze(1).to(post.dtype)).transpose(1, 2)
+            for _ in range(int(repeats)):
+                weight.add_(self.eta * g * pre * (post.transpose(1, 2) - weight))
+            return
+        self._check(pre, gate, repeats)
         for p in range(weight.shape[0]):
             x, y = pre[p, 0], post[p, 0]
             rows = range(weight.shape[1]) if gate is None else torch.nonzero(gate[p]).flatten().tolist()
@@ -263,7 +275,11 @@ class QLearning(Rule):
     def apply_(self, weight: torch.Tensor, pre: torch.Tensor, action: torch.Tensor, reward: torch.Tensor,
                next_pre: torch.Tensor, done: torch.Tensor | None = None, **_) -> None:
         """``weight += delta(...)`` row by row: only the chosen action's weights are touched, and
-        the temporal-difference error of each pattern (at the same weights) is formed in float64."""
+        the temporal-difference error of each pattern (at the same weights) is formed in float64
+        (CPU; elsewhere the change of :meth:`delta`)."""
+        if not _on_host(weight):  # on a device, on meta or while compiling: the change as delta() forms it
+            weight.add_(self.delta(weight, pre, action, reward, next_pre, done))
+            return
         P, B = pre.shape[:2]
         sign = 1.0 if self.form == "standard" else -1.0
         scale = self.eta / B if self.reduction == "mean" else self.eta
