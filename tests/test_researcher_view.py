@@ -129,3 +129,30 @@ def test_forward_model_training_curve_falls(method):
     curve = [v for t, v, _ in seen if t == "train/C1/squared_error"]
     assert len(curve) == 100
     assert np.mean(curve[-10:]) < 0.2 * np.mean(curve[:10])
+
+
+def _robots(rise: float, planning_gap: float, seed: int = 0) -> pd.DataFrame:
+    rng = np.random.default_rng(seed)
+    rows = []
+    for rep in range(30):
+        for lvl in (2, 3, 4, 5, 6):
+            base = rng.random()
+            for strat in ("reactive", "planning"):
+                p = min(1.0, max(0.0, 0.1 + rise * (lvl - 2) - (planning_gap if strat == "planning" else 0.0)))
+                rows.append(dict(individual=f"rep{rep}_far", library=f"rep{rep}", hypothesis="hp1", level=lvl,
+                                 situation="far", strategy=strat, success=int(base < p)))
+    return pd.DataFrame(rows)
+
+
+def test_robot_effects_find_a_rise_with_age_and_alike_strategies():
+    from neuroimagery.analysis.robots import effects
+
+    eff = effects(_robots(0.15, 0.0), [2, 3, 4, 5, 6], [])
+    rise = [e for e in eff if e["effect"].startswith("HP1 tool far rises")]
+    assert len(rise) == 2 and all(e["value"] > 0 and e["holds"] and e["n"] == 30 for e in rise), rise
+    alike = next(e for e in eff if e["effect"].startswith("reactive and planning"))
+    assert alike["value"] == 0 and alike["holds"]  # the same robots answer alike both ways
+    flat = effects(_robots(0.0, 0.3), [2, 3, 4, 5, 6], [])
+    assert not any(e["holds"] for e in flat if e["effect"].startswith("HP1"))
+    gap = next(e for e in flat if e["effect"].startswith("reactive and planning"))
+    assert gap["value"] > 0.05 and gap["p"] < 1e-3 and not gap["holds"]  # reactive 10 %, planning 0 %

@@ -63,11 +63,11 @@ class Report:
                    f"against 50 %: p = {p}. Its other numbers on these stimuli say little.")
         return self
 
-    def effects(self, rows: list[dict]) -> "Report":
+    def effects(self, rows: list[dict], intro: str | None = None) -> "Report":
         """The effects table of :func:`neuroimagery.analysis.summary.effect` rows: the participant is
         the unit (paired t-tests over participants, or one-sample t-tests of their slopes), Holm's
-        correction over the table's family."""
-        self.p("Each effect is tested with the simulated participant as the unit (statsmodels): a paired t-test "
+        correction over the table's family; ``intro`` replaces the paragraph that says so."""
+        self.p(intro or "Each effect is tested with the simulated participant as the unit (statsmodels): a paired t-test "
                "over the participants' mean RT or correct rate (value = mean difference, first condition minus "
                "the second, with its 95 % interval), or a one-sample t-test of their RT-disparity slopes (value = "
                "mean slope per degree). d_z is the standardised effect (mean over the standard deviation of the "

@@ -438,6 +438,7 @@ def evaluate(cfg, run, trained) -> dict:
                  "render_s": round(sum(t.get("render_s", 0.0) for t in timing), 2)},
     }
     summary["claims"] = rates["claims"]
+    summary["effects"] = rates["effects"]
     for i, r in enumerate(grp_rows):
         run.logger.scalar(f"success/{r['hypothesis']}/{r['situation']}/{r['strategy']}", r["success_rate"], r["level"])
     figs.draw_all(cfg, run, df, summary, results)

@@ -8,6 +8,7 @@ import pandas as pd
 
 from ..analysis.figures import plt, save
 from ..analysis.report import Report, reproducibility_note
+from ..analysis.robots import ROBOT_EFFECTS_INTRO
 from ..models.tool_use import EVENTS, N_POSTURES, SKILL_LETTERS
 
 COLOURS = {"behind": "tab:blue", "far": "tab:red"}
@@ -201,6 +202,9 @@ def write_report(cfg, run, summary: dict) -> None:
               f"{100 * (0.21 / n) ** 0.5:.0f} points, so claims that compare single groups can change with the seed (pool runs of several seeds "
               f"with `python -m neuroimagery.experiments.exp5_pool`).")
         rep.table(["claim", "this run", "holds"], [[c["claim"], c["value"], "yes" if c["holds"] else "**no**"] for c in claims])
+    if summary.get("effects"):
+        rep.h("Effects, the robot as the unit")
+        rep.effects(summary["effects"], ROBOT_EFFECTS_INTRO)
     routes = [r for r in summary.get("routes", []) if r["hypothesis"] == "hp1"]
     if routes:
         rep.h("How the tool-far successes happen (HP1)")

@@ -26,6 +26,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from ..analysis.report import Report
+from ..analysis.robots import ROBOT_EFFECTS_INTRO
 from ..analysis.tables import read_whole_csv
 from ..errors import UserInputError
 from .exp5 import ENGINE_KEYS, STRATEGIES, Exp5Config, group_rates, summarise
@@ -175,6 +176,9 @@ def report(summary: dict, e: Exp5Config) -> Report:
     rep.p(f"{sum(c['holds'] for c in claims)} of {len(claims)} hold on the pool ({n} robots per group or more). "
           "Per run: " + "; ".join(f"seed {r['seed']}: {r['claims_holding']} of {r['claims']}" for r in runs) + ".")
     rep.table(["claim", "pooled", "holds"], [[c["claim"], c["value"], "yes" if c["holds"] else "**no**"] for c in claims])
+    if summary.get("effects"):
+        rep.h("Effects over the pooled robots, the robot as the unit")
+        rep.effects(summary["effects"], ROBOT_EFFECTS_INTRO)
     mech = summary.get("mechanism") or {}
     if mech:
         rep.h("The mechanism of the tool-far test, pooled")

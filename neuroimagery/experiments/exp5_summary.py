@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 
 from ..models.tool_use import EVENTS, N_POSTURES, Library
+from ..analysis.robots import effects as robot_effects
 from ..robot.babble import wilson
 
 if TYPE_CHECKING:
@@ -217,9 +218,10 @@ def success_routes(df: pd.DataFrame) -> list[dict]:
 
 
 def summarise(df: pd.DataFrame, e: Exp5Config) -> dict:
-    """Group rates, checks, success routes and must-show claims of the individuals in ``df``
-    (the rows of individuals.csv; one run's or several runs' pooled): summary.json keys ``groups``,
-    ``checks``, ``routes`` and ``claims``."""
+    """Group rates, checks, success routes, must-show claims and the effects tested with the robot
+    as the unit (:mod:`neuroimagery.analysis.robots`) of the individuals in ``df`` (the rows of
+    individuals.csv; one run's or several runs' pooled): summary.json keys ``groups``, ``checks``,
+    ``routes``, ``claims`` and ``effects``."""
     grp_rows = []
     for (h, lvl, sit, strat), g in df.groupby(["hypothesis", "level", "situation", "strategy"], sort=False):
         grp_rows.append(dict(hypothesis=h, level=int(lvl), age_months=int(g["age_months"].iloc[0]), situation=sit,
@@ -242,4 +244,5 @@ def summarise(df: pd.DataFrame, e: Exp5Config) -> dict:
     checks["hp1_far_youngest_single_pull"] = int(sum(r["pull"] for r in young))
     out = {"groups": grp_rows, "checks": checks, "routes": routes, "mechanism": mechanism(df, e)}
     out["claims"] = thesis_claims(out, e)
+    out["effects"] = robot_effects(df, e.hp1_levels, e.hp2_trials, STRATEGIES)
     return out
