@@ -156,3 +156,15 @@ def test_robot_effects_find_a_rise_with_age_and_alike_strategies():
     assert not any(e["holds"] for e in flat if e["effect"].startswith("HP1"))
     gap = next(e for e in flat if e["effect"].startswith("reactive and planning"))
     assert gap["value"] > 0.05 and gap["p"] < 1e-3 and not gap["holds"]  # reactive 10 %, planning 0 %
+
+
+def test_exp5_training_curves_average_each_event_over_its_skills():
+    from neuroimagery.experiments.exp5_figures import training_curves
+
+    lib = lambda *skills: {"library": {"skills": list(skills)}}  # noqa: E731
+    sk = lambda ev, signals, comp: {"event": ev, "log": [("c1", 1, s) for s in signals] + [("c23", 1, None)],  # noqa: E731
+                                    "competence": comp}
+    c = training_curves([lib(sk("pull", [0.0, 0.5], [0.2, 0.6])), lib(sk("pull", [1.0], [0.4]), sk("touch", [0.25], [1.0]))])
+    assert c["pibb/pull/cost"] == pytest.approx([0.5, 0.5]) and c["competence/pull"] == pytest.approx([0.3, 0.6])
+    assert c["pibb/touch/cost"] == pytest.approx([0.75]) and set(c) == {"pibb/pull/cost", "competence/pull",
+                                                                         "pibb/touch/cost", "competence/touch"}

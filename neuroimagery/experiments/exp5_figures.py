@@ -102,6 +102,7 @@ def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> 
                                      "age (months) = 2..6 IM detectors", "HP1: success vs number of skills")
     figs["fig_7_10"] = success_curves(summary, "hp2", run.figures / "fig_7_10_hp2_trials.png", "level",
                                       "training trials", "HP2: success vs training trials")
+    log_training_curves(run.logger, results)
     film = next((d["film"] for d in results if d.get("film")), None)
     if film is not None:
         figs["filmstrip"] = filmstrip(film, run.figures / "retrieval_filmstrip.png")
@@ -119,6 +120,34 @@ def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> 
         finally:
             env.close()
     summary["figures"] = {k: str(Path(v).relative_to(run.root)) for k, v in figs.items()}
+
+
+def training_curves(results: list[dict]) -> dict[str, list[float]]:
+    """The skill-learning curves of every robot's library, averaged per event over the skills that
+    reached each step: ``pibb/<event>/cost`` per PI^BB update (the update's mean event cost,
+    1 - successes / samples, in the order the updates ran) and ``competence/<event>`` per epoch of
+    Fig. 7.5's stopping rule."""
+    sums: dict[str, list[list[float]]] = {}
+
+    def add(tag: str, values) -> None:
+        acc = sums.setdefault(tag, [])
+        for i, v in enumerate(values):
+            if i == len(acc):
+                acc.append([])
+            acc[i].append(float(v))
+
+    for d in results:
+        for sk in (d.get("library") or {}).get("skills", []):
+            add(f"pibb/{sk['event']}/cost", [1.0 - op[2] for op in sk["log"] if op[0] == "c1"])
+            add(f"competence/{sk['event']}", sk["competence"])
+    return {tag: [sum(v) / len(v) for v in acc] for tag, acc in sums.items()}
+
+
+def log_training_curves(logger, results: list[dict]) -> None:
+    """:func:`training_curves` as TensorBoard scalars ``train/...`` over their own steps (from 1)."""
+    for tag, ys in training_curves(results).items():
+        for i, y in enumerate(ys):
+            logger.scalar(f"train/{tag}", y, i + 1)
 
 
 def log_film(logger, film: dict) -> None:
