@@ -114,6 +114,11 @@ def plain_hydra_errors() -> None:
         except UserInputError as ex:
             _fail(str(ex), log=False)
         except (HydraException, OmegaConfBaseException) as ex:
+            from .config import moved_message
+
+            moved = moved_message(_one_line(ex))
+            if moved:
+                _fail(moved, log=False)
             _fail(_one_line(ex) + (_CLUSTER_HINT if "hydra_submitit_launcher" in str(ex) else ""), log=False)
         except OSError as ex:
             _fail(os_error_message(ex), log=False)

@@ -94,6 +94,32 @@ def register_configs() -> None:
             cs.store(group="experiment", name=f"{name}_schema", node=schema)
 
 
+def moved_keys() -> dict[str, str]:
+    """``{old key: new key}`` of every experiment (``experiment.field_tau`` -> ``experiment.field.tau``):
+    the keys that moved into a group, declared by each experiment module as ``MOVED``."""
+    out: dict[str, str] = {}
+    for name in EXPERIMENTS:
+        try:
+            mod = experiment_module(name)
+        except ModuleNotFoundError:
+            continue
+        for old, new in getattr(mod, "MOVED", {}).items():
+            out[f"experiment.{old}"] = f"experiment.{new}"
+    return out
+
+
+def moved_message(text: str) -> str | None:
+    """The refusal of a key under its old name, if ``text`` (an error message, or a key) names one:
+    ``experiment.field_tau has moved: it is experiment.field.tau now``."""
+    import re
+
+    moved = moved_keys()
+    for key in re.findall(r"\bexperiment\.\w+", text):
+        if key in moved:
+            return f"{key} has moved: it is {moved[key]} now (see the experiment's docs)"
+    return None
+
+
 def _unknown_keys(node: DictConfig, path: str = "") -> list[str]:
     """Keys present in ``node`` but not declared by its dataclass schema (e.g. added with ``+key=``)."""
     out = []
@@ -117,6 +143,10 @@ def validate(cfg: DictConfig | Config) -> Config:
     if not isinstance(cfg.get("experiment"), DictConfig):
         raise UserInputError("invalid configuration: choose an experiment, e.g. experiment=exp4")
     unknown = [k for k in _unknown_keys(cfg) if not k.startswith("hydra")]
+    for k in unknown:
+        hint = moved_message(k)
+        if hint:
+            raise UserInputError(f"invalid configuration: {hint}")
     if unknown:
         raise UserInputError(f"invalid configuration: unknown key(s) {', '.join(unknown)}")
     check_finite(cfg)

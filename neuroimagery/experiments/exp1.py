@@ -9,7 +9,7 @@ their U[0, 0.1] initial weights and the SOM's sample order).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field as dc_field
 
 import numpy as np
 import pandas as pd
@@ -18,6 +18,7 @@ import torch
 from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import summarise_trials
+from ..models.params import FieldParams, SomParams, moved_keys
 from ..models.rotation_affordance import AffordanceRotationModel
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of, pearson,
                            record_figures_and_scalars, stimulus_set,
@@ -39,59 +40,31 @@ class Exp1Config:
     answer_sigma: float = 1.5  # width (units) of the PMC_2 answer clusters
     image_threshold: float = 0.5  # C2 output (max-normalised) above which a PC unit is on in the mental image
     sharpen: float = 4.0  # exponent on the PMC_1 column profile before the competition (contrast)
-    som_iterations: int = 2000  # PFC_2 SOM training steps (not given for Exp. 1)
-    som_eta: float = 0.1  # PFC_2 initial rate (eq. 4.5)
-    som_eta_final: float = 0.01  # PFC_2 final rate
-    som_sigma: float = 8.0  # PFC_2 initial neighbourhood radius (grid units)
-    som_sigma_final: float = 0.5  # PFC_2 final radius
-    som_method: str = "windowed"  # exact online Kohonen by 'windowed' (batched, per-participant window), 'factored' or 'online'
-    som_threads: int = 1  # intra-op threads while the SOM trains (each step is small: threads only add hand-offs)
+    som: SomParams = dc_field(default_factory=SomParams)  # the PFC_2 map (not given for Exp. 1) and its cluster
     auto_threads: int = 1  # intra-op threads for training and testing when the run's `threads` is 0 (see docs)
-    som_filter_sigma: float = 2.0  # the cluster kept around the PFC_2 winner (the "filtering" of 5.2.2)
-    field_tau: float = 10.0  # dynamic-field time constant (cycles)
-    field_h: float = -0.2  # resting level
-    field_a_exc: float = 0.5  # local excitation amplitude
-    field_sigma_exc: float = 2.0  # local excitation width (units)
-    field_a_inh: float = 0.05  # global inhibition
-    field_threshold: float = 0.9  # activity that ends a competition
-    field_gain: float = 1.0  # input gain into a field
-    field_max_cycles: int = 500  # cycles before a competition is cut off
+    field: FieldParams = dc_field(default_factory=FieldParams)  # the PMC_1 and PMC_2 competitions
 
     def __post_init__(self) -> None:
         pos = ["step_deg", "centre_tolerance_deg", "init_high", "hebb_eta", "posture_sigma_deg", "answer_sigma",
-               "image_threshold", "sharpen", "som_eta", "som_eta_final", "som_sigma", "som_sigma_final",
-               "som_filter_sigma", "field_tau", "field_sigma_exc", "field_threshold", "field_gain"]
+               "image_threshold", "sharpen"]
         for k in pos:
             if not getattr(self, k) > 0:
                 raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
-        for k in ("max_cycles", "hebb_epochs", "som_iterations", "field_max_cycles"):
+        for k in ("max_cycles", "hebb_epochs"):
             if getattr(self, k) < 1:
                 raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        for k in ("field_a_exc", "field_a_inh", "object_band_deg"):
+        for k in ("object_band_deg",):
             if getattr(self, k) < 0:
                 raise ValueError(f"experiment.{k} must be >= 0, got {getattr(self, k)!r}")
-        if self.hebb_eta > 1 or self.image_threshold >= 1 or self.som_eta > 1:
-            raise ValueError("experiment.hebb_eta, som_eta must be <= 1 and experiment.image_threshold < 1")
+        if self.hebb_eta > 1 or self.image_threshold >= 1:
+            raise ValueError("experiment.hebb_eta must be <= 1 and experiment.image_threshold < 1")
         if self.feed_order not in ("sequential", "shuffled"):
             raise ValueError(f"experiment.feed_order must be 'sequential' or 'shuffled', got {self.feed_order!r}")
-        if self.som_method not in ("windowed", "factored", "online"):
-            raise ValueError(f"experiment.som_method must be 'windowed', 'factored' or 'online', got {self.som_method!r}")
-        for k in ("som_threads", "auto_threads"):
-            if getattr(self, k) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        field_bounds(self)
+        if self.auto_threads < 1:
+            raise ValueError(f"experiment.auto_threads must be >= 1, got {self.auto_threads!r}")
         if 90 % self.step_deg != 0:
             raise ValueError(f"experiment.step_deg must divide 90, got {self.step_deg!r}")
 
-
-
-def field_bounds(e) -> None:
-    """The dynamic fields' parameters within the bounds :class:`DynamicField` enforces (one source)."""
-    from ..nn.decision import DynamicField
-    from ..nn.functional import check_bounds
-
-    keys = ("tau", "h", "a_exc", "sigma_exc", "a_inh", "threshold")
-    check_bounds(DynamicField.BOUNDS, {k: getattr(e, f"field_{k}") for k in keys}, {k: f"experiment.field_{k}" for k in keys})
 
 
 CONFIG = Exp1Config
@@ -100,7 +73,12 @@ CONFIG = Exp1Config
 INPUTS = ("vision", "stimuli")
 MIN_OBJECTS = 2  # a user folder must hold a shape and its mirror
 CHECKPOINTS = ("model",)
-RUNTIME_KEYS = ("som_threads", "auto_threads")  # thread counts: speed only
+RUNTIME_KEYS = ("som.threads", "auto_threads")  # thread counts: speed only
+# keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
+MOVED = {**moved_keys({"field": ("field_", FieldParams), "som": ("som_", SomParams)}),
+         "som_filter_sigma": "som.cluster_sigma"}
+for _k in ("som_cutoff", "som_cluster_sigma"):  # never keys of Exp. 1
+    MOVED.pop(_k)
 TEST_KEYS = ()  # the model is built from every key, so each one counts as a training setting
 
 TARGETS = {
@@ -116,7 +94,7 @@ def _e(cfg) -> Exp1Config:
     if cfg.preset == "quick":
         from dataclasses import replace
 
-        e = replace(e, som_iterations=min(e.som_iterations, 300))
+        e = replace(e, som=replace(e.som, iterations=min(e.som.iterations, 300)))
     return e
 
 

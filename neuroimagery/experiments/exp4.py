@@ -16,7 +16,8 @@ import pandas as pd
 import torch
 
 from ..analysis import figures
-from ..models.rotation_embodied import lca_gain
+from ..models.params import ForwardModelParams
+from ..models.rotation_embodied import EmbodiedPostureParams, lca_gain
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, slope_by_participant,
                                 summarise_trials)
@@ -41,21 +42,9 @@ class Exp4Config:
     gen2_set: str = "exp4-C"  # Gen2 test set
     # --- forward models C1-C3 (delta rule, eq. 6.4) -------------------------------------
     init_high: float = 0.01  # initial weights U[0, init_high] of every trained connection ("small random"; not given)
-    eta_fm: float = 0.1  # delta-rule learning rate (thesis 0.1)
-    fm_images: int = 4000  # three-dot training images per participant, shared out at random among C1-C3 (not given)
-    fm_batch: int = 8  # images per delta-rule update (changes summed at the same weights); 1 = purely online
-    dot_inner: int = 23  # dots lie in the central inner x inner square (thesis 23)
-    # --- posture maps C16/C17 (supervised Kohonen, eq. 6.14-6.16) ---------------------------
-    eta_posture: float = 0.1  # Kohonen learning rate (thesis 0.1)
-    # rate at the last step: = eta_posture, the thesis's constant 0.1; lower = an exponential decay
-    # (e.g. 0.002: each prototype ends as an average of its images)
-    eta_posture_final: float = 0.1
-    posture_sigma: float = 0.3  # neighbourhood radius of the forced winner, in units (not given)
-    posture_iterations: int = 1440  # supervised Kohonen steps (40 passes over the 36 set-A images; not given)
-    # PPCp winner of the mental image (eq. 6.14): 0 = arg-max of the C16 potentials; > 0 = drawn from a
-    # softmax of the max-normalised potentials at this temperature (uncertain for unfamiliar shapes,
-    # whose potentials are nearly flat). 0.1 = the PMCm temperature, not fitted. PPCt stays arg-max.
-    posture_tau: float = 0.0
+    fm: ForwardModelParams = field(default_factory=ForwardModelParams)
+    # --- posture maps C16/C17 (supervised Kohonen, eq. 6.14-6.16) and the PPCp winner -----
+    posture: EmbodiedPostureParams = field(default_factory=EmbodiedPostureParams)
     # axis of the flipped target PFCft (C10, "flipped along the main object axis of the object"; not given how):
     # 'image' = the principal axis of the target map itself (a fixed transformation of PFCt, as Table 6.2
     # lists C10: no label, no posture input) | 'ppct' = the axis of the orientation PPCt reads (C17), so a
@@ -85,27 +74,25 @@ class Exp4Config:
     noise_amplitude: float = 0.5  # noise variant: U[-a, a] added to each PPCp unit per step (thesis 0.5)
     noise_tests: List[str] = field(default_factory=lambda: ["recog", "gen1"])  # tests repeated with noise
     # --- protocol size ----------------------------------------------------------------------
-    quick_objects: int = 1  # preset=quick: objects per test set (full: all 3)
-    quick_fm_images: int = 3000  # preset=quick: three-dot training images
+    quick: pc.QuickParams = field(default_factory=pc.QuickParams)  # objects per test set (full: all 3), images
 
     def __post_init__(self) -> None:
         def pos(k, strict=True):
             v = getattr(self, k)
             if not (v > 0 if strict else v >= 0):
                 raise ValueError(f"experiment.{k} must be {'>' if strict else '>='} 0, got {v!r}")
-        for k in ("step_deg", "init_high", "eta_fm", "eta_posture", "eta_posture_final", "posture_sigma", "ppc_sigma", "softmax_tau",
+        for k in ("step_deg", "init_high", "ppc_sigma", "softmax_tau",
                   "lca_threshold", "lca_dt"):
             pos(k)
-        for k in ("lca_k", "lca_w", "proprio_gain", "noise_amplitude", "posture_tau"):
+        for k in ("lca_k", "lca_w", "proprio_gain", "noise_amplitude"):
             pos(k, strict=False)
-        for k in ("map_size", "fm_images", "fm_batch", "posture_iterations", "lca_cycles", "max_steps",
-                  "quick_objects", "quick_fm_images"):
+        for k in ("map_size", "lca_cycles", "max_steps"):
             if int(getattr(self, k)) < 1:
                 raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
         if self.map_size < 8:
             raise ValueError(f"experiment.map_size must be >= 8, got {self.map_size}")
-        if not (1 <= self.dot_inner <= self.map_size - 2):
-            raise ValueError(f"experiment.dot_inner must lie in [1, map_size - 2], got {self.dot_inner}")
+        if not (1 <= self.fm.dot_inner <= self.map_size - 2):
+            raise ValueError(f"experiment.fm.dot_inner must lie in [1, map_size - 2], got {self.fm.dot_inner}")
         from ..nn.decision import LeakyCompetingAccumulator
         from ..nn.functional import check_bounds
 
@@ -133,9 +120,11 @@ CONFIG = Exp4Config
 INPUTS = ("vision", "stimuli")
 CHECKPOINTS = ("exp4",)
 # read only by the tests: a trained model (forward models, posture maps C16/C17) does not depend on them
-TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "flip_axis", "posture_tau", "ppc_sigma", "softmax_tau", "lca_k",
+TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "flip_axis", "posture.tau", "ppc_sigma", "softmax_tau", "lca_k",
              "lca_w", "lca_threshold", "lca_dt", "lca_cycles", "lca_input_gain", "max_steps", "proprio_gain",
-             "proprio_stage", "noise_amplitude", "noise_tests", "quick_objects")
+             "proprio_stage", "noise_amplitude", "noise_tests", "quick.objects")
+# keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
+MOVED = {**pc.MOVED_CH6, "posture_tau": "posture.tau"}
 
 
 def ineffective_keys(cfg) -> dict[str, str]:
@@ -145,7 +134,7 @@ def ineffective_keys(cfg) -> dict[str, str]:
     elif not e.noise_tests:
         out["noise_amplitude"] = "noise_tests is empty"
     if cfg.preset == "quick":
-        out["fm_images"] = "preset=quick trains on quick_fm_images"
+        out["fm.images"] = "preset=quick trains on quick.fm_images"
     return {f"experiment.{k}": v for k, v in out.items()}
 
 def _ids(cfg) -> list[int]:
@@ -164,9 +153,9 @@ def train_model(cfg, ids, eye=None):
     eye = pc.make_eye(cfg) if eye is None else eye
     model = _model(cfg, ids)
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
-    n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
-    X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner)
-    model.fit_forward_models(X, Y, moves, e.fm_batch, progress=pc.batches_bar("forward model"))
+    n_img = e.quick.fm_images if cfg.preset == "quick" else e.fm.images
+    X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.fm.dot_inner)
+    model.fit_forward_models(X, Y, moves, e.fm.batch, progress=pc.batches_bar("forward model"))
     return pc.train_posture_maps(cfg, eye, model, e.ppc_angles, gens)
 
 
@@ -191,7 +180,7 @@ def _test_sets(cfg):
 def _subset(bank, table, cfg):
     if cfg.preset != "quick":
         return table
-    keep = bank.set.objects[: cfg.experiment.quick_objects]
+    keep = bank.set.objects[: cfg.experiment.quick.objects]
     return table[table["target_object"].isin(keep)].reset_index(drop=True)
 
 
@@ -420,7 +409,7 @@ def report(cfg, run, summary) -> None:
         f"PMCd's evidence is the overlap as a fraction of the target's units times {lca_gain(e):.3g} "
         "(`lca_input_gain`; by default the smallest gain with which a full overlap decides within one step).",
         "Eq. 6.14 puts a fixed bump on the arg-max posture, which discards the flatter C16 potentials of "
-        f"unfamiliar shapes (`posture_tau` = {e.posture_tau}; 0 = arg-max).",
+        f"unfamiliar shapes (`posture.tau` = {e.posture.tau}; 0 = arg-max).",
         "docs/choices.md gives the rule behind every constant the thesis does not state and the measured "
         "effect of every departure from the thesis.",
     ])

@@ -23,6 +23,7 @@ the diagonal (current angle larger than the target) drive Mr, a clockwise turn (
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Sequence
 
 import torch
@@ -31,6 +32,7 @@ from torch import nn
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul, binary_matmul_rows
+from .params import PostureMapParams
 
 MOVES = ("Ml", "Ms", "Mr")
 
@@ -93,13 +95,28 @@ def lca_gain(p) -> float:
     return p.lca_threshold * k / (1.0 - (1.0 - dt * k) ** n)
 
 
-def posture_maps(p, n_in: int, units: int, generators, names: Sequence[str]) -> list[SOM]:
+@dataclass
+class EmbodiedPostureParams(PostureMapParams):
+    """C16/C17 (``experiment.posture``) and how PPCp reads its winner."""
+
+    # PPCp winner of the mental image (eq. 6.14): 0 = arg-max of the C16 potentials; > 0 = drawn from a
+    # softmax of the max-normalised potentials at this temperature (uncertain for unfamiliar shapes,
+    # whose potentials are nearly flat). 0.1 = the PMCm temperature, not fitted. PPCt stays arg-max.
+    tau: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.tau < 0:
+            raise ValueError(f"experiment.posture.tau must be >= 0, got {self.tau!r}")
+
+
+def posture_maps(init_high: float, q: PostureMapParams, n_in: int, units: int, generators,
+                 names: Sequence[str]) -> list[SOM]:
     """The chapter-6 image -> wrist-posture maps (supervised Kohonen, eq. 6.7-6.8), one per name,
-    built in order from ``p``'s ``init_high``, ``eta_posture(_final)``, ``posture_sigma`` and
-    ``posture_iterations``."""
-    kw = dict(shape=(units,), n_in=n_in, generators=generators, init=(0.0, p.init_high), eta=p.eta_posture,
-              sigma=p.posture_sigma, eta_final=p.eta_posture_final, sigma_final=p.posture_sigma,
-              iterations=p.posture_iterations, supervised=True, readout="dot")
+    built in order, initial weights U[0, ``init_high``], the schedule of ``q``."""
+    kw = dict(shape=(units,), n_in=n_in, generators=generators, init=(0.0, init_high), eta=q.eta,
+              sigma=q.sigma, eta_final=q.eta_final, sigma_final=q.sigma,
+              iterations=q.iterations, supervised=True, readout="dot")
     return [SOM(name=name, **kw) for name in names]
 
 
@@ -128,10 +145,10 @@ class RotationEmbodied(nn.Module):
         self.n, self.size = n, p.map_size
         self.step_angles = (float(p.step_deg), 0.0, -float(p.step_deg))  # Ml, Ms, Mr
         self.fm = nn.ModuleList([
-            AllToAll(n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.eta_fm), name=f"C{k + 1}")
+            AllToAll(n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.fm.eta), name=f"C{k + 1}")
             for k in range(3)])
         nu = len(p.ppc_angles)
-        self.c16, self.c17 = posture_maps(p, n, nu, generators, ("C16", "C17"))
+        self.c16, self.c17 = posture_maps(p.init_high, p.posture, n, nu, generators, ("C16", "C17"))
         self.ppc = PopulationMap("PPC", (nu,), 0.0, float(nu - 1), sigma=p.ppc_sigma)
         self.c20 = HardWired(triangle_weights(nu), name="C20")
         self.pmcd = LeakyCompetingAccumulator(2, k=p.lca_k, w=p.lca_w, threshold=p.lca_threshold, dt=p.lca_dt)
@@ -204,16 +221,16 @@ class RotationEmbodied(nn.Module):
     def posture_winner(self, score: torch.Tensor, uniforms: torch.Tensor | None) -> torch.Tensor:
         """Winning PPCp unit of the C16 activation potentials ``score`` ``(R, units)`` (eq. 6.14).
 
-        ``posture_tau == 0``: the arg-max, as eq. 6.14 states. ``posture_tau > 0``: the winner is drawn
+        ``posture.tau == 0``: the arg-max, as eq. 6.14 states. ``posture.tau > 0``: the winner is drawn
         from a softmax of the max-normalised potentials at that temperature (the same stochastic
         winner-take-all abstraction as PMCm, eq. 6.11), so an image whose potentials are nearly
         equal (an unfamiliar shape, a "flat" posture code) gives an uncertain winner instead of a
         confident arbitrary one, while a clear orientation still gives the same winner almost always.
         """
-        if self.p.posture_tau <= 0 or uniforms is None:
+        if self.p.posture.tau <= 0 or uniforms is None:
             return score.argmax(-1)
         norm = score / score.max(-1, keepdim=True).values.clamp_min(1e-12)
-        return softmax_select(norm, self.p.posture_tau, uniforms=uniforms)
+        return softmax_select(norm, self.p.posture.tau, uniforms=uniforms)
 
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
         """POCi -> POCp: the forward model chosen by ``move`` ``(P, B)`` (0 Ml, 1 Ms, 2 Mr).
@@ -341,7 +358,7 @@ class RotationEmbodied(nn.Module):
                 sel = cond == c
                 draws_noise = [torch.rand(B, nu, generator=g) for g in gens] if noisy else None
                 draws_sel = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q)
-                draws_win = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q) if p.posture_tau > 0 else None
+                draws_win = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q) if p.posture.tau > 0 else None
                 if not bool(sel.any()):
                     continue
                 qc = q[sel]

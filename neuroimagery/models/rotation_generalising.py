@@ -19,7 +19,8 @@ counter-clockwise (+45 deg) turn, and the six below drive n1, a clockwise (-45 d
 """
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import dataclass, field as dc_field
+from typing import List, Sequence
 
 import torch
 from torch import nn
@@ -27,9 +28,38 @@ from torch import nn
 from ..nn import AllToAll, Delta, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul
+from .params import ForwardModelParams, PostureMapParams
 from .rotation_embodied import posture_maps, triangle_weights
 
 MOVES = ("n1", "n2", "n3")
+
+
+@dataclass
+class GeneralisingForwardModel(ForwardModelParams):
+    """C6 (``experiment.fm``) and the threshold of its output."""
+
+    threshold: float = 0.5  # a PP_2 unit is on when its C6 input exceeds this (not given)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.threshold > 0:
+            raise ValueError(f"experiment.fm.threshold must be > 0, got {self.threshold!r}")
+
+
+@dataclass
+class GeneralisingPostureParams(PostureMapParams):
+    """C2/C3 (``experiment.posture``): their units' wrist postures and the graded code of eq. 6.5-6.6."""
+
+    iterations: int = 960  # supervised Kohonen steps (40 passes over 24 set-a images; not given)
+    angles: List[float] = dc_field(default_factory=lambda: [45.0, 0.0, -45.0, -90.0])  # SS / PMC_1 units, decreasing
+    code_sigma: float = 0.15  # width of the Gaussian of eq. 6.5-6.6 on squared-distance differences (not given)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.code_sigma > 0:
+            raise ValueError(f"experiment.posture.code_sigma must be > 0, got {self.code_sigma!r}")
+        if len(self.angles) < 2 or list(self.angles) != sorted(self.angles, reverse=True):
+            raise ValueError(f"experiment.posture.angles must be >= 2 decreasing angles, got {list(self.angles)}")
 
 
 class RotationGeneralising(nn.Module):
@@ -42,9 +72,9 @@ class RotationGeneralising(nn.Module):
         n = p.map_size * p.map_size
         self.n, self.size = n, p.map_size
         self.step_angles = (-float(p.step_deg), 0.0, float(p.step_deg))  # n1 cw, n2 none, n3 ccw
-        self.c6 = AllToAll(3 * n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.eta_fm), name="C6")
-        nu = len(p.posture_angles)
-        self.c2, self.c3 = posture_maps(p, n, nu, generators, ("C2", "C3"))
+        self.c6 = AllToAll(3 * n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.fm.eta), name="C6")
+        nu = len(p.posture.angles)
+        self.c2, self.c3 = posture_maps(p.init_high, p.posture, n, nu, generators, ("C2", "C3"))
         # M1_1 -> M1_2 hard-wired masks: lower-left -> n1, diagonal -> n2, upper-right -> n3
         self.register_buffer("m1_masks", triangle_weights(nu))
         self._table: torch.Tensor | None = None
@@ -83,7 +113,7 @@ class RotationGeneralising(nn.Module):
         """Graded posture code (eq. 6.5-6.6): a Gaussian of each unit's distance to the image,
         measured from the best unit's distance, ``exp(-(d_i^2 - d_min^2) / (2 sigma^2))``."""
         d = som.distances(x)
-        return torch.exp(-(d - d.min(-1, keepdim=True).values) / (2 * self.p.posture_code_sigma ** 2))
+        return torch.exp(-(d - d.min(-1, keepdim=True).values) / (2 * self.p.posture.code_sigma ** 2))
 
     def m1_2(self, m11: torch.Tensor) -> torch.Tensor:
         """M1_2 activity (eq. 6.2): a Gaussian of the distance between M1_1 ``(P, B, 16)`` and the
@@ -146,14 +176,14 @@ class RotationGeneralising(nn.Module):
             s = ((move == m) & sel).unsqueeze(-1)
             full[..., m * n:(m + 1) * n] = x * s
         pred = binary_matmul(self._table, full)
-        return torch.where(sel.unsqueeze(-1), (pred > self.p.fm_threshold).float(), x)
+        return torch.where(sel.unsqueeze(-1), (pred > self.p.fm.threshold).float(), x)
 
     @torch.no_grad()
     def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record: int = 0, **_) -> dict:
         """Run a batch of trials (binary edge maps ``(P, B, n)``); see the module docstring."""
         p = self.p
         P, B, _ = target.shape
-        nu = len(p.posture_angles)
+        nu = len(p.posture.angles)
         pfc1 = target
         pmc1 = self.posture(self.c3, pfc1)
         pp2 = rotated  # at the start PP_2 holds the seen image
