@@ -9,7 +9,7 @@ their U[0, 0.1] initial weights and the SOM's sample order).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -19,52 +19,23 @@ from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import summarise_trials
 from ..models.params import FieldParams, SomParams, moved_keys
-from ..models.rotation_affordance import AffordanceRotationModel
+from ..models.rotation_affordance import AffordanceParams, AffordanceRotationModel
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of, pearson,
                            record_figures_and_scalars, stimulus_set,
                            to_np, train_and_save, trials_frame)
 
 
 @dataclass
-class Exp1Config:
+class Exp1Config(AffordanceParams):
+    """The model's parameters (:class:`AffordanceParams`) and the run's."""
+
     name: str = "exp1"
-    step_deg: float = 15.0  # rotation of one C1/C2 cycle and spacing of the trained orientations (thesis: 15)
-    max_cycles: int = 10  # rotation cycles before the model gives up and matches the last image (thesis: 10)
-    centre_tolerance_deg: float = 7.5  # |posture| at which the PMC_1 cluster counts as "at the centre" (half a step)
-    init_high: float = 0.1  # initial weights U[0, init_high] (thesis: 0.1)
-    hebb_eta: float = 0.3  # outstar Hebbian rate of C1, C2, C5 (not given in the thesis)
-    hebb_epochs: int = 6  # passes over the training patterns (Table 5.1 of Exp. 2 uses 6 passes)
-    feed_order: str = "sequential"  # 'sequential': all of object A, then B (as in the thesis); or 'shuffled'
-    posture_sigma_deg: float = 6.0  # width of a PMC_1 posture cluster (deg along both axes)
-    object_band_deg: float = 22.5  # PMC_1 row offset (deg units) of object A (-) and B (+) clusters
-    answer_sigma: float = 1.5  # width (units) of the PMC_2 answer clusters
-    image_threshold: float = 0.5  # C2 output (max-normalised) above which a PC unit is on in the mental image
-    sharpen: float = 4.0  # exponent on the PMC_1 column profile before the competition (contrast)
-    som: SomParams = dc_field(default_factory=SomParams)  # the PFC_2 map (not given for Exp. 1) and its cluster
     auto_threads: int = 1  # intra-op threads for training and testing when the run's `threads` is 0 (see docs)
-    field: FieldParams = dc_field(default_factory=FieldParams)  # the PMC_1 and PMC_2 competitions
 
     def __post_init__(self) -> None:
-        pos = ["step_deg", "centre_tolerance_deg", "init_high", "hebb_eta", "posture_sigma_deg", "answer_sigma",
-               "image_threshold", "sharpen"]
-        for k in pos:
-            if not getattr(self, k) > 0:
-                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
-        for k in ("max_cycles", "hebb_epochs"):
-            if getattr(self, k) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        for k in ("object_band_deg",):
-            if getattr(self, k) < 0:
-                raise ValueError(f"experiment.{k} must be >= 0, got {getattr(self, k)!r}")
-        if self.hebb_eta > 1 or self.image_threshold >= 1:
-            raise ValueError("experiment.hebb_eta must be <= 1 and experiment.image_threshold < 1")
-        if self.feed_order not in ("sequential", "shuffled"):
-            raise ValueError(f"experiment.feed_order must be 'sequential' or 'shuffled', got {self.feed_order!r}")
+        super().__post_init__()
         if self.auto_threads < 1:
             raise ValueError(f"experiment.auto_threads must be >= 1, got {self.auto_threads!r}")
-        if 90 % self.step_deg != 0:
-            raise ValueError(f"experiment.step_deg must divide 90, got {self.step_deg!r}")
-
 
 
 CONFIG = Exp1Config

@@ -25,6 +25,8 @@ map, 105 units); the object row is then read at the winning column.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field as dc_field
+
 import torch
 from torch import nn
 
@@ -32,12 +34,52 @@ from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participan
 from ..nn.functional import intra_op_threads
 from ..nn.som_windowed import windowed_factors
 from .factor_checkpoint import FactorCheckpoint
+from .params import FieldParams, SomParams
+
+
+@dataclass
+class AffordanceParams:
+    """The parameters of :class:`AffordanceRotationModel` (``experiment.*`` of Experiment 1)."""
+
+    step_deg: float = 15.0  # rotation of one C1/C2 cycle and spacing of the trained orientations (thesis: 15)
+    max_cycles: int = 10  # rotation cycles before the model gives up and matches the last image (thesis: 10)
+    centre_tolerance_deg: float = 7.5  # |posture| at which the PMC_1 cluster counts as "at the centre" (half a step)
+    init_high: float = 0.1  # initial weights U[0, init_high] (thesis: 0.1)
+    hebb_eta: float = 0.3  # outstar Hebbian rate of C1, C2, C5 (not given in the thesis)
+    hebb_epochs: int = 6  # passes over the training patterns (Table 5.1 of Exp. 2 uses 6 passes)
+    feed_order: str = "sequential"  # 'sequential': all of object A, then B (as in the thesis); or 'shuffled'
+    posture_sigma_deg: float = 6.0  # width of a PMC_1 posture cluster (deg along both axes)
+    object_band_deg: float = 22.5  # PMC_1 row offset (deg units) of object A (-) and B (+) clusters
+    answer_sigma: float = 1.5  # width (units) of the PMC_2 answer clusters
+    image_threshold: float = 0.5  # C2 output (max-normalised) above which a PC unit is on in the mental image
+    sharpen: float = 4.0  # exponent on the PMC_1 column profile before the competition (contrast)
+    som: SomParams = dc_field(default_factory=SomParams)  # the PFC_2 map (not given for Exp. 1) and its cluster
+    field: FieldParams = dc_field(default_factory=FieldParams)  # the PMC_1 and PMC_2 competitions
+
+    def __post_init__(self) -> None:
+        pos = ["step_deg", "centre_tolerance_deg", "init_high", "hebb_eta", "posture_sigma_deg", "answer_sigma",
+               "image_threshold", "sharpen"]
+        for k in pos:
+            if not getattr(self, k) > 0:
+                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
+        for k in ("max_cycles", "hebb_epochs"):
+            if getattr(self, k) < 1:
+                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
+        for k in ("object_band_deg",):
+            if getattr(self, k) < 0:
+                raise ValueError(f"experiment.{k} must be >= 0, got {getattr(self, k)!r}")
+        if self.hebb_eta > 1 or self.image_threshold >= 1:
+            raise ValueError("experiment.hebb_eta must be <= 1 and experiment.image_threshold < 1")
+        if self.feed_order not in ("sequential", "shuffled"):
+            raise ValueError(f"experiment.feed_order must be 'sequential' or 'shuffled', got {self.feed_order!r}")
+        if 90 % self.step_deg != 0:
+            raise ValueError(f"experiment.step_deg must divide 90, got {self.step_deg!r}")
 
 
 class AffordanceRotationModel(FactorCheckpoint, nn.Module):
     """Fig. 5.1 for ``participants`` robots with independent initial weights (batched).
 
-    ``e`` is an :class:`~neuroimagery.experiments.exp1.Exp1Config`.
+    ``e``: its :class:`AffordanceParams`.
     """
 
     CHECKPOINT_FORMAT = "neuroimagery.exp1.factors/1"  # compact_state (FactorCheckpoint)

@@ -16,7 +16,7 @@ from .rotation_embodied import lca_gain
 def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, proprioception: str = "none",
               noise: bool = False) -> dict:
     """:meth:`RotationEmbodied.run` of ``model`` for ``target`` / ``rotated`` ``(P, B, n)``, plainly."""
-    p, (P, B, n) = model.p, target.shape
+    p, (P, B, _) = model.p, target.shape
     nu = len(p.ppc_angles)
     gain = lca_gain(p)
     fm = [c.weight for c in model.fm]  # C1-C3 (P, n, n): Ml, Ms, Mr
