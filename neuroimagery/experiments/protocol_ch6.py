@@ -23,6 +23,7 @@ import torch
 from .. import progress
 from ..errors import UserInputError
 from ..nn import seeding
+from ..analysis import figures
 from ..analysis.summary import TRIAL_COLUMNS
 
 
@@ -210,11 +211,48 @@ def sample_generators(seed: int, participants: Sequence[int], stream: int):
     return seeding.participant_generators(seed, list(participants), stream=stream)
 
 
-def log_history(logger, history: list, prefix: str) -> None:
-    """Every map of every step of recorded sample trials to TensorBoard."""
+def sample_rows(table: pd.DataFrame, n: int) -> list[int]:
+    """The rows of a test's trial table shown step by step (figures, TensorBoard): ``n`` pairs at
+    the test's largest disparity, a same pair first, then a mirror pair, alternating, each the
+    first of its kind in the table's order. The labels only choose what is displayed; the model
+    runs every trial alike."""
+    if n <= 0 or table.empty:
+        return []
+    big = table[table["disparity"] == table["disparity"].max()]
+    kinds = [list(big.index[big["same"].astype(bool)]), list(big.index[~big["same"].astype(bool)])]
+    out: list[int] = []
+    while len(out) < n and any(kinds):
+        for rows in kinds:
+            if rows and len(out) < n:
+                out.append(int(table.index.get_loc(rows.pop(0))))
+    return out
+
+
+def sample_names(table: pd.DataFrame, rows: Sequence[int]) -> list[str]:
+    """``same_135deg`` / ``mirror_135deg`` names of the sample trials ``rows``."""
+    t = table.iloc[list(rows)]
+    return [f"{'same' if s else 'mirror'}_{int(d)}deg" for s, d in zip(t["same"].astype(bool), t["disparity"])]
+
+
+def log_history(logger, history: list, prefix: str, names: Sequence[str] | None = None) -> None:
+    """Every map of every step of the recorded sample trials to TensorBoard, as image series whose
+    step is the rotation step (1 = the first)."""
     for trial_k, steps in enumerate(history):
+        name = names[trial_k] if names is not None else f"trial{trial_k}"
         for s, maps in enumerate(steps):
-            logger.maps({k: torch.as_tensor(v) for k, v in maps.items()}, step=s + 1, prefix=f"{prefix}/trial{trial_k}/")
+            logger.maps({k: torch.as_tensor(v) for k, v in maps.items()}, step=s + 1, prefix=f"{prefix}/{name}/")
+
+
+def sample_panels(path, key: str, history: list, names: Sequence[str]):
+    """One figure of the sample trials of ``key``: one row per rotation step of each trial."""
+    steps, labels = [], []
+    for name, trial in zip(names, history):
+        for i, st in enumerate(trial):
+            steps.append({k: torch.as_tensor(v).numpy() for k, v in st.items()})
+            labels.append(f"{name.replace('_', ' ')}, step {i + 1}")
+    if not steps:
+        return None
+    return figures.map_panels(steps, path, title=f"{key}: sample trials, one row per rotation step", row_labels=labels)
 
 
 def train_posture_maps(cfg, eye, model, angles: Sequence[float], generators):

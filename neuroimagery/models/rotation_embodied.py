@@ -37,6 +37,14 @@ from .params import ForwardModelParams, PostureMapParams
 MOVES = ("Ml", "Ms", "Mr")
 
 
+def sample_indices(record, trials: int) -> list[int]:
+    """The trials whose maps a run returns step by step: ``record`` leading trials (an int) or the
+    given trial indices (any that exist), in the order given."""
+    if isinstance(record, int):
+        return list(range(min(record, trials)))
+    return [int(k) for k in record if 0 <= int(k) < trials]
+
+
 def triangle_weights(n: int) -> torch.Tensor:
     """Hard-wired PPCc -> PMCm weights ``(3, n*n)`` (eq. 6.10): lower -> Ml, diagonal -> Ms, upper -> Mr."""
     r = torch.arange(n).view(n, 1).expand(n, n)
@@ -340,7 +348,7 @@ class RotationEmbodied(nn.Module):
     # ------------------------------------------------------------------ trials
     @torch.no_grad()
     def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, proprioception: str = "none",
-            noise: bool = False, record: int = 0, flipped: torch.Tensor | None = None) -> dict:
+            noise: bool = False, record=0, flipped: torch.Tensor | None = None) -> dict:
         """Run a batch of trials. ``target``/``rotated``: binary edge maps ``(P, B, n)``.
 
         ``proprioception``: ``none``, ``match`` (wrist signal on the PPCp unit of the mental
@@ -350,12 +358,13 @@ class RotationEmbodied(nn.Module):
         second input that the noise of the image-to-posture mapping does not touch), with
         ``'visual'`` before it (both signals share the noise and the [0, 1] ceiling). Randomness (softmax selection, noise,
         time-out answers) comes from ``generators``, one per participant, drawn in a fixed order.
-        ``record``: number of leading trials of participant 0 whose maps are returned per step.
+        ``record``: the trials of participant 0 whose maps are returned per step, as a number of
+        leading trials or a sequence of trial indices.
         """
         return self.run_conditions(target, rotated, [(proprioception, noise, generators)], record, flipped)[0]
 
     @torch.no_grad()
-    def run_conditions(self, target: torch.Tensor, rotated: torch.Tensor, conditions, record: int = 0,
+    def run_conditions(self, target: torch.Tensor, rotated: torch.Tensor, conditions, record=0,
                        flipped: torch.Tensor | None = None) -> list[dict]:
         """Run the same trials ``(P, B, n)`` under several conditions ``[(proprioception, noise,
         generators), ...]``; returns one result dict per condition (see :meth:`run`).
@@ -394,8 +403,9 @@ class RotationEmbodied(nn.Module):
         steps = torch.zeros(C, Q, dtype=torch.long)
         rotations = torch.zeros(C, Q, dtype=torch.long)
         angle = torch.zeros(C, Q)
-        histories: list[list[list[dict]]] = [[[] for _ in range(min(record, B))] for _ in range(C)]
-        rec = [(q, k) for k in range(min(record, B)) for q in [k]]  # participant 0, trials 0..record-1
+        shown = sample_indices(record, B)
+        histories: list[list[list[dict]]] = [[[] for _ in shown] for _ in range(C)]
+        rec = list(zip(shown, range(len(shown))))  # (flat row q of participant 0, history slot)
 
         gain = lca_gain(p)
 

@@ -29,7 +29,7 @@ from ..nn import AllToAll, Delta, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul
 from .params import ForwardModelParams, PostureMapParams
-from .rotation_embodied import posture_maps, triangle_weights
+from .rotation_embodied import posture_maps, sample_indices, triangle_weights
 
 MOVES = ("n1", "n2", "n3")
 
@@ -229,8 +229,10 @@ class RotationGeneralising(nn.Module):
         return torch.where(sel.unsqueeze(-1), (pred > self.p.fm.threshold).float(), x)
 
     @torch.no_grad()
-    def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record: int = 0, **_) -> dict:
-        """Run a batch of trials (binary edge maps ``(P, B, n)``); see the module docstring."""
+    def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record=0, **_) -> dict:
+        """Run a batch of trials (binary edge maps ``(P, B, n)``); see the module docstring.
+        ``record``: the trials of participant 0 whose maps are returned per step (a number of
+        leading trials or a sequence of trial indices)."""
         p = self.p
         P, B, _ = target.shape
         nu = len(p.posture.angles)
@@ -241,7 +243,8 @@ class RotationGeneralising(nn.Module):
         rotations = torch.zeros(P, B, dtype=torch.long)
         angle = torch.zeros(P, B)
         step_deg = torch.tensor(self.step_angles)
-        history: list[list[dict]] = [[] for _ in range(min(record, B))]
+        shown = sample_indices(record, B)
+        history: list[list[dict]] = [[] for _ in shown]
         for s in range(p.max_steps + 1):
             act = ~done
             if not bool(act.any()):
@@ -253,9 +256,9 @@ class RotationGeneralising(nn.Module):
             stop = act & ((move == 1) | (rotations >= p.max_steps))
             go = act & ~stop
             new = self.forward_step(pp2, move, go)
-            for k in range(len(history)):
+            for j, k in enumerate(shown):
                 if bool(act[0, k]):
-                    history[k].append({"PFC_1": pfc1[0, k].view(self.size, self.size), "PP_2": pp2[0, k].view(self.size, self.size),
+                    history[j].append({"PFC_1": pfc1[0, k].view(self.size, self.size), "PP_2": pp2[0, k].view(self.size, self.size),
                                        "SS": ss[0, k], "PMC_1": pmc1[0, k], "M1_1": m11[0, k].view(nu, nu), "M1_2": m12[0, k],
                                        "PFC_2": self.uncovered(pfc1[0, k], pp2[0, k]).view(self.size, self.size)})
             angle = angle + torch.where(go, step_deg[move], torch.zeros(()))

@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import torch
 
-from .learning import IndexedRows, Kernel, register
+from . import monitor
+from .learning import IndexedRows, Kernel, error_curve, register
 from .rules import Delta
 
 
 @torch.no_grad()
-def delta_binary(weight: torch.Tensor, X: torch.Tensor, Y: torch.Tensor, eta: float, batch: int, progress=None) -> None:
+def delta_binary(weight: torch.Tensor, X: torch.Tensor, Y: torch.Tensor, eta: float, batch: int, progress=None,
+                 curve: str | None = None) -> None:
     """Delta rule (``Delta(eta, reduction='sum')``) on binary inputs, in mini-batches, in place.
 
     ``weight`` ``(P, out, in)``, ``X`` ``(P, N, in)`` 0/1, ``Y`` ``(P, N, out)`` targets. Each
@@ -23,8 +25,10 @@ def delta_binary(weight: torch.Tensor, X: torch.Tensor, Y: torch.Tensor, eta: fl
     weight receives its changes in the order of the mini-batch's patterns (``index_add_``, which
     adds in index order on the CPU; ``index_put_(accumulate=True)`` does not, with several
     threads). Every number is thus a fixed sequence of IEEE additions and products, the same at
-    any thread count and on any CPU.
+    any thread count and on any CPU. ``curve`` names the training curve (:mod:`.monitor`) of the
+    mini-batches' squared error before their change, reported when a reader listens.
     """
+    watch = monitor.Curve(curve, -(-X.shape[1] // batch)) if curve and monitor.active() else None
     W = weight  # (P, out, in)
     P, O, I = W.shape
     Wt = torch.cat([W.transpose(1, 2), torch.zeros(P, 1, O, dtype=W.dtype)], dim=1).contiguous()  # row I = padding
@@ -32,7 +36,7 @@ def delta_binary(weight: torch.Tensor, X: torch.Tensor, Y: torch.Tensor, eta: fl
     base = (torch.arange(P) * (I + 1)).view(P, 1, 1)
     N = X.shape[1]
     starts = range(0, N, batch)
-    for s in (progress(starts) if progress is not None else starts):
+    for b, s in enumerate(progress(starts) if progress is not None else starts):
         x, y = X[:, s:s + batch], Y[:, s:s + batch]
         on = x > 0.5
         K = int(on.sum(-1).max())
@@ -45,6 +49,8 @@ def delta_binary(weight: torch.Tensor, X: torch.Tensor, Y: torch.Tensor, eta: fl
         out = rows_of[rows[..., 0]]
         for k in range(1, K):
             out = out + rows_of[rows[..., k]]  # (P, b, O)
+        if watch is not None:
+            watch.add(b, (y - out).pow(2).sum(-1).mean())
         err = eta * (y - out)
         rows_of.index_add_(0, rows.reshape(-1), err.unsqueeze(2).expand(-1, -1, K, -1).reshape(-1, O))
         Wt[:, I] = 0
@@ -66,7 +72,7 @@ def _run(conn, rule, pre, post, batch, progress, kw) -> None:
     P = conn.participants
     X = pre.expand(P, -1, -1) if pre.dim() == 2 else pre
     Y = kw["target"].expand(P, -1, -1) if kw["target"].dim() == 2 else kw["target"]
-    delta_binary(conn.weight, X, Y, rule.eta, batch, progress)
+    delta_binary(conn.weight, X, Y, rule.eta, batch, progress, curve=error_curve(conn))
     return None
 
 

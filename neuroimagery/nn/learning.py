@@ -30,6 +30,8 @@ from typing import Callable
 
 import torch
 
+from . import monitor
+
 
 class IndexedRows:
     """A sequence of rows drawn from a small set: row ``t`` of participant ``p`` is
@@ -93,16 +95,25 @@ def register(kernel: Kernel) -> Kernel:
     return kernel
 
 
+def error_curve(conn) -> str:
+    """The tag of a connection's training curve of squared errors (:mod:`.monitor`)."""
+    return f"train/{conn.name or 'connection'}/squared_error"
+
+
 def run_plain(conn, pre, post, batch: int, progress=None, **kw) -> None:
     """The plain form: :meth:`Connection.learn` once per group of ``batch`` steps, in order; a rule
     that reads the actual output (``Delta``, with no ``post``) gets the connection's output at
-    the current weights."""
+    the current weights. With a ``target`` and a reader listening (:mod:`.monitor`), each group's
+    squared error before its change is the connection's training curve."""
     P, T = conn.participants, length(pre)
     starts = range(0, T, batch)
-    for s in (progress(starts) if progress is not None else starts):
+    watch = monitor.Curve(error_curve(conn), len(starts)) if "target" in kw and monitor.active() else None
+    for b, s in enumerate(progress(starts) if progress is not None else starts):
         x = rows(pre, s, s + batch, P)
         y = rows(post, s, s + batch, P) if post is not None else conn(x)
         extra = {k: rows(v, s, s + batch, P) if k == "target" else v for k, v in kw.items()}
+        if watch is not None:
+            watch.add(b, (extra["target"] - y).pow(2).sum(-1).mean())
         conn.learn(x, y, **extra)
 
 

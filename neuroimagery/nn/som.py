@@ -4,8 +4,9 @@
 Weights ``(P, units, in)``: row ``k`` of participant ``p`` is unit ``k``'s prototype. Training is
 online (one pattern per participant per iteration, as in the thesis's algorithm) and batched over
 participants. :meth:`SOM.fit` trains by one of the registered implementations of that online
-rule (:mod:`neuroimagery.nn.som_trainers`): ``method='online'`` (the plain rule, one
-:meth:`SOM.step` per step), ``'factored'`` (:mod:`~neuroimagery.nn.som_factored`: the weights
+rule (:mod:`neuroimagery.nn.som_trainers`): ``method='online'`` (every unit updated at every
+presentation: the fused kernel of :mod:`neuroimagery.nn.som_online` for the Kohonen rules, one
+:meth:`SOM.step` per step otherwise), ``'factored'`` (:mod:`~neuroimagery.nn.som_factored`: the weights
 never touched while training) or ``'windowed'`` (:mod:`~neuroimagery.nn.som_windowed`: the
 factored form per participant neighbourhood window, unsupervised 2-D maps, CPU). They give the
 same winners and the same weights up to float rounding (``tests/test_som.py``).
@@ -23,7 +24,7 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from . import seeding
+from . import monitor, seeding
 from .functional import as_batched, check_rate, check_tensor, checks_enabled, grid_coords, squared_norms
 from .rules import Kohonen, SupervisedKohonen
 from .som_trainers import TRAINERS, choose
@@ -186,7 +187,13 @@ class SOM(nn.Module):
             from tqdm.auto import tqdm
 
             it = tqdm(it, desc=f"SOM {self.name}", leave=False)
-        return trainer.fit(self, X, order, labels, it, parts=parts)
+        winners = trainer.fit(self, X, order, labels, it, parts=parts)
+        if monitor.active():  # the trained map's final state, at its own step count
+            tag = f"train/som/{self.name or 'som'}"
+            monitor.record(f"{tag}/quantisation_error_final", self.quantization_error(X).mean(), int(self.steps))
+            if self.units > 1:
+                monitor.record(f"{tag}/topographic_error_final", self.topographic_error(X).mean(), int(self.steps))
+        return winners
 
     def _order_generators(self) -> list[torch.Generator]:
         if self.order_generators is None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import torch
 
 from .rules import SupervisedKohonen
+from .som_trainers import curve
 
 
 @torch.no_grad()
@@ -45,12 +46,15 @@ def fit_factored(som, X: torch.Tensor, order: torch.Tensor, labels: torch.Tensor
     normalise = isinstance(som.rule, SupervisedKohonen) and som.rule.normalise
     winners = torch.empty_like(order)
     t0 = int(som.steps)
+    watch = curve(som, order.shape[1])
     for t in it:
         s = order[:, t]
         Gs = G[p, s]  # (P, N)
         Ds = c * Q[p, s]  # (P, U)  w_k . x_s
         win = (nrm - 2 * Ds).argmin(-1) if labels is None else labels[p, s]
         winners[:, t] = win
+        if watch is not None:  # |w_win - x_s| from the invariants
+            watch.add(t, (nrm[p, win] - 2 * Ds[p, win] + Gs[p, s]).clamp_min(0).sqrt().mean())
         eta, sigma = som.rule.schedule(t0 + t)
         a = float(eta) * som.rule.neighbourhood(grid, win, sigma.to(dt))  # (P, U)
         b = 1 - a

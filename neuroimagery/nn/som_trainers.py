@@ -7,8 +7,9 @@ participant per step, in the given order) and returns the same winners; they dif
 in float rounding only. The tests hold each fast one against the plain step-by-step rule
 (``tests/test_som.py``).
 
-* ``online``: :meth:`SOM.step` once per step, the weights updated every step: the plain rule,
-  on any device and dtype;
+* ``online``: the weights updated every step, every unit: the fused kernel of :mod:`.som_online`
+  for the Kohonen rules, :func:`fit_plain` (:meth:`SOM.step` once per step, the plain rule, on any
+  device and dtype) for any other;
 * ``factored`` (:mod:`.som_factored`): never touches the weights while training; a step costs
   the neighbourhood times the number of patterns, independent of the input size;
 * ``windowed`` (:mod:`.som_windowed`): the factored form per participant, touching only its own
@@ -25,6 +26,8 @@ from dataclasses import dataclass
 from typing import Callable
 
 import torch
+
+from . import monitor
 
 
 @dataclass(frozen=True)
@@ -72,13 +75,39 @@ def choose(som, X: torch.Tensor, labels: torch.Tensor | None, method: str, optio
 
 
 # ------------------------------------------------------------------ the three implementations
+def curve(som, T: int) -> monitor.Curve | None:
+    """The running training curve of a fit of ``T`` steps: the mean distance of the presented
+    patterns to their winners (or labelled units) before each step's change; None when no reader
+    listens (:mod:`.monitor`), so an unwatched fit measures nothing."""
+    if not monitor.active():
+        return None
+    what = "label" if som.supervised else "winner"
+    return monitor.Curve(f"train/som/{som.name or 'som'}/{what}_distance", T, offset=int(som.steps))
+
+
 def _fit_online(som, X, order, labels, steps, **_) -> torch.Tensor:
-    """The plain rule: one :meth:`SOM.step` per step."""
+    """Every unit updated at every presentation: the fused kernel of :mod:`.som_online` for the
+    Kohonen rules, otherwise one :meth:`SOM.step` per step (the plain rule)."""
+    from . import som_online
+
+    if som.weight.device.type != "meta" and som_online.supports(som.rule):
+        return som_online.fit_online(som, X, order, labels, steps)
+    return fit_plain(som, X, order, labels, steps)
+
+
+def fit_plain(som, X, order, labels, steps=None) -> torch.Tensor:
+    """The plain rule, the reference of every other implementation: one :meth:`SOM.step` per step."""
     p = torch.arange(som.participants, device=order.device)
     winners = torch.empty_like(order)
+    steps = range(order.shape[1]) if steps is None else steps
+    watch = curve(som, order.shape[1])
     for t in steps:
         s = order[:, t]
-        winners[:, t] = som.step(X[p, s], None if labels is None else labels[p, s])
+        x, w = X[p, s], None if labels is None else labels[p, s]
+        if watch is not None:
+            d2 = som.distances(x.unsqueeze(1))[:, 0]  # (P, U)
+            watch.add(t, (d2.min(-1).values if w is None else d2[p, w]).sqrt().mean())
+        winners[:, t] = som.step(x, w)
     return winners
 
 
