@@ -90,6 +90,24 @@ def test_batched_participants_equal_solo_runs():
         assert torch.equal(ob[k][1], os_[k][0]), k
 
 
+def test_batched_trial_equals_the_plain_trial():
+    """run() (all trials batched, C6 as sums of active weight rows) against run_plain() (one trial at
+    a time, dense products, the equations in order): the same answers, steps and angles."""
+    from neuroimagery.models.rotation_generalising_plain import run_plain
+
+    cfg = _cfg("participants=2", "logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100")
+    model = exp3.train_model(cfg, [0, 1])
+    bank = pc.StimulusBank.build(pc.make_eye(cfg), pc.stimulus_set(cfg, "exp3-a", False), 32)
+    table = pc.trial_table(bank, "recog", "none").iloc[::5].iloc[:16]
+    tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].expand(2, -1, -1)
+    rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].expand(2, -1, -1)
+    batched = model.run(tgt, rot, seeding.participant_generators(0, [0, 1], 100))
+    plain = run_plain(model, tgt, rot, seeding.participant_generators(0, [0, 1], 100))
+    assert int(batched["rotation_steps"].sum()) > 0  # the trials do rotate
+    for k in ("answer", "rotation_steps", "rotation_deg"):
+        assert torch.equal(batched[k], plain[k]), k
+
+
 def test_end_to_end_quick_run_writes_results(tmp_path):
     cfg = _cfg("participants=2", "logger.sample_trials=1", "experiment.quick.fm_images=1500")
     evaluate(cfg, out_dir=tmp_path)
