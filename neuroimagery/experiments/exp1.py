@@ -117,7 +117,7 @@ def test_pairs(test: str, objs: list[str]) -> list[dict]:
 def run_test(cfg, model, sset, test: str, record: int = 0):
     objs = objects_of(sset)
     pairs = test_pairs(test, objs)
-    P = model.c1.participants
+    P = model.participants
     rot = edge_maps(cfg, sset, [(p["rotated_object"], p["rotated_angle"]) for p in pairs]).reshape(len(pairs), -1)
     tgt = edge_maps(cfg, sset, [(p["target_object"], 0.0) for p in pairs]).reshape(len(pairs), -1)
     out = model.trial(rot.expand(P, -1, -1), tgt.expand(P, -1, -1), record=record)

@@ -90,7 +90,7 @@ def run_test(cfg, model, sset, test, condition, record=0):
     pairs = [(r, t) for r in items for t in items]
     maps = edge_maps(cfg, sset, items).reshape(len(items), -1)
     idx = {it: i for i, it in enumerate(items)}
-    P = model.c1.participants
+    P = model.participants
     rot = maps[[idx[r] for r, _ in pairs]].expand(P, -1, -1)
     tgt = maps[[idx[t] for _, t in pairs]].expand(P, -1, -1)
     out = model.trial(rot, tgt, condition, record=record)  # the images only

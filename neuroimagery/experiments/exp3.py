@@ -121,7 +121,7 @@ def evaluate(cfg, run, trained) -> dict:
     df, histories, banks = run_tests(cfg, trained, record=cfg.logger.sample_trials)
     run.write_csv("trials.csv", df)
     tests = summarise_trials(df)
-    P = trained.c2.weight.shape[0]
+    P = trained.participants
     iou = {t: pc.generalisation_iou(lambda x: trained.forward_step(x.expand(P, -1, -1) if x.shape[0] == 1 else x,
                                                                    torch.full((P, x.shape[1]), 2, dtype=torch.long)),
                                     b, e.step_deg, 3, e.map_size) for t, b in banks.items()}

@@ -103,6 +103,10 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         self.answer_field = DynamicField((10, 20), name="PMC_2", **e.field.field_kwargs())
         self.seed = seed
 
+    @property
+    def participants(self) -> int:
+        return self.c1.participants
+
     # ------------------------------------------------------------------ codes
     def object_row(self, obj_index: torch.Tensor) -> torch.Tensor:
         """Row coordinate (deg units) of object 0 (A) or 1 (B) in PMC_1."""

@@ -117,6 +117,10 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         self.ss_field = DynamicField((100,), name="SS", **fk)
         self.answer_field = DynamicField((10, 20), name="PMC_2", **fk)
 
+    @property
+    def participants(self) -> int:
+        return self.c1.participants
+
     # ------------------------------------------------------------------ codes
     def ss_code(self, obj: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
         row = torch.where(obj == 0, -self.e.object_band_deg, self.e.object_band_deg).float()
