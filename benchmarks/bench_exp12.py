@@ -36,11 +36,12 @@ def som_equivalence(steps: int) -> None:
     """M1_1 (64x64, 6,200 inputs, 98 patterns), 2 participants, the configured schedule compressed
     to ``steps``: winners, quantisation / topographic errors and weights of each method."""
     from neuroimagery.experiments.exp2 import Exp2Config
+    from neuroimagery.models.params import SomParams
     from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
     from neuroimagery.nn import SOM, participant_generators
     from neuroimagery.nn.som_windowed import fit_windowed
 
-    e = Exp2Config(som_iterations=steps)
+    e = Exp2Config(som=SomParams(iterations=steps, cutoff=0.01, cluster_sigma=1.0))
     m = MotorRotationModel(e, 2, 0)
     ang = torch.tensor(ANGLES)
     o, c, d = (t.reshape(-1) for t in torch.meshgrid(torch.arange(2), torch.arange(7), torch.arange(7), indexing="ij"))
@@ -50,9 +51,9 @@ def som_equivalence(steps: int) -> None:
     res = {}
     for method in ("online", "factored", "windowed", "windowed by pieces"):
         som = SOM((64, 64), 6200, generators=participant_generators(0, 2, stream=6), init=(0.0, e.init_high),
-                  eta=e.som_eta, eta_final=e.som_eta_final, sigma=e.som_sigma, sigma_final=e.som_sigma_final,
+                  eta=e.som.eta, eta_final=e.som.eta_final, sigma=e.som.sigma, sigma_final=e.som.sigma_final,
                   iterations=steps)
-        som.rule.cutoff = e.som_cutoff
+        som.rule.cutoff = e.som.cutoff
         som.train()
         t = time.process_time()
         if method.startswith("windowed"):

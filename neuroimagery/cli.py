@@ -114,11 +114,12 @@ def plain_hydra_errors() -> None:
         except UserInputError as ex:
             _fail(str(ex), log=False)
         except (HydraException, OmegaConfBaseException) as ex:
-            from .config import moved_key_hint
+            from .config import moved_message
 
-            line = _one_line(ex)
-            _fail(line + moved_key_hint(line) + (_CLUSTER_HINT if "hydra_submitit_launcher" in str(ex) else ""),
-                  log=False)
+            moved = moved_message(_one_line(ex))
+            if moved:
+                _fail(moved, log=False)
+            _fail(_one_line(ex) + (_CLUSTER_HINT if "hydra_submitit_launcher" in str(ex) else ""), log=False)
         except OSError as ex:
             _fail(os_error_message(ex), log=False)
         except Exception as ex:  # a bug: Hydra prints it as usual, without running anything again

@@ -80,26 +80,6 @@ def experiment_module(name: str):
     return importlib.import_module(f"neuroimagery.experiments.{name}")
 
 
-def moved_key_hint(message: str) -> str:
-    """For a refusal naming a key its experiment's schema no longer has (``Key 'k' not in
-    'XConfig'``), where that key went (the module's ``MOVED_KEYS``), as `` (k: ...)``; else ''."""
-    import re
-
-    m = re.search(r"Key '(\w+)' not in '(\w+)'", message)
-    if not m:
-        return ""
-    for name in EXPERIMENTS:
-        try:
-            mod = experiment_module(name)
-        except ModuleNotFoundError:
-            continue
-        schema = getattr(mod, "CONFIG", None)
-        moved = getattr(mod, "MOVED_KEYS", {})
-        if schema is not None and schema.__name__ == m.group(2) and m.group(1) in moved:
-            return f" ({m.group(1)}: {moved[m.group(1)]})"
-    return ""
-
-
 def register_configs() -> None:
     """Store the schemas in Hydra's ConfigStore (called before composing)."""
     cs = ConfigStore.instance()
@@ -112,6 +92,39 @@ def register_configs() -> None:
         schema = getattr(mod, "CONFIG", None)
         if schema is not None:
             cs.store(group="experiment", name=f"{name}_schema", node=schema)
+
+
+REMOVED = "removed; "  # a MOVED value that starts so says why the key went, instead of naming its new place
+
+
+def moved_keys() -> dict[str, str]:
+    """``{old key: new key}`` of every experiment (``experiment.field_tau`` -> ``experiment.field.tau``):
+    the keys that moved into a group, declared by each experiment module as ``MOVED``; a key that
+    was removed maps to the reason, ``"removed; ..."``."""
+    out: dict[str, str] = {}
+    for name in EXPERIMENTS:
+        try:
+            mod = experiment_module(name)
+        except ModuleNotFoundError:
+            continue
+        for old, new in getattr(mod, "MOVED", {}).items():
+            out[f"experiment.{old}"] = new if new.startswith(REMOVED) else f"experiment.{new}"
+    return out
+
+
+def moved_message(text: str) -> str | None:
+    """The refusal of a key under its old name, if ``text`` (an error message, or a key) names one:
+    ``experiment.field_tau has moved: it is experiment.field.tau now``."""
+    import re
+
+    moved = moved_keys()
+    for key in re.findall(r"\bexperiment\.\w+", text):
+        if key in moved:
+            new = moved[key]
+            if new.startswith(REMOVED):
+                return f"{key} is no longer a setting: {new.removeprefix(REMOVED)}"
+            return f"{key} has moved: it is {new} now (see the experiment's docs)"
+    return None
 
 
 def _unknown_keys(node: DictConfig, path: str = "") -> list[str]:
@@ -137,6 +150,10 @@ def validate(cfg: DictConfig | Config) -> Config:
     if not isinstance(cfg.get("experiment"), DictConfig):
         raise UserInputError("invalid configuration: choose an experiment, e.g. experiment=exp4")
     unknown = [k for k in _unknown_keys(cfg) if not k.startswith("hydra")]
+    for k in unknown:
+        hint = moved_message(k)
+        if hint:
+            raise UserInputError(f"invalid configuration: {hint}")
     if unknown:
         raise UserInputError(f"invalid configuration: unknown key(s) {', '.join(unknown)}")
     check_finite(cfg)

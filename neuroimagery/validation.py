@@ -89,6 +89,9 @@ def ineffective(conf, module) -> dict[str, str]:
     if conf.logger.kind == "none":
         out["logger.map_images"] = "logger=none writes no TensorBoard files"  # sample_trials also feeds figures
     if conf.preset == "full":
+        quick = getattr(conf.experiment, "quick", None)  # the group of what preset=quick shrinks
+        if dataclasses.is_dataclass(quick):
+            out.update({f"experiment.quick.{f.name}": "it acts with preset=quick only" for f in dataclasses.fields(quick)})
         out.update({f"experiment.{f.name}": "it acts with preset=quick only"
                     for f in dataclasses.fields(conf.experiment) if f.name.startswith("quick_")})
     if conf.threads and hasattr(conf.experiment, "auto_threads"):

@@ -99,6 +99,9 @@ CONFIG_CASES = [
     (["experiment=exp4", "logger.kind=wandb"], "logger.kind"),
     (["experiment=exp1", "vision.kind=laser"], "vision.kind"),
     (["experiment=demo", "+experiment.stp_deg=3"], "experiment.stp_deg"),
+    (["experiment=exp2", "+experiment.som_eta=0.2"], "it is experiment.som.eta now"),  # an old key added with +
+    (["experiment=exp1", "experiment.field.tau=0"], "experiment.field.tau"),  # a group's own range check
+    (["experiment=exp4", "experiment.fm.batch=0"], "experiment.fm.batch"),
     # keys that would have no effect in this experiment or with these options
     (["experiment=exp4", "vision.size=16"], "vision.size"),
     (["experiment=exp1", "vision.gaze_jitter_deg=1"], "vision.gaze_jitter_deg"),
@@ -107,8 +110,8 @@ CONFIG_CASES = [
     (["experiment=exp5", "vision.noise_std=5"], "vision.noise_std"),
     (["experiment=demo", "stimuli=folder", "stimuli.path=/tmp"], "stimuli.kind"),
     (["experiment=exp4", "logger=none", "logger.map_images=false"], "logger.map_images"),
-    (["experiment=exp3", "experiment.quick_objects=2"], "experiment.quick_objects"),
-    (["experiment=exp4", "preset=quick", "experiment.fm_images=100"], "experiment.fm_images"),
+    (["experiment=exp3", "experiment.quick.objects=2"], "experiment.quick.objects"),
+    (["experiment=exp4", "preset=quick", "experiment.fm.images=100"], "experiment.fm.images"),
     (["experiment=exp3", "experiment.m1_centre_sigma=0.3"], "experiment.m1_centre_sigma"),
     (["experiment=exp4", "experiment.noise_tests=[]", "experiment.noise_amplitude=0.3"], "experiment.noise_amplitude"),
     (["experiment=exp5", "preset=quick", "experiment.repetitions=5"], "experiment.repetitions"),
@@ -127,7 +130,12 @@ def test_checkpoint_is_refused_in_training(tmp_path, capsys, no_training):
 
 
 @pytest.mark.parametrize("over,needle", [(["experiment=demo", "experiment.stp_deg=3"], "stp_deg"),
-                                         (["experiment=demo", "seed=abc"], "seed")])
+                                         (["experiment=demo", "seed=abc"], "seed"),
+                                         # a key that moved into a group is refused with its new place
+                                         (["experiment=exp1", "experiment.field_tau=5"], "it is experiment.field.tau now"),
+                                         (["experiment=exp2", "experiment.cluster_sigma=2"], "experiment.som.cluster_sigma"),
+                                         (["experiment=exp3", "experiment.quick_fm_images=9"], "experiment.quick.fm_images"),
+                                         (["experiment=exp4", "experiment.eta_posture=0.2"], "experiment.posture.eta")])
 def test_hydra_composition_errors_are_one_line(monkeypatch, capsys, over, needle):
     from hydra._internal import utils as hydra_utils
 

@@ -4,6 +4,8 @@ import os
 
 import pytest
 import torch
+
+from neuroimagery.models.params import SomParams
 from conftest import make_cfg
 from support_runs import reused_run
 
@@ -91,7 +93,7 @@ def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
 
     def cfg(n, *more):
         return make_cfg("experiment=exp1", f"participants={n}", "preset=quick", "progress=false", "logger=none",
-                        "experiment.som_iterations=50", *more)
+                        "experiment.som.iterations=50", *more)
 
     train(cfg(1), out_dir=tmp_path / "tr")
     with pytest.raises(UserInputError, match="participants 1 \\(stored\\) vs 3"):
@@ -106,7 +108,7 @@ def test_rotation_makes_up_to_max_cycles_image_updates(centred_at):
     stops at the first cycle whose posture cluster is at the centre."""
     from neuroimagery.models.rotation_affordance import AffordanceRotationModel
 
-    e = Exp1Config(som_iterations=1)
+    e = Exp1Config(som=SomParams(iterations=1))
     m = AffordanceRotationModel(e, 1, 0)
     calls = []
 
@@ -135,7 +137,7 @@ def test_answers_do_not_read_labels(tmp_path, monkeypatch):
     from neuroimagery.vision.stimulus_sets import get_stimulus_set
 
     cfg = validate(make_cfg("experiment=exp1", "participants=2", "preset=quick", "progress=false", "logger=none",
-                            "experiment.som_iterations=50"))
+                            "experiment.som.iterations=50"))
     model = exp1.train(cfg, RunDir(tmp_path, cfg))
     sset = get_stimulus_set("L")
     base = pd.DataFrame(exp1.run_test(cfg, model, sset, "generalisation")[0])

@@ -7,6 +7,8 @@ import cv2
 import numpy as np
 import pytest
 import torch
+
+from neuroimagery.models.params import SomParams
 from conftest import make_cfg
 from support_numerics import assert_same_threshold, assert_same_winner, assert_within
 from support_runs import reused_run
@@ -22,15 +24,18 @@ def _cfg(*overrides):
     return make_cfg("experiment=exp2", "progress=false", *overrides)
 
 
-@pytest.mark.parametrize("key,value", [("proprio_gain", 1.5), ("som_iterations", 0), ("som_method", "x"),
-                                       ("som_cutoff", 1.0), ("som_threads", 0)])
+@pytest.mark.parametrize("key,value", [("proprio_gain", 1.5), ("som.iterations", 0), ("som.method", "x"),
+                                       ("som.cutoff", 1.0), ("som.threads", 0)])
 def test_config_rejects_bad_values(key, value):
     with pytest.raises(ValueError, match=key):
-        Exp2Config(**{key: value})
+        if key.startswith("som."):
+            Exp2Config(som=SomParams(**{key[4:]: value}))
+        else:
+            Exp2Config(**{key: value})
 
 
 def test_babbling_moves_toward_the_desired_posture():
-    m = MotorRotationModel(Exp2Config(som_iterations=10), 2, 0)
+    m = MotorRotationModel(Exp2Config(som=SomParams(iterations=10, cutoff=0.01, cluster_sigma=1.0)), 2, 0)
     b = m.babble(200)
     assert b["cur"].shape == (2, 200)
     assert ((b["nxt"] >= 0) & (b["nxt"] <= 6)).all()
@@ -44,7 +49,7 @@ def test_m11_som_methods_agree_on_a_shortened_schedule():
     """M1_1 on its 98 (object, current, desired) patterns, 2 participants, 10 steps of the
     configured schedule compressed: windowed, factored and online give the same winners, the
     same quantisation and topographic errors, and the same weights up to float rounding."""
-    e = Exp2Config(som_iterations=10)
+    e = Exp2Config(som=SomParams(iterations=10, cutoff=0.01, cluster_sigma=1.0))
     m = MotorRotationModel(e, 2, 0)
     ang = torch.tensor(ANGLES)
     o, c, d = (t.reshape(-1) for t in torch.meshgrid(torch.arange(2), torch.arange(7), torch.arange(7), indexing="ij"))
@@ -54,9 +59,9 @@ def test_m11_som_methods_agree_on_a_shortened_schedule():
     res = {}
     for method in ("online", "factored", "windowed"):
         som = SOM((64, 64), 6200, generators=participant_generators(0, 2, stream=6), init=(0.0, e.init_high),
-                  eta=e.som_eta, eta_final=e.som_eta_final, sigma=e.som_sigma, sigma_final=e.som_sigma_final,
+                  eta=e.som.eta, eta_final=e.som.eta_final, sigma=e.som.sigma, sigma_final=e.som.sigma_final,
                   iterations=10)
-        som.rule.cutoff = e.som_cutoff
+        som.rule.cutoff = e.som.cutoff
         som.train()
         win = som_fit_windowed(som, X, order) if method == "windowed" else som.fit(X, order=order, method=method)
         res[method] = (win, som.weight.clone(), som.quantization_error(X), som.topographic_error(X))
@@ -82,10 +87,10 @@ def test_proprioception_preshapes_the_ss_competition():
         s, u0 = prof(0.0), None
         if felt is not None:
             p = prof(felt, e.proprio_gain)
-            s, u0 = s + p, e.field_h + e.field_gain * p
-        return m.ss_field(e.field_gain * s, max_cycles=e.field_max_cycles, u0=u0)
+            s, u0 = s + p, e.field.h + e.field.gain * p
+        return m.ss_field(e.field.gain * s, max_cycles=e.field.max_cycles, u0=u0)
 
-    alone = m.ss_field(e.field_gain * prof(60.0, e.proprio_gain), max_cycles=e.field_max_cycles)
+    alone = m.ss_field(e.field.gain * prof(60.0, e.proprio_gain), max_cycles=e.field.max_cycles)
     none, match, mis = run(None), run(0.0), run(60.0)
     assert int(alone.cycles) > 2 * int(none.cycles)
     assert int(match.cycles) < int(none.cycles) < int(mis.cycles)
@@ -257,7 +262,7 @@ def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path):
     from neuroimagery.errors import UserInputError
     from neuroimagery.experiments.protocol_ch5 import load_model
 
-    e = Exp2Config(som_iterations=30, hebb_steps=60, c5_epochs=1)
+    e = Exp2Config(som=SomParams(iterations=30, cutoff=0.01, cluster_sigma=1.0), hebb_steps=60, c5_epochs=1)
     g = torch.Generator().manual_seed(3)
     images = {(o, a): (torch.rand(1024, generator=g) > 0.8).float() for o in (0, 1) for a in ANGLES}
     m = MotorRotationModel(e, 2, 0)
@@ -304,8 +309,8 @@ def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     from neuroimagery.experiments import exp2
     from neuroimagery.run import RunDir, evaluate
 
-    small = ("experiment.som_iterations=30", "experiment.hebb_steps=60", "experiment.c5_epochs=1", "logger=none")
-    e = Exp2Config(som_iterations=30, hebb_steps=60, c5_epochs=1)
+    small = ("experiment.som.iterations=30", "experiment.hebb_steps=60", "experiment.c5_epochs=1", "logger=none")
+    e = Exp2Config(som=SomParams(iterations=30, cutoff=0.01, cluster_sigma=1.0), hebb_steps=60, c5_epochs=1)
     g = torch.Generator().manual_seed(3)
     m = MotorRotationModel(e, 1, 0)
     m.fit({(o, a): (torch.rand(1024, generator=g) > 0.8).float() for o in (0, 1) for a in ANGLES})
@@ -330,7 +335,7 @@ def test_answers_do_not_read_labels(monkeypatch, condition):
     from neuroimagery.experiments.protocol_ch5 import image_table
     from neuroimagery.vision.stimulus_sets import get_stimulus_set
 
-    cfg = validate(_cfg("participants=2", "logger=none", "experiment.som_iterations=30", "experiment.hebb_steps=60",
+    cfg = validate(_cfg("participants=2", "logger=none", "experiment.som.iterations=30", "experiment.hebb_steps=60",
                         "experiment.c5_epochs=1"))
     sset = get_stimulus_set("L")
     e = exp2._e(cfg)

@@ -77,7 +77,7 @@ def test_match_tolerance_covers_a_one_unit_shift_only():
 
 
 def test_batched_participants_equal_solo_runs():
-    cfg = _cfg("participants=2", "logger=none", "experiment.quick_fm_images=300", "experiment.posture_iterations=100")
+    cfg = _cfg("participants=2", "logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100")
     both, solo = exp3.train_model(cfg, [0, 1]), exp3.train_model(cfg, [1])
     assert torch.allclose(both.c6.weight[1], solo.c6.weight[0], atol=1e-5)
     bank = pc.StimulusBank.build(pc.make_eye(cfg), pc.stimulus_set(cfg, "exp3-a", False), 32)
@@ -90,8 +90,26 @@ def test_batched_participants_equal_solo_runs():
         assert torch.equal(ob[k][1], os_[k][0]), k
 
 
+def test_batched_trial_equals_the_plain_trial():
+    """run() (all trials batched, C6 as sums of active weight rows) against run_plain() (one trial at
+    a time, dense products, the equations in order): the same answers, steps and angles."""
+    from neuroimagery.models.rotation_generalising_plain import run_plain
+
+    cfg = _cfg("participants=2", "logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100")
+    model = exp3.train_model(cfg, [0, 1])
+    bank = pc.StimulusBank.build(pc.make_eye(cfg), pc.stimulus_set(cfg, "exp3-a", False), 32)
+    table = pc.trial_table(bank, "recog", "none").iloc[::5].iloc[:16]
+    tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].expand(2, -1, -1)
+    rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].expand(2, -1, -1)
+    batched = model.run(tgt, rot, seeding.participant_generators(0, [0, 1], 100))
+    plain = run_plain(model, tgt, rot, seeding.participant_generators(0, [0, 1], 100))
+    assert int(batched["rotation_steps"].sum()) > 0  # the trials do rotate
+    for k in ("answer", "rotation_steps", "rotation_deg"):
+        assert torch.equal(batched[k], plain[k]), k
+
+
 def test_end_to_end_quick_run_writes_results(tmp_path):
-    cfg = _cfg("participants=2", "logger.sample_trials=1", "experiment.quick_fm_images=1500")
+    cfg = _cfg("participants=2", "logger.sample_trials=1", "experiment.quick.fm_images=1500")
     evaluate(cfg, out_dir=tmp_path)
     for f in ("trials.csv", "summary.json", "report.md", "checkpoints/exp3.pt", "figures/fig6_5a_rt.png"):
         assert (tmp_path / f).exists(), f
@@ -143,7 +161,7 @@ def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     from neuroimagery.errors import UserInputError
     from neuroimagery.run import train
 
-    small = ("logger=none", "experiment.quick_fm_images=300", "experiment.posture_iterations=100")
+    small = ("logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100")
     train(_cfg("participants=2", *small), out_dir=tmp_path / "tr")
     with pytest.raises(UserInputError, match="participants 2 \\(stored\\) vs 5"):
         evaluate(_cfg("participants=5", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
@@ -157,6 +175,6 @@ def test_answers_do_not_read_labels(monkeypatch):
     """Shuffling every label column of the chosen trials, images kept, changes no answer or RT."""
     from support_labels import assert_run_tests_read_no_labels
 
-    cfg = _cfg("participants=2", "logger=none", "experiment.fm_images=300", "experiment.posture_iterations=100",
+    cfg = _cfg("participants=2", "logger=none", "experiment.fm.images=300", "experiment.posture.iterations=100",
                quick=False)
     assert_run_tests_read_no_labels(monkeypatch, exp3, cfg, exp3.train_model(cfg, [0, 1]))

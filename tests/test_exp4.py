@@ -1,4 +1,5 @@
 """Experiment 4: config checks, exact fast paths, batched == solo, an end-to-end quick run."""
+import copy
 import json
 
 import pandas as pd
@@ -53,7 +54,7 @@ def test_sparse_delta_equals_connection_learn():
 
 
 def test_batched_participants_equal_solo_runs():
-    cfg = _cfg("participants=2", "logger=none", "experiment.quick_fm_images=300", "experiment.posture_iterations=100")
+    cfg = _cfg("participants=2", "logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100")
     both = exp4.train_model(cfg, [0, 1])
     solo = exp4.train_model(cfg, [1])
     assert torch.allclose(both.fm[0].weight[1], solo.fm[0].weight[0], atol=1e-5)
@@ -72,8 +73,40 @@ def test_batched_participants_equal_solo_runs():
         assert torch.equal(ob[k][1], os_[k][0]), k
 
 
+@pytest.fixture(scope="module")
+def small_model():
+    cfg = _cfg("participants=2", "logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100")
+    bank = pc.StimulusBank.build(pc.make_eye(cfg), pc.stimulus_set(cfg, "exp4-A", False), 32)
+    return bank, exp4.train_model(cfg, [0, 1])
+
+
+@pytest.mark.parametrize("prop,noise,test_keys", [("none", False, False), ("mismatch", True, False), ("match", True, True)])
+def test_fused_trial_equals_the_plain_trial(small_model, prop, noise, test_keys):
+    """run() (all rows fused, binary products) against run_plain() (one trial at a time, dense
+    products, the equations in order): the same answers, cycles, steps and rotations; also with a
+    softmax PPCp winner and the PPCt-driven flip (test settings: the trained model is the same)."""
+    from dataclasses import replace
+
+    from neuroimagery.models.rotation_embodied_plain import run_plain
+    from neuroimagery.nn import seeding
+
+    bank, model = small_model
+    if test_keys:
+        model = copy.copy(model)
+        model.p = replace(model.p, posture=replace(model.p.posture, tau=0.1), flip_axis="ppct")
+    table = pc.trial_table(bank, "recog", "none").iloc[::13].iloc[:8]
+    tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].expand(2, -1, -1)
+    rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].expand(2, -1, -1)
+    gens = lambda: seeding.participant_generators(0, [0, 1], 100)  # noqa: E731
+    fused = model.run(tgt, rot, gens(), proprioception=prop, noise=noise)
+    plain = run_plain(model, tgt, rot, gens(), proprioception=prop, noise=noise)
+    assert int(fused["rotation_steps"].sum()) > 0  # the trials do rotate
+    for k in ("answer", "rt", "rotation_steps", "rotations", "decided", "rotation_deg"):
+        assert torch.equal(fused[k].to(plain[k].dtype), plain[k]), k
+
+
 def test_end_to_end_quick_run_writes_results(tmp_path):
-    cfg = _cfg("participants=1", "logger.sample_trials=1", "experiment.quick_fm_images=2000")
+    cfg = _cfg("participants=1", "logger.sample_trials=1", "experiment.quick.fm_images=2000")
     summary = evaluate(cfg, out_dir=tmp_path)
     for f in ("trials.csv", "summary.json", "report.md", "checkpoints/exp4.pt", "figures/fig6_9a_rt.png",
               "figures/fig6_12a_recog.png", "figures/fig6_10a_rt.png", "figures/fig6_11a_rt.png"):
@@ -159,7 +192,11 @@ def _tiny_model(**over):
     from neuroimagery.models.rotation_embodied import RotationEmbodied
     from neuroimagery.nn import seeding
 
-    e = exp4.Exp4Config(map_size=8, dot_inner=4, **over)
+    from neuroimagery.models.params import ForwardModelParams
+    from neuroimagery.models.rotation_embodied import EmbodiedPostureParams
+
+    post = {"tau": over.pop("posture_tau")} if "posture_tau" in over else {}
+    e = exp4.Exp4Config(map_size=8, fm=ForwardModelParams(dot_inner=4), posture=EmbodiedPostureParams(**post), **over)
     return RotationEmbodied(e, seeding.participant_generators(0, [0], stream=0))
 
 
@@ -250,7 +287,7 @@ def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     from neuroimagery.errors import UserInputError
     from neuroimagery.run import train
 
-    small = ("logger=none", "experiment.quick_fm_images=300", "experiment.posture_iterations=100", "experiment.noise_tests=[]")
+    small = ("logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100", "experiment.noise_tests=[]")
     train(_cfg("participants=1", *small), out_dir=tmp_path / "tr")
     with pytest.raises(UserInputError, match="participants 1 \\(stored\\) vs 3"):
         evaluate(_cfg("participants=3", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
@@ -264,6 +301,6 @@ def test_answers_do_not_read_labels(monkeypatch):
     """Shuffling every label column of the chosen trials, images kept, changes no answer or RT."""
     from support_labels import assert_run_tests_read_no_labels
 
-    cfg = _cfg("participants=2", "logger=none", "experiment.fm_images=300", "experiment.posture_iterations=100",
+    cfg = _cfg("participants=2", "logger=none", "experiment.fm.images=300", "experiment.posture.iterations=100",
                "experiment.noise_tests=[recog]", quick=False)
     assert_run_tests_read_no_labels(monkeypatch, exp4, cfg, exp4.train_model(cfg, [0, 1]))

@@ -728,10 +728,11 @@ def test_each_alternative_config_changes_one_choice_of_the_default():
 
 
 def test_a_removed_key_is_refused_naming_where_it_went():
-    from neuroimagery.config import moved_key_hint
+    from neuroimagery.config import moved_message
 
-    hint = moved_key_hint("Could not override 'experiment.retrieve_x'; Key 'retrieve_x' not in 'Exp5Config'")
+    hint = moved_message("Could not override 'experiment.retrieve_x'; Key 'retrieve_x' not in 'Exp5Config'")
+    assert hint.startswith("experiment.retrieve_x is no longer a setting: ")
     assert "reachable area" in hint and "docs/robot.md" in hint
-    assert moved_key_hint("Key 'attempt' not in 'Exp5Config'") == ""
+    assert moved_message("Could not override 'experiment.attempt'; Key 'attempt' not in 'Exp5Config'") is None
     with pytest.raises(ConfigCompositionException, match="retrieve_x"):
         compose("experiment.retrieve_x=0.4")

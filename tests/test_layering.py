@@ -70,3 +70,13 @@ def test_the_import_reader_sees_relative_and_lazy_imports(tmp_path):
     f.write_text("import torch\nfrom .rules import Hebbian\n\ndef f():\n    from ..experiments import exp4\n"
                  "    from neuroimagery.models.rotation_motor import RowCache\n")
     assert [m for _, m in _imports(f, tmp_path)] == ["nn.rules", "experiments", "models.rotation_motor"]
+
+
+def test_experiments_read_no_weights_of_a_model():
+    """An experiment uses a model through its methods and properties, never a block's weights."""
+    import re
+
+    pattern = re.compile(r"\b(model|trained)\.[a-z_0-9]+\.(weight|rules|grid|steps)\b")
+    bad = [f"{p.name}:{i + 1}" for p in sorted((ROOT / "experiments").glob("*.py"))
+           for i, line in enumerate(p.read_text().splitlines()) if pattern.search(line)]
+    assert bad == []

@@ -67,8 +67,8 @@ def test_exp4_trained_at_two_threads_answers_as_at_one(threads):
     winners are the labels and the recurrences elementwise, so only their final float32 product
     ``c W0 + (c R)^T X`` over the N training maps may round otherwise (BLAS at other thread
     counts); every term is >= 0, so they agree within the bound of an (N + 1)-term sum."""
-    cfg = validate(make_cfg("experiment=exp4", "participants=1", "logger=none", "experiment.quick_fm_images=300",
-                            "experiment.posture_iterations=100"))
+    cfg = validate(make_cfg("experiment=exp4", "participants=1", "logger=none", "experiment.quick.fm_images=300",
+                            "experiment.posture.iterations=100"))
     cfg.preset = "quick"
     bank = pc.StimulusBank.build(pc.make_eye(cfg), pc.stimulus_set(cfg, "exp4-A", False), 32)
     table = pc.trial_table(bank, "recog", "noise-mismatch").iloc[:60]
@@ -93,8 +93,8 @@ def test_exp4_trained_at_two_threads_answers_as_at_one(threads):
 def test_exp3_forward_model_is_the_same_at_two_threads(threads):
     """Exp. 3's forward model C6 trained by ``train_model`` (1 participant, 300 images): the same
     weights at two threads as at one, bit for bit (the delta rule above, inside the experiment)."""
-    cfg = validate(make_cfg("experiment=exp3", "participants=1", "logger=none", "experiment.quick_fm_images=300",
-                            "experiment.posture_iterations=10"))
+    cfg = validate(make_cfg("experiment=exp3", "participants=1", "logger=none", "experiment.quick.fm_images=300",
+                            "experiment.posture.iterations=10"))
     cfg.preset = "quick"
     w = {}
     for n in (1, 2):

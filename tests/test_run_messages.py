@@ -57,8 +57,8 @@ def test_an_error_line_is_logged_without_a_second_line_on_stderr(tmp_path, capsy
     assert [r.getMessage() for r in caplog.records] == [err.strip()]
 
 
-QUICK = ("preset=quick", "participants=1", "logger=none", "experiment.quick_fm_images=300",
-         "experiment.posture_iterations=100")
+QUICK = ("preset=quick", "participants=1", "logger=none", "experiment.quick.fm_images=300",
+         "experiment.posture.iterations=100")
 
 
 def test_a_quick_run_shows_training_and_test_bars_and_progress_false_none(tmp_path, capsys, caplog):

@@ -68,6 +68,10 @@ class AngleRotationModel(torch.nn.Module):
         self.forward_model = AllToAll(e.units, e.units, init=(0, 0.1), generators=gens, rules=Hebbian(e.eta), name="forward")
         self.field = DynamicField((2,), tau=5.0, a_exc=0.0, a_inh=0.8, threshold=0.3, name="answer")
 
+    @property
+    def participants(self) -> int:
+        return self.affordance.participants
+
     @torch.no_grad()
     def fit(self, seed: int) -> None:
         P = self.affordance.participants
@@ -125,7 +129,7 @@ def load(cfg, checkpoint_dir):
 
 def evaluate(cfg, run, model) -> dict:
     model.eval()
-    P = model.affordance.participants
+    P = model.participants
     angles = torch.arange(-90.0, 90.1, 5.0)
     gens = participant_generators(cfg.seed, P, stream=3)
     out = model.trial(angles.expand(P, -1).clone(), gens, run.logger, "sample")

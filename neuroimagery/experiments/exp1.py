@@ -19,80 +19,24 @@ from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import effect, holm, slope_by_participant, summarise_trials
 from ..thesis import EXP1 as THESIS
-from ..models.rotation_affordance import AffordanceRotationModel
+from ..models.params import FieldParams, SomParams, moved_keys
+from ..models.rotation_affordance import AffordanceParams, AffordanceRotationModel
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of, pearson,
                            record_figures_and_scalars, stimulus_set,
                            to_np, train_and_save, trials_frame)
 
 
 @dataclass
-class Exp1Config:
+class Exp1Config(AffordanceParams):
+    """The model's parameters (:class:`AffordanceParams`) and the run's."""
+
     name: str = "exp1"
-    step_deg: float = 15.0  # rotation of one C1/C2 cycle and spacing of the trained orientations (thesis: 15)
-    max_cycles: int = 10  # rotation cycles before the model gives up and matches the last image (thesis: 10)
-    centre_tolerance_deg: float = 7.5  # |posture| at which the PMC_1 cluster counts as "at the centre" (half a step)
-    init_high: float = 0.1  # initial weights U[0, init_high] (thesis: 0.1)
-    hebb_eta: float = 0.3  # outstar Hebbian rate of C1, C2, C5 (not given in the thesis)
-    hebb_epochs: int = 6  # passes over the training patterns (Table 5.1 of Exp. 2 uses 6 passes)
-    feed_order: str = "sequential"  # 'sequential': all of object A, then B (as in the thesis); or 'shuffled'
-    posture_sigma_deg: float = 6.0  # width of a PMC_1 posture cluster (deg along both axes)
-    object_band_deg: float = 22.5  # PMC_1 row offset (deg units) of object A (-) and B (+) clusters
-    answer_sigma: float = 1.5  # width (units) of the PMC_2 answer clusters
-    image_threshold: float = 0.5  # C2 output (max-normalised) above which a PC unit is on in the mental image
-    sharpen: float = 4.0  # exponent on the PMC_1 column profile before the competition (contrast)
-    som_iterations: int = 2000  # PFC_2 SOM training steps (not given for Exp. 1)
-    som_eta: float = 0.1  # PFC_2 initial rate (eq. 4.5)
-    som_eta_final: float = 0.01  # PFC_2 final rate
-    som_sigma: float = 8.0  # PFC_2 initial neighbourhood radius (grid units)
-    som_sigma_final: float = 0.5  # PFC_2 final radius
-    som_method: str = "windowed"  # exact online Kohonen by 'windowed' (batched, per-participant window), 'factored' or 'online'
-    som_threads: int = 1  # intra-op threads while the SOM trains (each step is small: threads only add hand-offs)
     auto_threads: int = 1  # intra-op threads for training and testing when the run's `threads` is 0 (see docs)
-    som_filter_sigma: float = 2.0  # the cluster kept around the PFC_2 winner (the "filtering" of 5.2.2)
-    field_tau: float = 10.0  # dynamic-field time constant (cycles)
-    field_h: float = -0.2  # resting level
-    field_a_exc: float = 0.5  # local excitation amplitude
-    field_sigma_exc: float = 2.0  # local excitation width (units)
-    field_a_inh: float = 0.05  # global inhibition
-    field_threshold: float = 0.9  # activity that ends a competition
-    field_gain: float = 1.0  # input gain into a field
-    field_max_cycles: int = 500  # cycles before a competition is cut off
 
     def __post_init__(self) -> None:
-        pos = ["step_deg", "centre_tolerance_deg", "init_high", "hebb_eta", "posture_sigma_deg", "answer_sigma",
-               "image_threshold", "sharpen", "som_eta", "som_eta_final", "som_sigma", "som_sigma_final",
-               "som_filter_sigma", "field_tau", "field_sigma_exc", "field_threshold", "field_gain"]
-        for k in pos:
-            if not getattr(self, k) > 0:
-                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
-        for k in ("max_cycles", "hebb_epochs", "som_iterations", "field_max_cycles"):
-            if getattr(self, k) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        for k in ("field_a_exc", "field_a_inh", "object_band_deg"):
-            if getattr(self, k) < 0:
-                raise ValueError(f"experiment.{k} must be >= 0, got {getattr(self, k)!r}")
-        if self.hebb_eta > 1 or self.image_threshold >= 1 or self.som_eta > 1:
-            raise ValueError("experiment.hebb_eta, som_eta must be <= 1 and experiment.image_threshold < 1")
-        if self.feed_order not in ("sequential", "shuffled"):
-            raise ValueError(f"experiment.feed_order must be 'sequential' or 'shuffled', got {self.feed_order!r}")
-        if self.som_method not in ("windowed", "factored", "online"):
-            raise ValueError(f"experiment.som_method must be 'windowed', 'factored' or 'online', got {self.som_method!r}")
-        for k in ("som_threads", "auto_threads"):
-            if getattr(self, k) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        field_bounds(self)
-        if 90 % self.step_deg != 0:
-            raise ValueError(f"experiment.step_deg must divide 90, got {self.step_deg!r}")
-
-
-
-def field_bounds(e) -> None:
-    """The dynamic fields' parameters within the bounds :class:`DynamicField` enforces (one source)."""
-    from ..nn.decision import DynamicField
-    from ..nn.functional import check_bounds
-
-    keys = ("tau", "h", "a_exc", "sigma_exc", "a_inh", "threshold")
-    check_bounds(DynamicField.BOUNDS, {k: getattr(e, f"field_{k}") for k in keys}, {k: f"experiment.field_{k}" for k in keys})
+        super().__post_init__()
+        if self.auto_threads < 1:
+            raise ValueError(f"experiment.auto_threads must be >= 1, got {self.auto_threads!r}")
 
 
 CONFIG = Exp1Config
@@ -101,7 +45,12 @@ CONFIG = Exp1Config
 INPUTS = ("vision", "stimuli")
 MIN_OBJECTS = 2  # a user folder must hold a shape and its mirror
 CHECKPOINTS = ("model",)
-RUNTIME_KEYS = ("som_threads", "auto_threads")  # thread counts: speed only
+RUNTIME_KEYS = ("som.threads", "auto_threads")  # thread counts: speed only
+# keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
+MOVED = {**moved_keys({"field": ("field_", FieldParams), "som": ("som_", SomParams)}),
+         "som_filter_sigma": "som.cluster_sigma"}
+for _k in ("som_cutoff", "som_cluster_sigma"):  # never keys of Exp. 1
+    MOVED.pop(_k)
 TEST_KEYS = ()  # the model is built from every key, so each one counts as a training setting
 
 def _t(key: str) -> float:
@@ -137,7 +86,7 @@ def _e(cfg) -> Exp1Config:
     if cfg.preset == "quick":
         from dataclasses import replace
 
-        e = replace(e, som_iterations=min(e.som_iterations, 300))
+        e = replace(e, som=replace(e.som, iterations=min(e.som.iterations, 300)))
     return e
 
 
@@ -168,7 +117,7 @@ def test_pairs(test: str, objs: list[str]) -> list[dict]:
 def run_test(cfg, model, sset, test: str, record: int = 0):
     objs = objects_of(sset)
     pairs = test_pairs(test, objs)
-    P = model.c1.participants
+    P = model.participants
     rot = edge_maps(cfg, sset, [(p["rotated_object"], p["rotated_angle"]) for p in pairs]).reshape(len(pairs), -1)
     tgt = edge_maps(cfg, sset, [(p["target_object"], 0.0) for p in pairs]).reshape(len(pairs), -1)
     out = model.trial(rot.expand(P, -1, -1), tgt.expand(P, -1, -1), record=record)

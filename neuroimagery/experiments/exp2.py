@@ -8,7 +8,7 @@ simulated robots, once per proprioception condition (``none``, ``match``, ``mism
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field as dc_field, replace
 
 import numpy as np
 import torch
@@ -18,82 +18,36 @@ from ..analysis.report import Report
 from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, repeated_anova,
                                 slope_by_participant, summarise_trials)
 from ..thesis import EXP2 as THESIS
-from ..models.rotation_motor import ANGLES, MotorRotationModel
+from ..models.params import FieldParams, SomParams, moved_keys
+from ..models.rotation_motor import ANGLES, MotorRotationModel, MotorRotationParams
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of,
                            record_figures_and_scalars, stimulus_set, to_np,
                            train_and_save, trials_frame)
 
 
 @dataclass
-class Exp2Config:
-    name: str = "exp2"
-    max_cycles: int = 10  # rotation cycles before matching the last image (thesis: 10)
-    init_high: float = 0.1  # initial weights U[0, init_high] (thesis: 0.1)
-    hebb_eta: float = 0.3  # outstar Hebbian rate of every Hebbian connection (not given)
-    c1_epochs: int = 6  # passes over the 14 images for C1 and C6 (Table 5.1: 84 cycles = 6 x 14)
-    # babbling steps that train C9, C10 and C2, after the SOM M1_1 has finished (Table 5.1: 1,960 for C9 and
-    # C10; it gives C2 14 patterns x 84 cycles, here C2 learns on these same steps; see docs/exp2.md)
-    hebb_steps: int = 1960
-    c5_epochs: int = 6  # passes over the 196 pairs for C5 (Table 5.1: 1,176 = 6 x 196)
-    som_iterations: int = 10000  # training steps of the SOMs M1_1 and PFC_2 (Table 5.1: 10,000)
-    som_eta: float = 0.1  # SOM initial rate (eq. 4.5)
-    som_eta_final: float = 0.01  # SOM final rate
-    som_sigma: float = 8.0  # SOM initial neighbourhood radius (grid units; not given): see docs/exp2.md
-    som_sigma_final: float = 0.5  # SOM final radius
-    som_cutoff: float = 0.01  # the Gaussian neighbourhood is cut to 0 below this fraction of the winner's update
-    som_method: str = "windowed"  # exact online Kohonen by 'windowed' (batched, per-participant window), 'factored' or 'online'
-    som_threads: int = 1  # intra-op threads while a SOM trains (each step is small: threads only add hand-offs)
-    auto_threads: int = 1  # intra-op threads for training and testing when the run's `threads` is 0 (see docs)
-    cluster_sigma: float = 1.0  # width of a SOM's winning cluster passed on to C5, C9, C10
-    posture_sigma_deg: float = 6.0  # width of SS / PMC_1 posture clusters (deg)
-    object_band_deg: float = 22.5  # SS row offset of object A (-) and B (+)
-    preactivation: float = 0.2  # C1 pre-activation of each afforded posture (thesis: 0.2)
-    bias: float = 1.0  # C6 bias of the selected posture (thesis: 1.0)
-    proprio_gain: float = 0.5  # proprioceptive input to SS relative to the forward model's 1.0 (weaker, < 1)
-    answer_sigma: float = 1.5  # width of PMC_2 / M1_2 clusters (units)
-    image_threshold: float = 0.5  # C2 output (max-normalised) above which a PP unit is on
-    field_tau: float = 10.0  # dynamic-field time constant (cycles)
-    field_h: float = -0.2  # resting level
-    field_a_exc: float = 0.5  # local excitation
-    field_sigma_exc: float = 2.0  # local excitation width (units)
-    field_a_inh: float = 0.2  # global inhibition (strong enough that the weaker proprioceptive cluster alone cannot win)
-    field_threshold: float = 0.9  # activity that ends a competition
-    field_gain: float = 1.0  # input gain into a field
-    field_max_cycles: int = 500  # cycles before a competition is cut off
-    quick_som_iterations: int = 300  # SOM steps under preset=quick
+class Exp2Quick:
+    """What ``preset=quick`` shrinks (``experiment.quick``)."""
+
+    som_iterations: int = 300  # SOM steps
 
     def __post_init__(self) -> None:
-        for k in ("init_high", "hebb_eta", "som_eta", "som_eta_final", "som_sigma", "som_sigma_final", "cluster_sigma",
-                  "posture_sigma_deg", "preactivation", "bias", "answer_sigma", "image_threshold", "field_tau",
-                  "field_sigma_exc", "field_threshold", "field_gain"):
-            if not getattr(self, k) > 0:
-                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
-        for k in ("max_cycles", "c1_epochs", "hebb_steps", "c5_epochs", "som_iterations", "field_max_cycles",
-                  "quick_som_iterations", "som_threads", "auto_threads"):
-            if getattr(self, k) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        for k in ("proprio_gain", "field_a_exc", "field_a_inh", "object_band_deg"):
-            if getattr(self, k) < 0:
-                raise ValueError(f"experiment.{k} must be >= 0, got {getattr(self, k)!r}")
-        if self.proprio_gain >= 1:
-            raise ValueError(f"experiment.proprio_gain must be < 1 (weaker than the forward model), got {self.proprio_gain!r}")
-        if self.hebb_eta > 1 or self.som_eta > 1 or self.image_threshold >= 1:
-            raise ValueError("experiment.hebb_eta, som_eta must be <= 1 and experiment.image_threshold < 1")
-        if self.som_method not in ("windowed", "factored", "online"):
-            raise ValueError(f"experiment.som_method must be 'windowed', 'factored' or 'online', got {self.som_method!r}")
-        field_bounds(self)
-        if not 0 <= self.som_cutoff < 1:
-            raise ValueError(f"experiment.som_cutoff must be in [0, 1), got {self.som_cutoff!r}")
+        if self.som_iterations < 1:
+            raise ValueError(f"experiment.quick.som_iterations must be >= 1, got {self.som_iterations!r}")
 
 
+@dataclass
+class Exp2Config(MotorRotationParams):
+    """The model's parameters (:class:`MotorRotationParams`) and the run's."""
 
-def field_bounds(e) -> None:
-    """The dynamic fields' parameters within the bounds :class:`DynamicField` enforces (one source)."""
-    from ..nn.decision import DynamicField
-    from ..nn.functional import check_bounds
+    name: str = "exp2"
+    auto_threads: int = 1  # intra-op threads for training and testing when the run's `threads` is 0 (see docs)
+    quick: Exp2Quick = dc_field(default_factory=lambda: Exp2Quick())  # what preset=quick shrinks
 
-    keys = ("tau", "h", "a_exc", "sigma_exc", "a_inh", "threshold")
-    check_bounds(DynamicField.BOUNDS, {k: getattr(e, f"field_{k}") for k in keys}, {k: f"experiment.field_{k}" for k in keys})
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.auto_threads < 1:
+            raise ValueError(f"experiment.auto_threads must be >= 1, got {self.auto_threads!r}")
 
 
 CONFIG = Exp2Config
@@ -102,7 +56,11 @@ CONFIG = Exp2Config
 INPUTS = ("vision", "stimuli")
 MIN_OBJECTS = 2  # a user folder must hold a shape and its mirror
 CHECKPOINTS = ("model",)
-RUNTIME_KEYS = ("som_threads", "auto_threads")  # thread counts: speed only
+RUNTIME_KEYS = ("som.threads", "auto_threads")  # thread counts: speed only
+# keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
+MOVED = {**moved_keys({"field": ("field_", FieldParams), "som": ("som_", SomParams)}),
+         "cluster_sigma": "som.cluster_sigma", "quick_som_iterations": "quick.som_iterations"}
+MOVED.pop("som_cluster_sigma")  # never a key of Exp. 2
 TEST_KEYS = ()  # the model is built from every key, so each one counts as a training setting
 CONDITIONS = ("none", "match", "mismatch")
 TARGETS = {"all/none": {"rotation_success_rate": THESIS["rotation success"].value,
@@ -111,7 +69,9 @@ TARGETS = {"all/none": {"rotation_success_rate": THESIS["rotation success"].valu
 
 def _e(cfg) -> Exp2Config:
     e = cfg.experiment
-    return replace(e, som_iterations=min(e.som_iterations, e.quick_som_iterations)) if cfg.preset == "quick" else e
+    if cfg.preset != "quick":
+        return e
+    return replace(e, som=replace(e.som, iterations=min(e.som.iterations, e.quick.som_iterations)))
 
 
 @auto_threads
@@ -130,7 +90,7 @@ def run_test(cfg, model, sset, test, condition, record=0):
     pairs = [(r, t) for r in items for t in items]
     maps = edge_maps(cfg, sset, items).reshape(len(items), -1)
     idx = {it: i for i, it in enumerate(items)}
-    P = model.c1.participants
+    P = model.participants
     rot = maps[[idx[r] for r, _ in pairs]].expand(P, -1, -1)
     tgt = maps[[idx[t] for _, t in pairs]].expand(P, -1, -1)
     out = model.trial(rot, tgt, condition, record=record)  # the images only
@@ -244,7 +204,7 @@ def report(cfg, run, summary) -> None:
     r = Report("Experiment 2: mental rotation through motor models and proprioception (thesis 5.2)")
     r.chance_warning(summary)
     r.p(f"{summary['participants']} simulated robots, 196 pairs each, three proprioception conditions. "
-        f"SOM training steps: {_e(cfg).som_iterations} (thesis 10,000).")
+        f"SOM training steps: {_e(cfg).som.iterations} (thesis 10,000).")
     r.h("Results beside the thesis")
     success, correct = THESIS["rotation success"].value, THESIS["correct answers"].value
     r.targets([("rotation success (none)", n["rotation_success_rate"], success, True),

@@ -11,7 +11,6 @@ imagined image (PMC_2; a target unit counts as covered by an image unit within
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import List
 
 import pandas as pd
 import torch
@@ -19,6 +18,7 @@ import torch
 from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import effect, holm, paired_by_participant, slope_by_participant, summarise_trials
+from ..models.rotation_generalising import GeneralisingParams
 from ..nn import seeding
 from . import protocol_ch6 as pc
 from ..thesis import EXP3 as THESIS_TARGETS
@@ -28,70 +28,16 @@ THESIS = {k.removesuffix(" error rate"): t.value for k, t in THESIS_TARGETS.item
 
 
 @dataclass
-class Exp3Config:
+class Exp3Config(GeneralisingParams):
+    """The model's parameters (:class:`GeneralisingParams`) and the run's: the stimulus sets, what
+    ``preset=quick`` shrinks."""
+
     name: str = "exp3"
-    map_size: int = 32  # side of V1, PP_1 (x3), PP_2, PFC_1, PFC_2 (thesis 32x32)
-    step_deg: float = 45.0  # rotation of one forward-model step (n1 -45, n3 +45)
-    posture_angles: List[float] = field(default_factory=lambda: [45.0, 0.0, -45.0, -90.0])  # SS / PMC_1 units, decreasing
     train_set: str = "exp3-a"  # set whose images train C2/C3 (thesis: set a)
     recog_set: str = "exp3-a"  # Recog
     gen1_set: str = "exp3-b"  # Gen-I
     gen2_set: str = "exp3-c"  # Gen-II
-    init_high: float = 0.01  # initial weights U[0, init_high] (small random; not given)
-    eta_fm: float = 0.1  # delta-rule rate of C6 (thesis 0.1)
-    fm_images: int = 4000  # three-dot training images per participant (not given)
-    fm_batch: int = 8  # images per delta-rule update (changes summed at the same weights)
-    fm_threshold: float = 0.5  # a PP_2 unit is on when its C6 input exceeds this (not given)
-    dot_inner: int = 23  # dots lie in the central inner x inner square (thesis 23)
-    eta_posture: float = 0.1  # Kohonen rate of C2/C3 (thesis 0.1)
-    eta_posture_final: float = 0.1  # rate at the last step: = eta_posture, the thesis's constant 0.1; lower = a decay
-    posture_sigma: float = 0.3  # neighbourhood radius of the forced winner, units (not given)
-    posture_iterations: int = 960  # supervised Kohonen steps (40 passes over 24 set-a images; not given)
-    posture_code_sigma: float = 0.15  # width of the Gaussian of eq. 6.5-6.6 on squared-distance differences (not given)
-    # width of the Gaussian of eq. 6.2 (not given). M1_1 and the weights are unit length, so distances lie in
-    # [0, 2]; activity wholly in one M1_1 cell sits at least 0.82 (squared) nearer its own triangle's weights
-    # than the others'. sigma^2 = 0.82 / 4 puts the other units two "standard" widths down (exp(-2) ~ 0.13),
-    # i.e. a clear posture difference gives a clear move and the softmax (tau 0.3) picks it ~90 % of the time.
-    m1_sigma: float = 0.45
-    # how eq. 6.2 compares M1_1 with the weights of n1, n2, n3. 'pattern' (default, eq. 6.2 as printed): the
-    # whole 16-unit pattern as a direction (width m1_sigma), where flat codes favour the 6-unit triangles and
-    # keep the rotation going. 'centre': by where the M1_1 activity is centred across the diagonal (mean SS
-    # unit - PMC_1 unit, in posture units), so that two flat posture codes, like two coinciding ones, put it on
-    # the diagonal and select n2 (thesis 6.1.3: objects with no clear orientation stop the rotation early).
-    m1_readout: str = "pattern"
-    # width of the Gaussian of the 'centre' readout, in posture units (not given): half the spacing of the
-    # posture units, so that a centre one unit off the diagonal selects a turn (n2 falls to ~0.3, the softmax
-    # picks the turn ~87 % of the time) and a centre on the diagonal selects n2 (the turns fall to ~0.004)
-    m1_centre_sigma: float = 0.5
-    # C8 reach: 0 (default) = the thesis's one-to-one subtraction; r > 0 = a PP_2 unit covers the target
-    # units within r map units (Chebyshev), since edge maps are 1-2 units thick and one 45-deg step shifts
-    # resampled edges by up to one unit.
-    match_tolerance: int = 0
-    softmax_tau: float = 0.3  # M1_2 softmax temperature (thesis 0.3)
-    match_threshold: float = 0.05  # NO when PMC_2 > this fraction of PFC_1's active units (thesis 5 %)
-    max_steps: int = 15  # rotation steps before answering NO (thesis 15)
-    quick_objects: int = 1  # preset=quick: objects per test set
-    quick_fm_images: int = 3000  # preset=quick: three-dot training images
-
-    def __post_init__(self) -> None:
-        for k in ("step_deg", "init_high", "eta_fm", "fm_threshold", "eta_posture", "eta_posture_final",
-                  "posture_sigma", "posture_code_sigma", "m1_sigma", "m1_centre_sigma", "softmax_tau"):
-            if not getattr(self, k) > 0:
-                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
-        for k in ("map_size", "fm_images", "fm_batch", "posture_iterations", "max_steps", "quick_objects",
-                  "quick_fm_images"):
-            if int(getattr(self, k)) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        if self.m1_readout not in ("centre", "pattern"):
-            raise ValueError(f"experiment.m1_readout must be 'centre' or 'pattern', got {self.m1_readout!r}")
-        if int(self.match_tolerance) < 0:
-            raise ValueError(f"experiment.match_tolerance must be >= 0, got {self.match_tolerance!r}")
-        if not (0.0 <= self.match_threshold <= 1.0):
-            raise ValueError(f"experiment.match_threshold must lie in [0, 1], got {self.match_threshold!r}")
-        if not (1 <= self.dot_inner <= self.map_size - 2):
-            raise ValueError(f"experiment.dot_inner must lie in [1, map_size - 2], got {self.dot_inner}")
-        if len(self.posture_angles) < 2 or list(self.posture_angles) != sorted(self.posture_angles, reverse=True):
-            raise ValueError(f"experiment.posture_angles must be >= 2 decreasing angles, got {list(self.posture_angles)}")
+    quick: pc.QuickParams = field(default_factory=pc.QuickParams)  # what preset=quick shrinks
 
 
 CONFIG = Exp3Config
@@ -100,8 +46,11 @@ CONFIG = Exp3Config
 INPUTS = ("vision", "stimuli")
 CHECKPOINTS = ("exp3",)
 # read only by the tests: a trained model (forward model C6, posture maps C2/C3) does not depend on them
-TEST_KEYS = ("fm_threshold", "recog_set", "gen1_set", "gen2_set", "m1_sigma", "m1_readout", "m1_centre_sigma",
-             "match_threshold", "match_tolerance", "max_steps", "posture_code_sigma", "quick_objects", "softmax_tau")
+TEST_KEYS = ("fm.threshold", "recog_set", "gen1_set", "gen2_set", "m1_sigma", "m1_readout", "m1_centre_sigma",
+             "match_threshold", "match_tolerance", "max_steps", "posture.code_sigma", "quick.objects", "softmax_tau")
+# keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
+MOVED = {**pc.MOVED_CH6, "fm_threshold": "fm.threshold", "posture_angles": "posture.angles",
+         "posture_code_sigma": "posture.code_sigma"}
 
 
 def ineffective_keys(cfg) -> dict[str, str]:
@@ -110,7 +59,7 @@ def ineffective_keys(cfg) -> dict[str, str]:
     if cfg.stimuli.kind == "folder":
         out.update({k: "stimuli=folder tests the user's folder only" for k in ("gen1_set", "gen2_set")})
     if cfg.preset == "quick":
-        out["fm_images"] = "preset=quick trains on quick_fm_images"
+        out["fm.images"] = "preset=quick trains on quick.fm_images"
     return {f"experiment.{k}": v for k, v in out.items()}
 
 
@@ -125,10 +74,10 @@ def train_model(cfg, ids, eye=None):
     eye = pc.make_eye(cfg) if eye is None else eye
     model = _model(cfg, ids)
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
-    n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
-    X, Y, _ = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner, offsets=(0, 1, 2))
-    model.fit_forward_model(X, Y, e.fm_batch, progress=pc.batches_bar("forward model"))
-    return pc.train_posture_maps(cfg, eye, model, e.posture_angles, gens)
+    n_img = e.quick.fm_images if cfg.preset == "quick" else e.fm.images
+    X, Y, _ = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.fm.dot_inner, offsets=(0, 1, 2))
+    model.fit_forward_model(X, Y, e.fm.batch, progress=pc.batches_bar("forward model"))
+    return pc.train_posture_maps(cfg, eye, model, e.posture.angles, gens)
 
 
 def train(cfg, run):
@@ -156,7 +105,7 @@ def run_tests(cfg, model, eye=None, record: int = 0):
         banks[test] = bank
         table = pc.trial_table(bank, test, "none")
         if cfg.preset == "quick":
-            table = table[table["target_object"].isin(bank.set.objects[: e.quick_objects])].reset_index(drop=True)
+            table = table[table["target_object"].isin(bank.set.objects[: e.quick.objects])].reset_index(drop=True)
         tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         gens = seeding.participant_generators(cfg.seed, ids, stream=100 + k)
@@ -172,7 +121,7 @@ def evaluate(cfg, run, trained) -> dict:
     df, histories, banks = run_tests(cfg, trained, record=cfg.logger.sample_trials)
     run.write_csv("trials.csv", df)
     tests = summarise_trials(df)
-    P = trained.c2.weight.shape[0]
+    P = trained.participants
     iou = {t: pc.generalisation_iou(lambda x: trained.forward_step(x.expand(P, -1, -1) if x.shape[0] == 1 else x,
                                                                    torch.full((P, x.shape[1]), 2, dtype=torch.long)),
                                     b, e.step_deg, 3, e.map_size) for t, b in banks.items()}

@@ -10,13 +10,13 @@ in each condition on the tests listed in ``noise_tests``. RT = accumulator cycle
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import List, Optional
+from typing import List
 
 import pandas as pd
 import torch
 
 from ..analysis import figures
-from ..models.rotation_embodied import lca_gain
+from ..models.rotation_embodied import EmbodiedParams, lca_gain
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, slope_by_participant,
                                 summarise_trials)
@@ -30,97 +30,20 @@ THESIS = {k.removesuffix(" correct rate"): t.value for k, t in THESIS_TARGETS.it
 
 
 @dataclass
-class Exp4Config:
+class Exp4Config(EmbodiedParams):
+    """The model's parameters (:class:`EmbodiedParams`) and the run's: the stimulus sets, what
+    ``preset=quick`` shrinks."""
+
     name: str = "exp4"
-    # --- maps and stimuli -------------------------------------------------------------
-    map_size: int = 32  # side of every image map (Table 6.1: 32x32)
-    step_deg: float = 30.0  # rotation of one forward-model step (POCl +30, POCr -30)
-    ppc_angles: List[float] = field(default_factory=lambda: [-60.0, -30.0, 0.0, 30.0, 60.0, 90.0])  # wrist posture of each PPCp/PPCt unit, increasing
     train_set: str = "exp4-A"  # set whose images train C16/C17 (thesis: set A)
     recog_set: str = "exp4-A"  # Recog test set
     gen1_set: str = "exp4-B"  # Gen1 test set (exp4-B-long: bars as elongated as set A's, see docs/exp4.md)
     gen2_set: str = "exp4-C"  # Gen2 test set
-    # --- forward models C1-C3 (delta rule, eq. 6.4) -------------------------------------
-    init_high: float = 0.01  # initial weights U[0, init_high] of every trained connection ("small random"; not given)
-    eta_fm: float = 0.1  # delta-rule learning rate (thesis 0.1)
-    fm_images: int = 4000  # three-dot training images per participant, shared out at random among C1-C3 (not given)
-    fm_batch: int = 8  # images per delta-rule update (changes summed at the same weights); 1 = purely online
-    dot_inner: int = 23  # dots lie in the central inner x inner square (thesis 23)
-    # --- posture maps C16/C17 (supervised Kohonen, eq. 6.14-6.16) ---------------------------
-    eta_posture: float = 0.1  # Kohonen learning rate (thesis 0.1)
-    # rate at the last step: = eta_posture, the thesis's constant 0.1; lower = an exponential decay
-    # (e.g. 0.002: each prototype ends as an average of its images)
-    eta_posture_final: float = 0.1
-    posture_sigma: float = 0.3  # neighbourhood radius of the forced winner, in units (not given)
-    posture_iterations: int = 1440  # supervised Kohonen steps (40 passes over the 36 set-A images; not given)
-    # PPCp winner of the mental image (eq. 6.14): 0 = arg-max of the C16 potentials; > 0 = drawn from a
-    # softmax of the max-normalised potentials at this temperature (uncertain for unfamiliar shapes,
-    # whose potentials are nearly flat). 0.1 = the PMCm temperature, not fitted. PPCt stays arg-max.
-    posture_tau: float = 0.0
-    # axis of the flipped target PFCft (C10, "flipped along the main object axis of the object"; not given how):
-    # 'image' = the principal axis of the target map itself (a fixed transformation of PFCt, as Table 6.2
-    # lists C10: no label, no posture input) | 'ppct' = the axis of the orientation PPCt reads (C17), so a
-    # misread target posture also gives a wrong flip. docs/choices.md
-    flip_axis: str = "image"
-    ppc_sigma: float = 0.5  # width (units) of the Gaussian bump PPCp/PPCt put around the winner (eq. 6.14; not given)
-    # --- action selection (eq. 6.10-6.11) ---------------------------------------------------
-    softmax_tau: float = 0.1  # PMCm softmax temperature (thesis 0.1)
-    # --- decision (PMCd, eq. 6.12-6.13) ----------------------------------------------------
-    lca_k: float = 0.5  # leak k (not given in the thesis)
-    lca_w: float = 0.5  # mutual inhibition w (C15, thesis 0.5)
-    lca_threshold: float = 1.2  # decision threshold (thesis 1.2)
-    lca_dt: float = 0.1  # Euler step per cycle (not given)
-    lca_cycles: int = 10  # accumulator cycles per rotation step (thesis 10)
-    # input scale: evidence = gain * |PFCxm| / |PFCt| (C13/C14 weights of 1.0 over the overlap, per target
-    # unit); None = the rule of docs/choices.md: the smallest gain with which a full overlap crosses the
-    # threshold within one step (1.495 with k 0.5, dt 0.1, 10 cycles)
-    lca_input_gain: Optional[float] = None
-    max_steps: int = 20  # rotation steps before a random answer (thesis 20)
-    # --- embodiment -----------------------------------------------------------------------
-    proprio_gain: float = 1.0  # strength of the wrist signal added to PPCp (scaled encoder signal; not given)
-    # where the wrist signal joins PPCp (not given): 'separate' = added after the noisy image-derived
-    # bump is clipped to [0, 1] (the encoder is an input of its own, untouched by the noise that stands
-    # for an unreliable image-to-posture mapping); 'visual' = summed with the bump before noise and clip,
-    # so on the congruent unit it saturates at 1 and cannot outweigh the noise on the other units
-    proprio_stage: str = "visual"
-    noise_amplitude: float = 0.5  # noise variant: U[-a, a] added to each PPCp unit per step (thesis 0.5)
     noise_tests: List[str] = field(default_factory=lambda: ["recog", "gen1"])  # tests repeated with noise
-    # --- protocol size ----------------------------------------------------------------------
-    quick_objects: int = 1  # preset=quick: objects per test set (full: all 3)
-    quick_fm_images: int = 3000  # preset=quick: three-dot training images
+    quick: pc.QuickParams = field(default_factory=pc.QuickParams)  # objects per test set (full: all 3), images
 
     def __post_init__(self) -> None:
-        def pos(k, strict=True):
-            v = getattr(self, k)
-            if not (v > 0 if strict else v >= 0):
-                raise ValueError(f"experiment.{k} must be {'>' if strict else '>='} 0, got {v!r}")
-        for k in ("step_deg", "init_high", "eta_fm", "eta_posture", "eta_posture_final", "posture_sigma", "ppc_sigma", "softmax_tau",
-                  "lca_threshold", "lca_dt"):
-            pos(k)
-        for k in ("lca_k", "lca_w", "proprio_gain", "noise_amplitude", "posture_tau"):
-            pos(k, strict=False)
-        for k in ("map_size", "fm_images", "fm_batch", "posture_iterations", "lca_cycles", "max_steps",
-                  "quick_objects", "quick_fm_images"):
-            if int(getattr(self, k)) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        if self.map_size < 8:
-            raise ValueError(f"experiment.map_size must be >= 8, got {self.map_size}")
-        if not (1 <= self.dot_inner <= self.map_size - 2):
-            raise ValueError(f"experiment.dot_inner must lie in [1, map_size - 2], got {self.dot_inner}")
-        from ..nn.decision import LeakyCompetingAccumulator
-        from ..nn.functional import check_bounds
-
-        lca = ("k", "w", "threshold", "dt")  # within the bounds the accumulator enforces (one source)
-        check_bounds({k: LeakyCompetingAccumulator.BOUNDS[k] for k in lca}, {k: getattr(self, f"lca_{k}") for k in lca},
-                     {k: f"experiment.lca_{k}" for k in lca})
-        if len(self.ppc_angles) < 2 or list(self.ppc_angles) != sorted(self.ppc_angles):
-            raise ValueError(f"experiment.ppc_angles must be >= 2 increasing angles, got {list(self.ppc_angles)}")
-        if self.flip_axis not in ("image", "ppct"):
-            raise ValueError(f"experiment.flip_axis must be 'image' or 'ppct', got {self.flip_axis!r}")
-        if self.lca_input_gain is not None and not self.lca_input_gain > 0:
-            raise ValueError(f"experiment.lca_input_gain must be > 0 (or null for the rule), got {self.lca_input_gain!r}")
-        if self.proprio_stage not in ("separate", "visual"):
-            raise ValueError(f"experiment.proprio_stage must be 'separate' or 'visual', got {self.proprio_stage!r}")
+        super().__post_init__()
         bad = [t for t in self.noise_tests if t not in TESTS]
         if bad:
             raise ValueError(f"experiment.noise_tests: unknown tests {bad}; choose from {list(TESTS)}")
@@ -134,9 +57,11 @@ CONFIG = Exp4Config
 INPUTS = ("vision", "stimuli")
 CHECKPOINTS = ("exp4",)
 # read only by the tests: a trained model (forward models, posture maps C16/C17) does not depend on them
-TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "flip_axis", "posture_tau", "ppc_sigma", "softmax_tau", "lca_k",
+TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "flip_axis", "posture.tau", "ppc_sigma", "softmax_tau", "lca_k",
              "lca_w", "lca_threshold", "lca_dt", "lca_cycles", "lca_input_gain", "max_steps", "proprio_gain",
-             "proprio_stage", "noise_amplitude", "noise_tests", "quick_objects")
+             "proprio_stage", "noise_amplitude", "noise_tests", "quick.objects")
+# keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
+MOVED = {**pc.MOVED_CH6, "posture_tau": "posture.tau"}
 
 
 def ineffective_keys(cfg) -> dict[str, str]:
@@ -146,7 +71,7 @@ def ineffective_keys(cfg) -> dict[str, str]:
     elif not e.noise_tests:
         out["noise_amplitude"] = "noise_tests is empty"
     if cfg.preset == "quick":
-        out["fm_images"] = "preset=quick trains on quick_fm_images"
+        out["fm.images"] = "preset=quick trains on quick.fm_images"
     return {f"experiment.{k}": v for k, v in out.items()}
 
 def _ids(cfg) -> list[int]:
@@ -165,9 +90,9 @@ def train_model(cfg, ids, eye=None):
     eye = pc.make_eye(cfg) if eye is None else eye
     model = _model(cfg, ids)
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
-    n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
-    X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner)
-    model.fit_forward_models(X, Y, moves, e.fm_batch, progress=pc.batches_bar("forward model"))
+    n_img = e.quick.fm_images if cfg.preset == "quick" else e.fm.images
+    X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.fm.dot_inner)
+    model.fit_forward_models(X, Y, moves, e.fm.batch, progress=pc.batches_bar("forward model"))
     return pc.train_posture_maps(cfg, eye, model, e.ppc_angles, gens)
 
 
@@ -192,7 +117,7 @@ def _test_sets(cfg):
 def _subset(bank, table, cfg):
     if cfg.preset != "quick":
         return table
-    keep = bank.set.objects[: cfg.experiment.quick_objects]
+    keep = bank.set.objects[: cfg.experiment.quick.objects]
     return table[table["target_object"].isin(keep)].reset_index(drop=True)
 
 
@@ -431,7 +356,7 @@ def report(cfg, run, summary) -> None:
         f"PMCd's evidence is the overlap as a fraction of the target's units times {lca_gain(e):.3g} "
         "(`lca_input_gain`; by default the smallest gain with which a full overlap decides within one step).",
         "Eq. 6.14 puts a fixed bump on the arg-max posture, which discards the flatter C16 potentials of "
-        f"unfamiliar shapes (`posture_tau` = {e.posture_tau}; 0 = arg-max).",
+        f"unfamiliar shapes (`posture.tau` = {e.posture.tau}; 0 = arg-max).",
         "docs/choices.md gives the rule behind every constant the thesis does not state and the measured "
         "effect of every departure from the thesis.",
     ])

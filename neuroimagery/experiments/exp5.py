@@ -47,7 +47,7 @@ from .exp5_summary import (ROUTES, STRATEGIES, group_rates, library_columns, suc
 
 CONFIG = Exp5Config
 # keys of earlier versions and where they went (named in the refusal of a run that still sets one)
-MOVED_KEYS = {
+MOVED = {  # keys that are gone, with the reason (neuroimagery.config.moved_message)
     "retrieve_x": "removed; the reachable area is the free left hand's reach, from its kinematics (docs/robot.md)",
     "posture_4": "removed; the four postures are fitted to the scene criteria of docs/robot.md",
     "reach_bound": "removed; a movement is bounded by the joint limits only (docs/robot.md)",

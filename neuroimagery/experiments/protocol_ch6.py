@@ -27,6 +27,26 @@ from ..analysis import figures
 from ..analysis.summary import TRIAL_COLUMNS
 
 
+@dataclass
+class QuickParams:
+    """What ``preset=quick`` shrinks in Experiments 3 and 4 (``experiment.quick``)."""
+
+    objects: int = 1  # objects per test set
+    fm_images: int = 3000  # three-dot training images
+
+    def __post_init__(self) -> None:
+        for k in ("objects", "fm_images"):
+            if int(getattr(self, k)) < 1:
+                raise ValueError(f"experiment.quick.{k} must be >= 1, got {getattr(self, k)!r}")
+
+
+# keys of Experiments 3 and 4 that moved into a group (both experiments' MOVED)
+MOVED_CH6 = {"eta_fm": "fm.eta", "fm_images": "fm.images", "fm_batch": "fm.batch", "dot_inner": "fm.dot_inner",
+             "eta_posture": "posture.eta", "eta_posture_final": "posture.eta_final", "posture_sigma": "posture.sigma",
+             "posture_iterations": "posture.iterations", "quick_objects": "quick.objects",
+             "quick_fm_images": "quick.fm_images"}
+
+
 # ---------------------------------------------------------------------------------- vision
 def _vision():
     import neuroimagery.vision as v

@@ -50,7 +50,7 @@ def probe_bound(factors: dict, w0: torch.Tensor, saved: torch.Tensor) -> torch.T
 class FactorCheckpoint:
     """Compact checkpoints of a chapter-5 model whose :meth:`fit` records, in ``self._factors``
     (key: the ``state_dict`` entry), what each large trained weight was formed from. The model
-    has ``e`` (with ``som_threads``), ``seed`` and a connection ``c1``; each subclass names its
+    has ``e`` (with ``som.threads``), ``seed`` and a connection ``c1``; each subclass names its
     ``CHECKPOINT_FORMAT``. Weights without factors are saved in full."""
 
     def compact_state(self) -> dict:
@@ -89,7 +89,7 @@ class FactorCheckpoint:
         for key, f in ck["factors"].items():
             mod = self.get_submodule(key.rsplit(".", 1)[0])
             if f["kind"] == "som_windowed":  # the trainer's threads (the final product ran inside fit_soms)
-                with intra_op_threads(self.e.som_threads, cap=True):
+                with intra_op_threads(self.e.som.threads, cap=True):
                     rebuild_windowed(mod, f)
             elif f["kind"] == "hebbian_indexed":
                 mod.weight.copy_(rebuild_indexed(mod.weight, f))
@@ -107,4 +107,4 @@ class FactorCheckpoint:
         if bad:
             raise ValueError(f"the weights rebuilt from the checkpoint's factors differ from the trained ones by more than "
                              f"float rounding ({', '.join(bad)}): was it trained with other experiment settings "
-                             "(e.g. init_high, som_cutoff)?")
+                             "(e.g. init_high, som.cutoff)?")

@@ -25,6 +25,8 @@ map, 105 units); the object row is then read at the winning column.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field as dc_field
+
 import torch
 from torch import nn
 
@@ -32,12 +34,52 @@ from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participan
 from ..nn.functional import intra_op_threads
 from ..nn.som_windowed import windowed_factors
 from .factor_checkpoint import FactorCheckpoint
+from .params import FieldParams, SomParams
+
+
+@dataclass
+class AffordanceParams:
+    """The parameters of :class:`AffordanceRotationModel` (``experiment.*`` of Experiment 1)."""
+
+    step_deg: float = 15.0  # rotation of one C1/C2 cycle and spacing of the trained orientations (thesis: 15)
+    max_cycles: int = 10  # rotation cycles before the model gives up and matches the last image (thesis: 10)
+    centre_tolerance_deg: float = 7.5  # |posture| at which the PMC_1 cluster counts as "at the centre" (half a step)
+    init_high: float = 0.1  # initial weights U[0, init_high] (thesis: 0.1)
+    hebb_eta: float = 0.3  # outstar Hebbian rate of C1, C2, C5 (not given in the thesis)
+    hebb_epochs: int = 6  # passes over the training patterns (Table 5.1 of Exp. 2 uses 6 passes)
+    feed_order: str = "sequential"  # 'sequential': all of object A, then B (as in the thesis); or 'shuffled'
+    posture_sigma_deg: float = 6.0  # width of a PMC_1 posture cluster (deg along both axes)
+    object_band_deg: float = 22.5  # PMC_1 row offset (deg units) of object A (-) and B (+) clusters
+    answer_sigma: float = 1.5  # width (units) of the PMC_2 answer clusters
+    image_threshold: float = 0.5  # C2 output (max-normalised) above which a PC unit is on in the mental image
+    sharpen: float = 4.0  # exponent on the PMC_1 column profile before the competition (contrast)
+    som: SomParams = dc_field(default_factory=SomParams)  # the PFC_2 map (not given for Exp. 1) and its cluster
+    field: FieldParams = dc_field(default_factory=FieldParams)  # the PMC_1 and PMC_2 competitions
+
+    def __post_init__(self) -> None:
+        pos = ["step_deg", "centre_tolerance_deg", "init_high", "hebb_eta", "posture_sigma_deg", "answer_sigma",
+               "image_threshold", "sharpen"]
+        for k in pos:
+            if not getattr(self, k) > 0:
+                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
+        for k in ("max_cycles", "hebb_epochs"):
+            if getattr(self, k) < 1:
+                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
+        for k in ("object_band_deg",):
+            if getattr(self, k) < 0:
+                raise ValueError(f"experiment.{k} must be >= 0, got {getattr(self, k)!r}")
+        if self.hebb_eta > 1 or self.image_threshold >= 1:
+            raise ValueError("experiment.hebb_eta must be <= 1 and experiment.image_threshold < 1")
+        if self.feed_order not in ("sequential", "shuffled"):
+            raise ValueError(f"experiment.feed_order must be 'sequential' or 'shuffled', got {self.feed_order!r}")
+        if 90 % self.step_deg != 0:
+            raise ValueError(f"experiment.step_deg must divide 90, got {self.step_deg!r}")
 
 
 class AffordanceRotationModel(FactorCheckpoint, nn.Module):
     """Fig. 5.1 for ``participants`` robots with independent initial weights (batched).
 
-    ``e`` is an :class:`~neuroimagery.experiments.exp1.Exp1Config`.
+    ``e``: its :class:`AffordanceParams`.
     """
 
     CHECKPOINT_FORMAT = "neuroimagery.exp1.factors/1"  # compact_state (FactorCheckpoint)
@@ -54,17 +96,16 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         g = lambda s: participant_generators(seed, P, stream=s)  # noqa: E731
         self.c1 = AllToAll(1024, self.pmc1.n, init=(0.0, e.init_high), generators=g(0), rules=Hebbian(e.hebb_eta, "outstar"), name="C1")
         self.c2 = AllToAll(self.pmc1.n, 1024, init=(0.0, e.init_high), generators=g(1), rules=Hebbian(e.hebb_eta, "outstar"), name="C2")
-        self.pfc2 = SOM((32, 64), 2048, generators=g(2), init=(0.0, e.init_high), eta=e.som_eta,
-                        sigma=e.som_sigma, sigma_final=e.som_sigma_final, eta_final=e.som_eta_final,
-                        iterations=e.som_iterations, name="PFC_2")
+        self.pfc2 = SOM((32, 64), 2048, generators=g(2), init=(0.0, e.init_high), name="PFC_2", **e.som.som_kwargs())
+        self.pfc2.rule.cutoff = e.som.cutoff  # truncation of the Gaussian neighbourhood (same for every method)
         self.c5 = AllToAll(2048, self.pmc2.n, init=(0.0, e.init_high), generators=g(3), rules=Hebbian(e.hebb_eta, "outstar"), name="C5")
-        self.posture_field = DynamicField((105,), tau=e.field_tau, h=e.field_h, a_exc=e.field_a_exc,
-                                          sigma_exc=e.field_sigma_exc, a_inh=e.field_a_inh,
-                                          threshold=e.field_threshold, name="PMC_1")
-        self.answer_field = DynamicField((10, 20), tau=e.field_tau, h=e.field_h, a_exc=e.field_a_exc,
-                                         sigma_exc=e.field_sigma_exc, a_inh=e.field_a_inh,
-                                         threshold=e.field_threshold, name="PMC_2")
+        self.posture_field = DynamicField((105,), name="PMC_1", **e.field.field_kwargs())
+        self.answer_field = DynamicField((10, 20), name="PMC_2", **e.field.field_kwargs())
         self.seed = seed
+
+    @property
+    def participants(self) -> int:
+        return self.c1.participants
 
     # ------------------------------------------------------------------ codes
     def object_row(self, obj_index: torch.Tensor) -> torch.Tensor:
@@ -85,7 +126,7 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         x = torch.cat([pc, pfc1], -1)
         bmu = self.pfc2.bmu(x)  # (P, B)
         d2 = ((self.pfc2.grid[bmu].unsqueeze(-2) - self.pfc2.grid) ** 2).sum(-1)
-        return torch.exp(-d2 / (2 * self.e.som_filter_sigma ** 2)), bmu
+        return torch.exp(-d2 / (2 * self.e.som.cluster_sigma ** 2)), bmu
 
     # ------------------------------------------------------------------ training
     @torch.no_grad()
@@ -119,10 +160,10 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         pairs = [(i, j) for i in (0, 1) for j in (0, 1)]
         X = torch.stack([torch.cat([up[i], up[j]]) for i, j in pairs])  # (4, 2048)
         P = self.c1.participants
-        order = seeding.randint(participant_generators(self.seed, P, stream=4), X.shape[0], (e.som_iterations,))
-        with intra_op_threads(e.som_threads, cap=True):  # each SOM step is small: extra threads only add hand-offs
-            self.pfc2.fit(X, order=order, method=e.som_method)
-        if e.som_method == "windowed":  # the other methods leave no factors: the weights are saved in full
+        order = seeding.randint(participant_generators(self.seed, P, stream=4), X.shape[0], (e.som.iterations,))
+        with intra_op_threads(e.som.threads, cap=True):  # each SOM step is small: extra threads only add hand-offs
+            self.pfc2.fit(X, order=order, method=e.som.method)
+        if e.som.method == "windowed":  # the other methods leave no factors: the weights are saved in full
             fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
         act, _ = self.pfc2_activity(X[:, :1024].expand(P, -1, -1), X[:, 1024:].expand(P, -1, -1))
         yes = torch.tensor([i == j for i, j in pairs])
@@ -139,7 +180,7 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         s = s / s.amax(-1, keepdim=True).clamp_min(1e-9)
         grid = s.reshape(*s.shape[:-1], 31, 105)
         prof = grid.amax(-2) ** self.e.sharpen  # wrist-angle profile
-        d = self.posture_field(self.e.field_gain * prof, max_cycles=self.e.field_max_cycles)
+        d = self.posture_field(self.e.field.gain * prof, max_cycles=self.e.field.max_cycles)
         col = torch.where(d.decided, d.winner, prof.argmax(-1))
         row = grid.gather(-1, col[..., None, None].expand(*col.shape, 31, 1)).squeeze(-1).argmax(-1)
         return row, col, d.cycles, s
@@ -186,7 +227,7 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         act, bmu = self.pfc2_activity(pc, pfc1)
         a = self.c5.net(act)
         a = a / a.amax(-1, keepdim=True).clamp_min(1e-9)
-        d = self.answer_field(self.e.field_gain * self.pmc2.unflat(a), max_cycles=e.field_max_cycles)
+        d = self.answer_field(self.e.field.gain * self.pmc2.unflat(a), max_cycles=e.field.max_cycles)
         win = torch.where(d.decided, d.winner, a.argmax(-1))
         yes = (win % 20) < 10
         rt += d.cycles

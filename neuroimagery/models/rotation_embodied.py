@@ -23,7 +23,8 @@ the diagonal (current angle larger than the target) drive Mr, a clockwise turn (
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from dataclasses import dataclass, field as dc_field
+from typing import List, Optional, Sequence
 
 import torch
 from torch import nn
@@ -31,6 +32,7 @@ from torch import nn
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul, binary_matmul_rows
+from .params import ForwardModelParams, PostureMapParams
 
 MOVES = ("Ml", "Ms", "Mr")
 
@@ -101,13 +103,28 @@ def lca_gain(p) -> float:
     return p.lca_threshold * k / (1.0 - (1.0 - dt * k) ** n)
 
 
-def posture_maps(p, n_in: int, units: int, generators, names: Sequence[str]) -> list[SOM]:
+@dataclass
+class EmbodiedPostureParams(PostureMapParams):
+    """C16/C17 (``experiment.posture``) and how PPCp reads its winner."""
+
+    # PPCp winner of the mental image (eq. 6.14): 0 = arg-max of the C16 potentials; > 0 = drawn from a
+    # softmax of the max-normalised potentials at this temperature (uncertain for unfamiliar shapes,
+    # whose potentials are nearly flat). 0.1 = the PMCm temperature, not fitted. PPCt stays arg-max.
+    tau: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.tau < 0:
+            raise ValueError(f"experiment.posture.tau must be >= 0, got {self.tau!r}")
+
+
+def posture_maps(init_high: float, q: PostureMapParams, n_in: int, units: int, generators,
+                 names: Sequence[str]) -> list[SOM]:
     """The chapter-6 image -> wrist-posture maps (supervised Kohonen, eq. 6.7-6.8), one per name,
-    built in order from ``p``'s ``init_high``, ``eta_posture(_final)``, ``posture_sigma`` and
-    ``posture_iterations``."""
-    kw = dict(shape=(units,), n_in=n_in, generators=generators, init=(0.0, p.init_high), eta=p.eta_posture,
-              sigma=p.posture_sigma, eta_final=p.eta_posture_final, sigma_final=p.posture_sigma,
-              iterations=p.posture_iterations, supervised=True, readout="dot")
+    built in order, initial weights U[0, ``init_high``], the schedule of ``q``."""
+    kw = dict(shape=(units,), n_in=n_in, generators=generators, init=(0.0, init_high), eta=q.eta,
+              sigma=q.sigma, eta_final=q.eta_final, sigma_final=q.sigma,
+              iterations=q.iterations, supervised=True, readout="dot")
     return [SOM(name=name, **kw) for name in names]
 
 
@@ -124,6 +141,81 @@ def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int
     return Xm, Ym
 
 
+@dataclass
+class EmbodiedParams:
+    """The parameters of :class:`RotationEmbodied` (``experiment.*`` of Experiment 4)."""
+
+    # --- maps and stimuli -------------------------------------------------------------
+    map_size: int = 32  # side of every image map (Table 6.1: 32x32)
+    step_deg: float = 30.0  # rotation of one forward-model step (POCl +30, POCr -30)
+    ppc_angles: List[float] = dc_field(default_factory=lambda: [-60.0, -30.0, 0.0, 30.0, 60.0, 90.0])  # wrist posture of each PPCp/PPCt unit, increasing
+    # --- forward models C1-C3 (delta rule, eq. 6.4) -------------------------------------
+    init_high: float = 0.01  # initial weights U[0, init_high] of every trained connection ("small random"; not given)
+    fm: ForwardModelParams = dc_field(default_factory=ForwardModelParams)
+    # --- posture maps C16/C17 (supervised Kohonen, eq. 6.14-6.16) and the PPCp winner -----
+    posture: EmbodiedPostureParams = dc_field(default_factory=EmbodiedPostureParams)
+    # axis of the flipped target PFCft (C10, "flipped along the main object axis of the object"; not given how):
+    # 'image' = the principal axis of the target map itself (a fixed transformation of PFCt, as Table 6.2
+    # lists C10: no label, no posture input) | 'ppct' = the axis of the orientation PPCt reads (C17), so a
+    # misread target posture also gives a wrong flip. docs/choices.md
+    flip_axis: str = "image"
+    ppc_sigma: float = 0.5  # width (units) of the Gaussian bump PPCp/PPCt put around the winner (eq. 6.14; not given)
+    # --- action selection (eq. 6.10-6.11) ---------------------------------------------------
+    softmax_tau: float = 0.1  # PMCm softmax temperature (thesis 0.1)
+    # --- decision (PMCd, eq. 6.12-6.13) ----------------------------------------------------
+    lca_k: float = 0.5  # leak k (not given in the thesis)
+    lca_w: float = 0.5  # mutual inhibition w (C15, thesis 0.5)
+    lca_threshold: float = 1.2  # decision threshold (thesis 1.2)
+    lca_dt: float = 0.1  # Euler step per cycle (not given)
+    lca_cycles: int = 10  # accumulator cycles per rotation step (thesis 10)
+    # input scale: evidence = gain * |PFCxm| / |PFCt| (C13/C14 weights of 1.0 over the overlap, per target
+    # unit); None = the rule of docs/choices.md: the smallest gain with which a full overlap crosses the
+    # threshold within one step (1.495 with k 0.5, dt 0.1, 10 cycles)
+    lca_input_gain: Optional[float] = None
+    max_steps: int = 20  # rotation steps before a random answer (thesis 20)
+    # --- embodiment -----------------------------------------------------------------------
+    proprio_gain: float = 1.0  # strength of the wrist signal added to PPCp (scaled encoder signal; not given)
+    # where the wrist signal joins PPCp (not given): 'separate' = added after the noisy image-derived
+    # bump is clipped to [0, 1] (the encoder is an input of its own, untouched by the noise that stands
+    # for an unreliable image-to-posture mapping); 'visual' = summed with the bump before noise and clip,
+    # so on the congruent unit it saturates at 1 and cannot outweigh the noise on the other units
+    proprio_stage: str = "visual"
+    noise_amplitude: float = 0.5  # noise variant: U[-a, a] added to each PPCp unit per step (thesis 0.5)
+    # --- protocol size ----------------------------------------------------------------------
+
+    def __post_init__(self) -> None:
+        def pos(k, strict=True):
+            v = getattr(self, k)
+            if not (v > 0 if strict else v >= 0):
+                raise ValueError(f"experiment.{k} must be {'>' if strict else '>='} 0, got {v!r}")
+        for k in ("step_deg", "init_high", "ppc_sigma", "softmax_tau",
+                  "lca_threshold", "lca_dt"):
+            pos(k)
+        for k in ("lca_k", "lca_w", "proprio_gain", "noise_amplitude"):
+            pos(k, strict=False)
+        for k in ("map_size", "lca_cycles", "max_steps"):
+            if int(getattr(self, k)) < 1:
+                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
+        if self.map_size < 8:
+            raise ValueError(f"experiment.map_size must be >= 8, got {self.map_size}")
+        if not (1 <= self.fm.dot_inner <= self.map_size - 2):
+            raise ValueError(f"experiment.fm.dot_inner must lie in [1, map_size - 2], got {self.fm.dot_inner}")
+        from ..nn.decision import LeakyCompetingAccumulator
+        from ..nn.functional import check_bounds
+
+        lca = ("k", "w", "threshold", "dt")  # within the bounds the accumulator enforces (one source)
+        check_bounds({k: LeakyCompetingAccumulator.BOUNDS[k] for k in lca}, {k: getattr(self, f"lca_{k}") for k in lca},
+                     {k: f"experiment.lca_{k}" for k in lca})
+        if len(self.ppc_angles) < 2 or list(self.ppc_angles) != sorted(self.ppc_angles):
+            raise ValueError(f"experiment.ppc_angles must be >= 2 increasing angles, got {list(self.ppc_angles)}")
+        if self.flip_axis not in ("image", "ppct"):
+            raise ValueError(f"experiment.flip_axis must be 'image' or 'ppct', got {self.flip_axis!r}")
+        if self.lca_input_gain is not None and not self.lca_input_gain > 0:
+            raise ValueError(f"experiment.lca_input_gain must be > 0 (or null for the rule), got {self.lca_input_gain!r}")
+        if self.proprio_stage not in ("separate", "visual"):
+            raise ValueError(f"experiment.proprio_stage must be 'separate' or 'visual', got {self.proprio_stage!r}")
+
+
 class RotationEmbodied(nn.Module):
     """The Experiment 4 network for ``P`` participants (``generators``: one per participant;
     ``participant_ids``: who they are, kept for the caller, default ``0..P-1``)."""
@@ -136,10 +228,10 @@ class RotationEmbodied(nn.Module):
         self.n, self.size = n, p.map_size
         self.step_angles = (float(p.step_deg), 0.0, -float(p.step_deg))  # Ml, Ms, Mr
         self.fm = nn.ModuleList([
-            AllToAll(n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.eta_fm), name=f"C{k + 1}")
+            AllToAll(n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.fm.eta), name=f"C{k + 1}")
             for k in range(3)])
         nu = len(p.ppc_angles)
-        self.c16, self.c17 = posture_maps(p, n, nu, generators, ("C16", "C17"))
+        self.c16, self.c17 = posture_maps(p.init_high, p.posture, n, nu, generators, ("C16", "C17"))
         self.ppc = PopulationMap("PPC", (nu,), 0.0, float(nu - 1), sigma=p.ppc_sigma)
         self.c20 = HardWired(triangle_weights(nu), name="C20")
         self.pmcd = LeakyCompetingAccumulator(2, k=p.lca_k, w=p.lca_w, threshold=p.lca_threshold, dt=p.lca_dt)
@@ -212,16 +304,16 @@ class RotationEmbodied(nn.Module):
     def posture_winner(self, score: torch.Tensor, uniforms: torch.Tensor | None) -> torch.Tensor:
         """Winning PPCp unit of the C16 activation potentials ``score`` ``(R, units)`` (eq. 6.14).
 
-        ``posture_tau == 0``: the arg-max, as eq. 6.14 states. ``posture_tau > 0``: the winner is drawn
+        ``posture.tau == 0``: the arg-max, as eq. 6.14 states. ``posture.tau > 0``: the winner is drawn
         from a softmax of the max-normalised potentials at that temperature (the same stochastic
         winner-take-all abstraction as PMCm, eq. 6.11), so an image whose potentials are nearly
         equal (an unfamiliar shape, a "flat" posture code) gives an uncertain winner instead of a
         confident arbitrary one, while a clear orientation still gives the same winner almost always.
         """
-        if self.p.posture_tau <= 0 or uniforms is None:
+        if self.p.posture.tau <= 0 or uniforms is None:
             return score.argmax(-1)
         norm = score / score.max(-1, keepdim=True).values.clamp_min(1e-12)
-        return softmax_select(norm, self.p.posture_tau, uniforms=uniforms)
+        return softmax_select(norm, self.p.posture.tau, uniforms=uniforms)
 
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
         """POCi -> POCp: the forward model chosen by ``move`` ``(P, B)`` (0 Ml, 1 Ms, 2 Mr).
@@ -351,7 +443,7 @@ class RotationEmbodied(nn.Module):
                 sel = cond == c
                 draws_noise = [torch.rand(B, nu, generator=g) for g in gens] if noisy else None
                 draws_sel = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q)
-                draws_win = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q) if p.posture_tau > 0 else None
+                draws_win = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q) if p.posture.tau > 0 else None
                 if not bool(sel.any()):
                     continue
                 qc = q[sel]

@@ -19,7 +19,8 @@ counter-clockwise (+45 deg) turn, and the six below drive n1, a clockwise (-45 d
 """
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import dataclass, field as dc_field
+from typing import List, Sequence
 
 import torch
 from torch import nn
@@ -27,9 +28,88 @@ from torch import nn
 from ..nn import AllToAll, Delta, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul
+from .params import ForwardModelParams, PostureMapParams
 from .rotation_embodied import posture_maps, sample_indices, triangle_weights
 
 MOVES = ("n1", "n2", "n3")
+
+
+@dataclass
+class GeneralisingForwardModel(ForwardModelParams):
+    """C6 (``experiment.fm``) and the threshold of its output."""
+
+    threshold: float = 0.5  # a PP_2 unit is on when its C6 input exceeds this (not given)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.threshold > 0:
+            raise ValueError(f"experiment.fm.threshold must be > 0, got {self.threshold!r}")
+
+
+@dataclass
+class GeneralisingPostureParams(PostureMapParams):
+    """C2/C3 (``experiment.posture``): their units' wrist postures and the graded code of eq. 6.5-6.6."""
+
+    iterations: int = 960  # supervised Kohonen steps (40 passes over 24 set-a images; not given)
+    angles: List[float] = dc_field(default_factory=lambda: [45.0, 0.0, -45.0, -90.0])  # SS / PMC_1 units, decreasing
+    code_sigma: float = 0.15  # width of the Gaussian of eq. 6.5-6.6 on squared-distance differences (not given)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.code_sigma > 0:
+            raise ValueError(f"experiment.posture.code_sigma must be > 0, got {self.code_sigma!r}")
+        if len(self.angles) < 2 or list(self.angles) != sorted(self.angles, reverse=True):
+            raise ValueError(f"experiment.posture.angles must be >= 2 decreasing angles, got {list(self.angles)}")
+
+
+@dataclass
+class GeneralisingParams:
+    """The parameters of :class:`RotationGeneralising` (``experiment.*`` of Experiment 3)."""
+
+    map_size: int = 32  # side of V1, PP_1 (x3), PP_2, PFC_1, PFC_2 (thesis 32x32)
+    step_deg: float = 45.0  # rotation of one forward-model step (n1 -45, n3 +45)
+    init_high: float = 0.01  # initial weights U[0, init_high] (small random; not given)
+    fm: GeneralisingForwardModel = dc_field(default_factory=GeneralisingForwardModel)  # C6 (delta rule, eq. 6.4)
+    # C2/C3 (supervised Kohonen, eq. 6.7-6.8), their SS / PMC_1 units' postures and graded code (eq. 6.5-6.6)
+    posture: GeneralisingPostureParams = dc_field(default_factory=GeneralisingPostureParams)
+    # width of the Gaussian of eq. 6.2 (not given). M1_1 and the weights are unit length, so distances lie in
+    # [0, 2]; activity wholly in one M1_1 cell sits at least 0.82 (squared) nearer its own triangle's weights
+    # than the others'. sigma^2 = 0.82 / 4 puts the other units two "standard" widths down (exp(-2) ~ 0.13),
+    # i.e. a clear posture difference gives a clear move and the softmax (tau 0.3) picks it ~90 % of the time.
+    m1_sigma: float = 0.45
+    # how eq. 6.2 compares M1_1 with the weights of n1, n2, n3. 'pattern' (default, eq. 6.2 as printed): the
+    # whole 16-unit pattern as a direction (width m1_sigma), where flat codes favour the 6-unit triangles and
+    # keep the rotation going. 'centre': by where the M1_1 activity is centred across the diagonal (mean SS
+    # unit - PMC_1 unit, in posture units), so that two flat posture codes, like two coinciding ones, put it on
+    # the diagonal and select n2 (thesis 6.1.3: objects with no clear orientation stop the rotation early).
+    m1_readout: str = "pattern"
+    # width of the Gaussian of the 'centre' readout, in posture units (not given): half the spacing of the
+    # posture units, so that a centre one unit off the diagonal selects a turn (n2 falls to ~0.3, the softmax
+    # picks the turn ~87 % of the time) and a centre on the diagonal selects n2 (the turns fall to ~0.004)
+    m1_centre_sigma: float = 0.5
+    # C8 reach: 0 (default) = the thesis's one-to-one subtraction; r > 0 = a PP_2 unit covers the target
+    # units within r map units (Chebyshev), since edge maps are 1-2 units thick and one 45-deg step shifts
+    # resampled edges by up to one unit.
+    match_tolerance: int = 0
+    softmax_tau: float = 0.3  # M1_2 softmax temperature (thesis 0.3)
+    match_threshold: float = 0.05  # NO when PMC_2 > this fraction of PFC_1's active units (thesis 5 %)
+    max_steps: int = 15  # rotation steps before answering NO (thesis 15)
+
+    def __post_init__(self) -> None:
+        for k in ("step_deg", "init_high", "m1_sigma", "m1_centre_sigma", "softmax_tau"):
+            if not getattr(self, k) > 0:
+                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
+        for k in ("map_size", "max_steps"):
+            if int(getattr(self, k)) < 1:
+                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
+        if self.m1_readout not in ("centre", "pattern"):
+            raise ValueError(f"experiment.m1_readout must be 'centre' or 'pattern', got {self.m1_readout!r}")
+        if int(self.match_tolerance) < 0:
+            raise ValueError(f"experiment.match_tolerance must be >= 0, got {self.match_tolerance!r}")
+        if not (0.0 <= self.match_threshold <= 1.0):
+            raise ValueError(f"experiment.match_threshold must lie in [0, 1], got {self.match_threshold!r}")
+        if not (1 <= self.fm.dot_inner <= self.map_size - 2):
+            raise ValueError(f"experiment.fm.dot_inner must lie in [1, map_size - 2], got {self.fm.dot_inner}")
 
 
 class RotationGeneralising(nn.Module):
@@ -42,9 +122,9 @@ class RotationGeneralising(nn.Module):
         n = p.map_size * p.map_size
         self.n, self.size = n, p.map_size
         self.step_angles = (-float(p.step_deg), 0.0, float(p.step_deg))  # n1 cw, n2 none, n3 ccw
-        self.c6 = AllToAll(3 * n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.eta_fm), name="C6")
-        nu = len(p.posture_angles)
-        self.c2, self.c3 = posture_maps(p, n, nu, generators, ("C2", "C3"))
+        self.c6 = AllToAll(3 * n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.fm.eta), name="C6")
+        nu = len(p.posture.angles)
+        self.c2, self.c3 = posture_maps(p.init_high, p.posture, n, nu, generators, ("C2", "C3"))
         # M1_1 -> M1_2 hard-wired masks: lower-left -> n1, diagonal -> n2, upper-right -> n3
         self.register_buffer("m1_masks", triangle_weights(nu))
         self._table: torch.Tensor | None = None
@@ -83,7 +163,7 @@ class RotationGeneralising(nn.Module):
         """Graded posture code (eq. 6.5-6.6): a Gaussian of each unit's distance to the image,
         measured from the best unit's distance, ``exp(-(d_i^2 - d_min^2) / (2 sigma^2))``."""
         d = som.distances(x)
-        return torch.exp(-(d - d.min(-1, keepdim=True).values) / (2 * self.p.posture_code_sigma ** 2))
+        return torch.exp(-(d - d.min(-1, keepdim=True).values) / (2 * self.p.posture.code_sigma ** 2))
 
     def m1_2(self, m11: torch.Tensor) -> torch.Tensor:
         """M1_2 activity (eq. 6.2): a Gaussian of the distance between M1_1 ``(P, B, 16)`` and the
@@ -146,7 +226,7 @@ class RotationGeneralising(nn.Module):
             s = ((move == m) & sel).unsqueeze(-1)
             full[..., m * n:(m + 1) * n] = x * s
         pred = binary_matmul(self._table, full)
-        return torch.where(sel.unsqueeze(-1), (pred > self.p.fm_threshold).float(), x)
+        return torch.where(sel.unsqueeze(-1), (pred > self.p.fm.threshold).float(), x)
 
     @torch.no_grad()
     def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record=0, **_) -> dict:
@@ -155,7 +235,7 @@ class RotationGeneralising(nn.Module):
         leading trials or a sequence of trial indices)."""
         p = self.p
         P, B, _ = target.shape
-        nu = len(p.posture_angles)
+        nu = len(p.posture.angles)
         pfc1 = target
         pmc1 = self.posture(self.c3, pfc1)
         pp2 = rotated  # at the start PP_2 holds the seen image

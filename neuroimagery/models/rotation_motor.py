@@ -20,10 +20,12 @@ SS posture, its image); and C9, C10 and C2 learn after the SOM M1_1 has finished
 The competition inside SS (forward prediction + weaker proprioception, which also pre-activates
 the field) and inside PMC_2 is a dynamic field run to threshold; the SS field runs along the
 wrist-angle axis (100 units). The SOMs train by the batched windowed form of the online rule
-(``SOM.fit(method='windowed')``) unless ``som_method`` says otherwise. RT =
+(``SOM.fit(method='windowed')``) unless ``som.method`` says otherwise. RT =
 SS competition cycles over the rotation steps + PMC_2 cycles (1 cycle = 1 ms).
 """
 from __future__ import annotations
+
+from dataclasses import dataclass, field as dc_field
 
 import torch
 from torch import nn
@@ -35,13 +37,56 @@ from ..nn.som_windowed import windowed_factors
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 from ..nn.functional import intra_op_threads
 from .factor_checkpoint import FactorCheckpoint
+from .params import FieldParams, SomParams
 
 ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]
 CHECKPOINT_FORMAT = "neuroimagery.exp2.factors/1"  # the compact checkpoint of MotorRotationModel.compact_state
 
 
+@dataclass
+class MotorRotationParams:
+    """The parameters of :class:`MotorRotationModel` (``experiment.*`` of Experiment 2)."""
+
+    max_cycles: int = 10  # rotation cycles before matching the last image (thesis: 10)
+    init_high: float = 0.1  # initial weights U[0, init_high] (thesis: 0.1)
+    hebb_eta: float = 0.3  # outstar Hebbian rate of every Hebbian connection (not given)
+    c1_epochs: int = 6  # passes over the 14 images for C1 and C6 (Table 5.1: 84 cycles = 6 x 14)
+    # babbling steps that train C9, C10 and C2, after the SOM M1_1 has finished (Table 5.1: 1,960 for C9 and
+    # C10; it gives C2 14 patterns x 84 cycles, here C2 learns on these same steps; see docs/exp2.md)
+    hebb_steps: int = 1960
+    c5_epochs: int = 6  # passes over the 196 pairs for C5 (Table 5.1: 1,176 = 6 x 196)
+    # the SOMs M1_1 and PFC_2 (Table 5.1: 10,000 steps; radius not given, see docs/exp2.md) and the
+    # winning cluster they pass on to C5, C9, C10
+    som: SomParams = dc_field(default_factory=lambda: SomParams(iterations=10000, cutoff=0.01, cluster_sigma=1.0))
+    posture_sigma_deg: float = 6.0  # width of SS / PMC_1 posture clusters (deg)
+    object_band_deg: float = 22.5  # SS row offset of object A (-) and B (+)
+    preactivation: float = 0.2  # C1 pre-activation of each afforded posture (thesis: 0.2)
+    bias: float = 1.0  # C6 bias of the selected posture (thesis: 1.0)
+    proprio_gain: float = 0.5  # proprioceptive input to SS relative to the forward model's 1.0 (weaker, < 1)
+    answer_sigma: float = 1.5  # width of PMC_2 / M1_2 clusters (units)
+    image_threshold: float = 0.5  # C2 output (max-normalised) above which a PP unit is on
+    # the SS and PMC_2 competitions (inhibition strong enough that the weaker proprioceptive cluster alone cannot win)
+    field: FieldParams = dc_field(default_factory=lambda: FieldParams(a_inh=0.2))
+
+    def __post_init__(self) -> None:
+        for k in ("init_high", "hebb_eta", "posture_sigma_deg", "preactivation", "bias", "answer_sigma",
+                  "image_threshold"):
+            if not getattr(self, k) > 0:
+                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
+        for k in ("max_cycles", "c1_epochs", "hebb_steps", "c5_epochs"):
+            if getattr(self, k) < 1:
+                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
+        for k in ("proprio_gain", "object_band_deg"):
+            if getattr(self, k) < 0:
+                raise ValueError(f"experiment.{k} must be >= 0, got {getattr(self, k)!r}")
+        if self.proprio_gain >= 1:
+            raise ValueError(f"experiment.proprio_gain must be < 1 (weaker than the forward model), got {self.proprio_gain!r}")
+        if self.hebb_eta > 1 or self.image_threshold >= 1:
+            raise ValueError("experiment.hebb_eta must be <= 1 and experiment.image_threshold < 1")
+
+
 class MotorRotationModel(FactorCheckpoint, nn.Module):
-    """Fig. 5.6 for ``participants`` robots (batched); ``e`` is an ``Exp2Config``."""
+    """Fig. 5.6 for ``participants`` robots (batched); ``e``: its :class:`MotorRotationParams`."""
 
     CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
 
@@ -63,16 +108,18 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         self.c9 = AllToAll(4096, 300, init=init, generators=g(3), rules=h, name="C9")
         self.c10 = AllToAll(4096, 3100, init=init, generators=g(4), rules=h, name="C10")
         self.c5 = AllToAll(4096, 200, init=init, generators=g(5), rules=h, name="C5")
-        som = dict(init=init, eta=e.som_eta, eta_final=e.som_eta_final, sigma=e.som_sigma,
-                   sigma_final=e.som_sigma_final, iterations=e.som_iterations)
+        som = dict(init=init, **e.som.som_kwargs())
         self.m11 = SOM((64, 64), 6200, generators=g(6), name="M1_1", **som)
         self.pfc2 = SOM((64, 64), 2048, generators=g(7), name="PFC_2", **som)
         for s_ in (self.m11, self.pfc2):
-            s_.rule.cutoff = e.som_cutoff  # truncation of the Gaussian neighbourhood (same for every method)
-        fk = dict(tau=e.field_tau, h=e.field_h, a_exc=e.field_a_exc, sigma_exc=e.field_sigma_exc,
-                  a_inh=e.field_a_inh, threshold=e.field_threshold)
+            s_.rule.cutoff = e.som.cutoff  # truncation of the Gaussian neighbourhood (same for every method)
+        fk = e.field.field_kwargs()
         self.ss_field = DynamicField((100,), name="SS", **fk)
         self.answer_field = DynamicField((10, 20), name="PMC_2", **fk)
+
+    @property
+    def participants(self) -> int:
+        return self.c1.participants
 
     # ------------------------------------------------------------------ codes
     def ss_code(self, obj: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
@@ -91,7 +138,7 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         (or around the given ``bmu``)."""
         bmu = som.bmu(x) if bmu is None else bmu
         d2 = ((som.grid[bmu].unsqueeze(-2) - som.grid) ** 2).sum(-1)
-        b = torch.exp(-d2 / (2 * self.e.cluster_sigma ** 2))
+        b = torch.exp(-d2 / (2 * self.e.som.cluster_sigma ** 2))
         return torch.where(b < 1e-3, torch.zeros_like(b), b)
 
     @torch.no_grad()
@@ -126,14 +173,14 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
     @torch.no_grad()
     def fit_soms(self, jobs) -> list[torch.Tensor]:
         """Online Kohonen training of SOMs, ``jobs`` = ``[(som, X, order (P, T), parts)]``, by
-        ``e.som_method``.
+        ``e.som.method``.
 
         All three methods run the same online rule and return the same winners; they differ in
         cost only (``windowed`` works with the distinct pieces of the input segments ``parts``).
-        The per-step work is small, so it runs on ``e.som_threads`` intra-op threads.
+        The per-step work is small, so it runs on ``e.som.threads`` intra-op threads.
         """
-        m = self.e.som_method
-        with intra_op_threads(self.e.som_threads, cap=True):
+        m = self.e.som.method
+        with intra_op_threads(self.e.som.threads, cap=True):
             return [som.fit(X, order=order, method=m, parts=parts if m == "windowed" else None)
                     for som, X, order, parts in jobs]
 
@@ -187,7 +234,7 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         # babbling stream: the SOM M1_1 (C7, C8) first, over all som_iterations steps; then C9, C10 and
         # C2 on the first hebb_steps steps of the same stream, C9 and C10 from the trained M1_1's clusters
         # (the thesis trains them step by step alongside the SOM; Table 5.1 gives C2 84 cycles, not 1,960)
-        T = max(e.som_iterations, e.hebb_steps)
+        T = max(e.som.iterations, e.hebb_steps)
         b = self.babble(T)
         ai = lambda a: (a + 0).long()  # noqa: E731  (index 0..6)
         pat = b["obj"] * 49 + ai(b["cur"]) * 7 + ai(b["des"])  # (P, T) index into 98 patterns
@@ -198,9 +245,9 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         pairs = [(i, j) for i in range(14) for j in range(14)]
         Y = torch.stack([torch.cat([img[i], img[j]]) for i, j in pairs])
         gens = participant_generators(self.seed, P, stream=9)
-        self.fit_soms([(self.m11, X, pat[:, : e.som_iterations], (3100, 3100)),  # [SS, PMC_1]
-                       (self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som_iterations,)), (1024, 1024))])  # [PP, PFC_1]
-        if e.som_method == "windowed":  # the other methods leave no factors: their weights are saved in full
+        self.fit_soms([(self.m11, X, pat[:, : e.som.iterations], (3100, 3100)),  # [SS, PMC_1]
+                       (self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som.iterations,)), (1024, 1024))])  # [PP, PFC_1]
+        if e.som.method == "windowed":  # the other methods leave no factors: their weights are saved in full
             fx["m11.weight"] = {"kind": "som_windowed", **windowed_factors(self.m11)}
             fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
         Th = e.hebb_steps
@@ -297,8 +344,8 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
                 felt_i = obj * 7 + (felt.unsqueeze(-1) - ang).abs().argmin(-1)  # one of the 14 trained postures
                 pro = e.proprio_gain * ss_set[:14].reshape(14, 31, 100).amax(-2)[felt_i]
                 prof = prof + pro
-                u0 = e.field_h + e.field_gain * pro  # proprioception pre-activates SS
-            d = self.ss_field(e.field_gain * prof, max_cycles=e.field_max_cycles, u0=u0)
+                u0 = e.field.h + e.field.gain * pro  # proprioception pre-activates SS
+            d = self.ss_field(e.field.gain * prof, max_cycles=e.field.max_cycles, u0=u0)
             col = torch.where(d.decided, d.winner, prof.argmax(-1))
             row = grid.gather(-1, col[..., None, None].expand(P, B, 31, 1)).squeeze(-1).argmax(-1)
             new_obj = (row >= 15).long()
@@ -321,7 +368,7 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         act = self.som_bump(self.pfc2, bmu=distinct_rows(lambda x: self.pfc2.bmu(x), torch.cat([pp, pfc1], -1)))
         s = self.c5.net(act)
         s = s / s.amax(-1, keepdim=True).clamp_min(1e-9)
-        d = self.answer_field(e.field_gain * self.pmc2.unflat(s), max_cycles=e.field_max_cycles)
+        d = self.answer_field(e.field.gain * self.pmc2.unflat(s), max_cycles=e.field.max_cycles)
         win = torch.where(d.decided, d.winner, s.argmax(-1))
         yes = (win % 20) < 10
         rt += d.cycles

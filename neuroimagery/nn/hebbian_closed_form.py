@@ -94,7 +94,7 @@ def hebbian_indexed_many(pre_of, targets, eta: float, factors: list | None = Non
         c = eta * pre.float() * suffix  # (1, T, in)
         _, T, n_in = pre.shape
         for out, (weight0, post_index, post_set), (ka, kc) in zip(outs, targets, kept):
-            C = torch.zeros(1, post_set.shape[0], n_in)
+            C = torch.zeros(1, post_set.shape[0], n_in, device=c.device)
             C.scatter_add_(1, post_index[p:p + 1].long().unsqueeze(-1).expand(1, T, n_in), c)
             _form_indexed(out[p:p + 1], weight0[p:p + 1], a, C, post_set)
             if factors is not None:
