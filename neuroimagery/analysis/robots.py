@@ -24,7 +24,7 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from .summary import _r, effect, holm
+from .summary import effect, holm, rounded
 
 ROBOT_EFFECTS_INTRO = ("Each effect is tested with the simulated robot as the unit (statsmodels): a rise with age or "
                        "with training is a logistic regression of each robot's success on the group's level (value: "
@@ -62,7 +62,7 @@ def logistic_trend(df: pd.DataFrame, x: str) -> dict:
     b, (lo, hi), p = fit.params[1], fit.conf_int()[1], fit.pvalues[1]
     if not all(map(math.isfinite, (b, lo, hi, p))) or abs(b) > 20:  # separated: no finite estimate
         return out
-    out.update(diff=_r(b, 4), ci95=[_r(lo, 4), _r(hi, 4)], p=float(p))
+    out.update(diff=rounded(b, 4), ci95=[rounded(lo, 4), rounded(hi, 4)], p=float(p))
     return out
 
 
@@ -86,7 +86,7 @@ def paired_strategies(df: pd.DataFrame) -> dict:
     b, c = int(((r == 1) & (q == 0)).sum()), int(((r == 0) & (q == 1)).sum())
     diff = (b - c) / n
     se = math.sqrt(max(b + c - (b - c) ** 2 / n, 0.0)) / n
-    out.update(diff=_r(diff, 4), ci95=[_r(diff - 1.96 * se, 4), _r(diff + 1.96 * se, 4)],
+    out.update(diff=rounded(diff, 4), ci95=[rounded(diff - 1.96 * se, 4), rounded(diff + 1.96 * se, 4)],
                p=float(mcnemar([[0, b], [c, 0]], exact=True).pvalue) if b + c else 1.0)
     return out
 

@@ -35,7 +35,7 @@ def check_trials(df: pd.DataFrame) -> pd.DataFrame:
     return df[TRIAL_COLUMNS + extra]
 
 
-def _r(x: float, nd: int = 4):
+def rounded(x: float, nd: int = 4):
     return None if x is None or (isinstance(x, float) and math.isnan(x)) else round(float(x), nd)
 
 
@@ -59,17 +59,17 @@ def summarise_test(df: pd.DataFrame) -> dict:
     wrong = ~df["correct"].astype(bool) if n else df["correct"]
     return {
         "n_trials": int(n),
-        "correct_rate": _r(correct),
-        "error_rate": _r(1.0 - correct),
-        "rotation_success_rate": _r(float(df["rotated_ok"].astype(float).mean()) if n else float("nan")),
-        "rt_mean": _r(float(df["rt"].mean()) if n else float("nan"), 3),
-        "rt_by_disparity": {str(int(round(k))): _r(v, 3) for k, v in zip(x, y)},
-        "error_rate_by_disparity": {str(int(round(k))): _r(v) for k, v in err.items()},
-        "rt_slope_per_deg": _r(slope),
-        "rt_r": _r(r),
+        "correct_rate": rounded(correct),
+        "error_rate": rounded(1.0 - correct),
+        "rotation_success_rate": rounded(float(df["rotated_ok"].astype(float).mean()) if n else float("nan")),
+        "rt_mean": rounded(float(df["rt"].mean()) if n else float("nan"), 3),
+        "rt_by_disparity": {str(int(round(k))): rounded(v, 3) for k, v in zip(x, y)},
+        "error_rate_by_disparity": {str(int(round(k))): rounded(v) for k, v in err.items()},
+        "rt_slope_per_deg": rounded(slope),
+        "rt_r": rounded(r),
         # where the errors are: NO to same pairs, YES to mirror pairs
-        "error_rate_same": _r(float(wrong[same].mean()) if same.any() else float("nan")),
-        "error_rate_different": _r(float(wrong[~same].mean()) if (~same).any() else float("nan")),
+        "error_rate_same": rounded(float(wrong[same].mean()) if same.any() else float("nan")),
+        "error_rate_different": rounded(float(wrong[~same].mean()) if (~same).any() else float("nan")),
     }
 
 
@@ -87,8 +87,8 @@ def compare_rt(a: Iterable[float], b: Iterable[float]) -> dict:
     with warnings.catch_warnings():  # two samples of (nearly) one value, as at a ceiling: p is still defined
         warnings.filterwarnings("ignore", "Precision loss occurred", RuntimeWarning)
         t, p = stats.ttest_ind(a, b, equal_var=False)
-    return {"mean_a": _r(a.mean(), 3), "mean_b": _r(b.mean(), 3), "diff": _r(a.mean() - b.mean(), 3),
-            "t": _r(t), "p": float(p) if np.isfinite(p) else None, "n_a": int(a.size), "n_b": int(b.size)}
+    return {"mean_a": rounded(a.mean(), 3), "mean_b": rounded(b.mean(), 3), "diff": rounded(a.mean() - b.mean(), 3),
+            "t": rounded(t), "p": float(p) if np.isfinite(p) else None, "n_a": int(a.size), "n_b": int(b.size)}
 
 
 def compare_rates(a: Iterable[bool], b: Iterable[bool]) -> dict:
@@ -99,7 +99,7 @@ def compare_rates(a: Iterable[bool], b: Iterable[bool]) -> dict:
         _, p = stats.fisher_exact(table)
     else:
         _, p, _, _ = stats.chi2_contingency(table)
-    return {"rate_a": _r(a.mean()), "rate_b": _r(b.mean()), "diff": _r(a.mean() - b.mean()), "p": float(p)}
+    return {"rate_a": rounded(a.mean()), "rate_b": rounded(b.mean()), "diff": rounded(a.mean() - b.mean()), "p": float(p)}
 
 
 def dz_interval(values: np.ndarray, level: float = 0.95) -> tuple[float, list[float]] | tuple[None, None]:
@@ -123,24 +123,24 @@ def dz_interval(values: np.ndarray, level: float = 0.95) -> tuple[float, list[fl
     except (ValueError, RuntimeError):
         half = stats.norm.ppf(1 - a) * math.sqrt(1 / n + d * d / (2 * n))
         lo, hi = d - half, d + half
-    return _r(d, 4), [_r(lo, 4), _r(hi, 4)]
+    return rounded(d, 4), [rounded(lo, 4), rounded(hi, 4)]
 
 
 def one_sample(values, test_value: float = 0.0) -> dict:
     """t-test of ``values`` (one per participant) against ``test_value`` (statsmodels): mean, its
     95 % interval, t, two-sided p, d_z and its 95 % interval."""
     v = np.asarray(values, float)
-    out = {"n": int(v.size), "mean": _r(v.mean(), 5) if v.size else None, "t": None, "p": None, "ci95": None,
+    out = {"n": int(v.size), "mean": rounded(v.mean(), 5) if v.size else None, "t": None, "p": None, "ci95": None,
            "d_z": None, "d_z_ci95": None}
     if v.size >= 2 and v.std(ddof=1) > 0:
         ds = DescrStatsW(v)
         t, p, _ = ds.ttest_mean(test_value)
         lo, hi = ds.tconfint_mean(0.05)
         d, dci = dz_interval(v - test_value)
-        out.update(t=_r(t), p=float(p), ci95=[_r(lo, 5), _r(hi, 5)], d_z=d, d_z_ci95=dci)
+        out.update(t=rounded(t), p=float(p), ci95=[rounded(lo, 5), rounded(hi, 5)], d_z=d, d_z_ci95=dci)
     elif v.size >= 2:  # every participant alike: no spread to test against
         m = float(v.mean())
-        out.update(p=1.0 if m == test_value else 0.0, ci95=[_r(m, 5), _r(m, 5)])
+        out.update(p=1.0 if m == test_value else 0.0, ci95=[rounded(m, 5), rounded(m, 5)])
     return out
 
 
@@ -153,10 +153,10 @@ def paired_by_participant(a: pd.DataFrame, b: pd.DataFrame, value: str) -> dict:
     both = ma.index.intersection(mb.index)
     x, y = ma.loc[both].to_numpy(float), mb.loc[both].to_numpy(float)
     res = one_sample(x - y)
-    res["diff"] = _r(res.pop("mean"), 4) if res["mean"] is not None else None
-    res.update(mean_a=_r(x.mean(), 4) if x.size else None, mean_b=_r(y.mean(), 4) if y.size else None)
+    res["diff"] = rounded(res.pop("mean"), 4) if res["mean"] is not None else None
+    res.update(mean_a=rounded(x.mean(), 4) if x.size else None, mean_b=rounded(y.mean(), 4) if y.size else None)
     if res["ci95"]:
-        res["ci95"] = [_r(c, 4) for c in res["ci95"]]
+        res["ci95"] = [rounded(c, 4) for c in res["ci95"]]
     return res
 
 
@@ -186,7 +186,7 @@ def repeated_anova(df: pd.DataFrame, factor: str, value: str = "rt") -> dict:
         return out
     res = AnovaRM(cell, value, "participant", within=[factor]).fit().anova_table.iloc[0]
     if np.isfinite(res["F Value"]):
-        out.update(F=_r(res["F Value"]), df=[int(res["Num DF"]), int(res["Den DF"])], p=float(res["Pr > F"]))
+        out.update(F=rounded(res["F Value"]), df=[int(res["Num DF"]), int(res["Den DF"])], p=float(res["Pr > F"]))
     return out
 
 
@@ -227,11 +227,11 @@ def custom_vs_chance(df: pd.DataFrame) -> dict | None:
     if c.empty:
         return None
     rates = c.groupby("participant")["correct"].mean().to_numpy(float)
-    out = {"n": int(rates.size), "mean_correct": _r(rates.mean(), 4), "t": None, "p_greater": None,
+    out = {"n": int(rates.size), "mean_correct": rounded(rates.mean(), 4), "t": None, "p_greater": None,
            "above_chance": False}
     if rates.size >= 2 and rates.std(ddof=1) > 0:
         t, p = stats.ttest_1samp(rates, 0.5, alternative="greater")
-        out.update(t=_r(t), p_greater=float(p), above_chance=bool(rates.mean() > 0.5 and p < 0.05))
+        out.update(t=rounded(t), p_greater=float(p), above_chance=bool(rates.mean() > 0.5 and p < 0.05))
     elif rates.size >= 1:
         out["above_chance"] = bool(rates.min() > 0.5 and rates.size >= 2)
     return out
