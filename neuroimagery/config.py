@@ -80,15 +80,20 @@ def experiment_module(name: str):
     return importlib.import_module(f"neuroimagery.experiments.{name}")
 
 
+def experiment_modules():
+    """``(name, module)`` of every experiment whose module is present."""
+    for name in EXPERIMENTS:
+        try:
+            yield name, experiment_module(name)
+        except ModuleNotFoundError:
+            continue
+
+
 def register_configs() -> None:
     """Store the schemas in Hydra's ConfigStore (called before composing)."""
     cs = ConfigStore.instance()
     cs.store(name="base_config", node=Config)
-    for name in EXPERIMENTS:
-        try:
-            mod = experiment_module(name)
-        except ModuleNotFoundError:
-            continue
+    for name, mod in experiment_modules():
         schema = getattr(mod, "CONFIG", None)
         if schema is not None:
             cs.store(group="experiment", name=f"{name}_schema", node=schema)
@@ -102,11 +107,7 @@ def moved_keys() -> dict[str, str]:
     the keys that moved into a group, declared by each experiment module as ``MOVED``; a key that
     was removed maps to the reason, ``"removed; ..."``."""
     out: dict[str, str] = {}
-    for name in EXPERIMENTS:
-        try:
-            mod = experiment_module(name)
-        except ModuleNotFoundError:
-            continue
+    for _, mod in experiment_modules():
         for old, new in getattr(mod, "MOVED", {}).items():
             out[f"experiment.{old}"] = new if new.startswith(REMOVED) else f"experiment.{new}"
     return out
