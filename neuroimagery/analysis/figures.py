@@ -107,26 +107,60 @@ def rate_bars(df: pd.DataFrame, path: str | Path, title: str = "", by: str = "te
     return save(fig, path)
 
 
+CELL = 48  # pixels of one map's cell in a panel grid
+GAP = 4  # pixels between cells
+
+
+def _cell(a: np.ndarray) -> np.ndarray:
+    """A map scaled to [0, 1] by its own range and resampled by nearest neighbour onto a
+    ``CELL x CELL`` square (a 1-D map onto a strip a third as tall, across the middle); NaN
+    around it (drawn blank)."""
+    a = np.asarray(a, dtype=float)
+    if a.ndim == 1:
+        a = a[None, :]
+    if a.size:
+        a = a - a.min()
+        m = a.max()
+        a = a / m if m > 0 else a
+    h, w = a.shape
+    rows = CELL // 3 if h == 1 else CELL
+    img = a[np.arange(rows) * h // rows][:, np.arange(CELL) * w // CELL]
+    out = np.full((CELL, CELL), np.nan)
+    r0 = (CELL - rows) // 2
+    out[r0:r0 + rows] = img
+    return out
+
+
 def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, title: str = "",
                row_labels: Sequence[str] | None = None) -> Path:
-    """A grid of map activities: one row per step, one column per map (as Fig. 5.4, 6.12)."""
+    """A grid of map activities: one row per step, one column per map (as Fig. 5.4, 6.12), drawn
+    as one mosaic at its own pixel size (each map scaled by its own range, viridis, blank around
+    it), with the map names above and the row labels on the left; cheap however long the trial."""
     names = list(steps[0].keys())
-    fig, axes = plt.subplots(len(steps), len(names), figsize=(1.6 * len(names), 1.6 * len(steps)), squeeze=False)
+    R, C = len(steps), len(names)
+    pitch = CELL + GAP
+    mosaic = np.full((R * pitch - GAP, C * pitch - GAP), np.nan)
     for r, st in enumerate(steps):
         for c, n in enumerate(names):
-            a = np.asarray(st[n], dtype=float)
-            if a.ndim == 1:
-                a = a[None, :]
-            ax = axes[r, c]
-            ax.imshow(a, cmap="viridis", aspect="auto", interpolation="nearest")
-            ax.set_xticks([])
-            ax.set_yticks([])
-            if r == 0:
-                ax.set_title(n, fontsize=7)
-            if c == 0 and row_labels is not None:
-                ax.set_ylabel(row_labels[r], fontsize=7)
-    fig.suptitle(title, fontsize=9)
-    return save(fig, path)
+            mosaic[r * pitch:r * pitch + CELL, c * pitch:c * pitch + CELL] = _cell(st[n])
+    rgba = plt.get_cmap("viridis")(np.nan_to_num(mosaic))
+    rgba[np.isnan(mosaic)] = 1.0
+    dpi, left, top, pad = 100, 170, 70, 10
+    H, W = mosaic.shape
+    fw, fh = W + left + pad, H + top + pad
+    fig = plt.figure(figsize=(fw / dpi, fh / dpi), dpi=dpi)
+    fig.figimage(rgba, xo=left, yo=pad, origin="upper")
+    fig.text(0.5, 1 - 8 / fh, title, ha="center", va="top", fontsize=9)
+    for c, n in enumerate(names):
+        fig.text((left + c * pitch + CELL / 2) / fw, (pad + H + 6) / fh, n, ha="left", va="bottom", fontsize=7,
+                 rotation=45)
+    for r, lab in enumerate(row_labels if row_labels is not None else []):
+        fig.text((left - 6) / fw, (pad + H - r * pitch - CELL / 2) / fh, lab, ha="right", va="center", fontsize=7)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi, metadata={"Software": None})
+    plt.close(fig)
+    return path
 
 
 def save(fig, path: str | Path) -> Path:
