@@ -168,3 +168,20 @@ def test_exp5_training_curves_average_each_event_over_its_skills():
     assert c["pibb/pull/cost"] == pytest.approx([0.5, 0.5]) and c["competence/pull"] == pytest.approx([0.3, 0.6])
     assert c["pibb/touch/cost"] == pytest.approx([0.75]) and set(c) == {"pibb/pull/cost", "competence/pull",
                                                                          "pibb/touch/cost", "competence/touch"}
+
+
+def test_exp5_sequencing_curves_follow_the_training_trials():
+    from neuroimagery.experiments.exp5_figures import sequencing_curves
+
+    df = pd.DataFrame([
+        dict(hypothesis="hp2", training_trials=2, situation="far", strategy="reactive", train_successes="0>1",
+             train_q="0>0.5"),
+        dict(hypothesis="hp2", training_trials=4, situation="far", strategy="reactive", train_successes="1>1>0>1",
+             train_q="0.5>0.7>0.6>0.9"),
+        dict(hypothesis="hp2", training_trials=0, situation="far", strategy="reactive", train_successes="",
+             train_q=""),
+        dict(hypothesis="hp1", training_trials=10, situation="far", strategy="reactive", train_successes="1",
+             train_q="9")])
+    c = sequencing_curves(df)
+    assert c["sequencing/far/reactive/success"] == pytest.approx([0.5, 1.0, 0.0, 1.0])
+    assert c["sequencing/far/reactive/q_max"] == pytest.approx([0.25, 0.6, 0.6, 0.9])

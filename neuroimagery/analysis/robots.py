@@ -60,8 +60,8 @@ def logistic_trend(df: pd.DataFrame, x: str) -> dict:
         except Exception:  # noqa: BLE001 - a singular fit is reported without a test
             return out
     b, (lo, hi), p = fit.params[1], fit.conf_int()[1], fit.pvalues[1]
-    if not all(map(math.isfinite, (b, lo, hi, p))) or abs(b) > 20:  # separated: no finite estimate
-        return out
+    if not all(map(math.isfinite, (b, lo, hi, p))) or abs(b) > 20 or not fit.bse[1] > 0:
+        return out  # separated, or no spread between the libraries: no finite estimate to test
     out.update(diff=rounded(b, 4), ci95=[rounded(lo, 4), rounded(hi, 4)], p=float(p))
     return out
 

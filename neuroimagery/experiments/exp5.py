@@ -266,12 +266,15 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
                 # only C4 learns in Fig. 7.6: every individual starts from the built brain with a fresh C4
                 brain = built[key]
                 brain.reset_c4()
-                train_ok = []
+                train_ok, train_q = [], []
+                start, units = outcomes.image(posture, ()), [s.unit for s in sub.skills]
                 for _ in range(grp["trials"]):
                     rec = sequence_trial(brain, outcomes, sub.skills, posture, strategy, True, e.attempts,
                                          e.temperature, g_ind, planning_test=e.planning_test,
                                          active_threshold=e.active_threshold)
                     train_ok.append(rec.success if strategy == "reactive" else rec.imagined_success)
+                    # C4's learning curve: the largest action value of the robot's skills at the start
+                    train_q.append(float(brain.q_values(start)[units].max()) if units else 0.0)
                 filming = (film is None and r == e.filmstrip_repetition and strategy == "planning")
                 test = sequence_trial(brain, outcomes, sub.skills, posture, strategy, False, e.attempts,
                                       e.test_temperature, g_ind, record_frames=filming,
@@ -289,7 +292,9 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
                     n_skills=len(sub.skills), skills="+".join(s.name for s in sub.skills),
                     train_success_rate=float(np.mean(train_ok)) if train_ok else float("nan"),
                     success=int(test.success), imagined_success=int(test.imagined_success),
-                    test_actions=">".join(test.actions), test_attempts=len(test.actions), **routes[(sit, key)]))
+                    test_actions=">".join(test.actions), test_attempts=len(test.actions), **routes[(sit, key)],
+                    train_successes=">".join(str(int(ok)) for ok in train_ok),
+                    train_q=">".join(f"{q:.6g}" for q in train_q)))
     timing = dict(task_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0, acquisition_s=t_acq,
                   explore_rollouts=0 if library is not None else lib.explore_rollouts,
                   learn_rollouts=0 if library is not None else lib.learn_rollouts, library_reused=library is not None)
@@ -403,6 +408,8 @@ def evaluate(cfg, run, trained) -> dict:
     df = pd.DataFrame([row for d in results for row in d["rows"]])
     df.insert(0, "individual", df["library"] + "_" + df["situation"])
     df = library_columns(df, results)
+    last = [c for c in ("train_successes", "train_q") if c in df]  # the newest columns stay last
+    df = df[[c for c in df.columns if c not in last] + last]
     run.write_csv("individuals.csv", df)
     rates = summarise(df, e)
     grp_rows, checks, routes = rates["groups"], rates["checks"], rates["routes"]

@@ -102,7 +102,7 @@ def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> 
                                      "age (months) = 2..6 IM detectors", "HP1: success vs number of skills")
     figs["fig_7_10"] = success_curves(summary, "hp2", run.figures / "fig_7_10_hp2_trials.png", "level",
                                       "training trials", "HP2: success vs training trials")
-    log_training_curves(run.logger, results)
+    log_training_curves(run.logger, results, df)
     film = next((d["film"] for d in results if d.get("film")), None)
     if film is not None:
         figs["filmstrip"] = filmstrip(film, run.figures / "retrieval_filmstrip.png")
@@ -143,9 +143,30 @@ def training_curves(results: list[dict]) -> dict[str, list[float]]:
     return {tag: [sum(v) / len(v) for v in acc] for tag, acc in sums.items()}
 
 
-def log_training_curves(logger, results: list[dict]) -> None:
-    """:func:`training_curves` as TensorBoard scalars ``train/...`` over their own steps (from 1)."""
-    for tag, ys in training_curves(results).items():
+def sequencing_curves(df: pd.DataFrame) -> dict[str, list[float]]:
+    """C4's learning over the training trials of Fig. 7.6 (HP2 groups), per situation and strategy,
+    averaged over the robots whose group had trial n: ``sequencing/<situation>/<strategy>/success``
+    (the share of robots
+    whose trial n succeeded, really or in imagination) and ``.../q_max`` (the largest action value of
+    the robot's skills at the start after trial n)."""
+    out: dict[str, list[float]] = {}
+    if "train_q" not in df:
+        return out
+    d = df[(df["hypothesis"] == "hp2") & (df["training_trials"] > 0)]
+    for (sit, strat), g in d.groupby(["situation", "strategy"], sort=False):
+        for col, name in (("train_successes", "success"), ("train_q", "q_max")):
+            seqs = [[float(v) for v in str(x).split(">")] for x in g[col] if isinstance(x, str) and x]
+            n = max((len(q) for q in seqs), default=0)
+            out[f"sequencing/{sit}/{strat}/{name}"] = [float(np.mean([q[i] for q in seqs if len(q) > i]))
+                                                       for i in range(n)]
+    return out
+
+
+def log_training_curves(logger, results: list[dict], df: pd.DataFrame | None = None) -> None:
+    """:func:`training_curves` (and :func:`sequencing_curves` of ``df``) as TensorBoard scalars
+    ``train/...`` over their own steps (from 1)."""
+    curves = training_curves(results) | (sequencing_curves(df) if df is not None else {})
+    for tag, ys in curves.items():
         for i, y in enumerate(ys):
             logger.scalar(f"train/{tag}", y, i + 1)
 
