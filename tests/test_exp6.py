@@ -18,7 +18,7 @@ from neuroimagery.vision import shepard_metzler as sm
 
 TINY = ("experiment.grid=10", "experiment.quick_fm_images=3000", "experiment.posture_iterations=100",
         "experiment.quick_objects=1", "experiment.train_objects=1", "experiment.test_angles=[0,60,120,180]",
-        "experiment.posture_angles=[0,60,120,180]", "experiment.step_deg=60")
+        "experiment.posture_angles=[0,60,120,180]", "experiment.step_deg=30")
 
 
 def _cfg(*overrides, quick=True):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any, List, Optional
 
 import numpy as np
@@ -206,13 +207,20 @@ def _model(cfg, ids):
     return Rotation3D(cfg.experiment, grid_side(cfg.experiment), seeding.participant_generators(cfg.seed, ids, stream=0))
 
 
-def wrist_limits() -> dict[str, tuple[float, float]]:
-    """Joint limits (deg) of the wrist joint each rotation axis stands for, from the iCub URDF."""
-    from ..robot.kinematics import ARM_JOINTS, ArmKinematics
+@lru_cache(maxsize=2)
+def wrist_limits(robot_model: str = "iCubGazeboV2_5") -> dict[str, tuple[float, float]]:
+    """Joint limits (deg) of the wrist joint each rotation axis stands for, read from the iCub URDF."""
+    import xml.etree.ElementTree as ET
 
-    lim = ArmKinematics().joint_limits.tolist()
-    by = {n: (math.degrees(lo), math.degrees(hi)) for n, (lo, hi) in zip(ARM_JOINTS, lim)}
-    return {a: by[j] for a, j in WRIST_JOINTS.items()}
+    from ..robot.kinematics import icub_urdf_text
+
+    root = ET.fromstring(icub_urdf_text(robot_model, keep_geometry=False))
+    by = {}
+    for j in root.findall("joint"):
+        lim = j.find("limit")
+        if j.get("name") in WRIST_JOINTS.values() and lim is not None:
+            by[j.get("name")] = (math.degrees(float(lim.get("lower"))), math.degrees(float(lim.get("upper"))))
+    return {a: by[n] for a, n in WRIST_JOINTS.items()}
 
 
 def posture_label(e, axis: str, angle: float, limits) -> int:

@@ -86,11 +86,11 @@ def evaluate(cfg, run, trained) -> dict:
     try:
         df, histories, _ = exp6.run_tests(cfg, trained, scene, record=cfg.logger.sample_trials)
         train_objs, tnames, test_objs, names = exp6.objects(e)
-        sm_sheet = run.figures / "exp6_stimuli.png"
+        used = sorted(set(df["target_object"]), key=names.index)  # the test objects of this run (preset)
         from ..vision import shepard_metzler as sm
 
-        sm.contact_sheet(scene, list(train_objs) + list(test_objs), list(tnames) + list(names), sm_sheet,
-                         tilt_deg=e.view_tilt_deg, turn_deg=e.view_turn_deg)
+        sm.contact_sheet(scene, list(train_objs) + [test_objs[names.index(u)] for u in used], list(tnames) + used,
+                         run.figures / "exp6_stimuli.png", tilt_deg=e.view_tilt_deg, turn_deg=e.view_turn_deg)
     finally:
         scene.close()
     run.write_csv("trials.csv", df)
