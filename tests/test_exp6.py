@@ -178,3 +178,28 @@ def test_end_to_end_quick_run_writes_results(tmp_path):
         assert {"rt_slope_per_deg", "rt_intercept", "rt_r", "correct_rate", "same_pairs"} <= set(v)
         assert v["n_trials"] == 4 * 2  # one object, four angles, same and mirror
     assert set(s["headline"]["goals"]) and "Shepard" in (tmp_path / "report.md").read_text()
+
+
+BAD = [
+    (["experiment.test_cubes=[[[0,0,0],[1,0,0],[2,0,0],[2,1,0]]]"], "experiment.test_cubes[0]"),
+    (["experiment.hidden=all"], "experiment.hidden"),
+    (["experiment.fm_memory_mb=nan"], "experiment.fm_memory_mb"),
+    (["experiment.grid=9"], "experiment.grid"),
+    (["preset=quick", "experiment.fm_images=100"], "experiment.fm_images"),
+    (["experiment.grid=12", "experiment.fm_memory_mb=5"], "experiment.fm_memory_mb"),
+]
+
+
+@pytest.mark.parametrize("over,needle", BAD, ids=[" ".join(o) for o, _ in BAD])
+def test_bad_settings_are_refused_before_any_work(tmp_path, capsys, monkeypatch, over, needle):
+    from neuroimagery import cli
+
+    def forbidden(*a, **k):
+        raise AssertionError("training started before the input was refused")
+
+    monkeypatch.setattr(exp6, "train", forbidden)
+    with pytest.raises(SystemExit) as ex:
+        cli.friendly_errors(evaluate)(make_cfg("experiment=exp6", *over), out_dir=tmp_path)
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.startswith("error:")]
+    assert ex.value.code == 2 and len(lines) == 1 and needle in lines[0], err
