@@ -147,8 +147,8 @@ def _fig2(df: pd.DataFrame, path, tests) -> None:
     for ax, test in zip(axes[0], tests):
         d = df[(df["test"] == test) & df["same"].astype(bool) & df["correct"].astype(bool)]
         per = d.groupby(["disparity", "participant"])["rt"].mean().unstack()
-        m = per.mean(axis=1)
-        sem = per.std(axis=1, ddof=1) / np.sqrt(per.notna().sum(axis=1)) if per.shape[1] > 1 else 0 * m
+        m = d.groupby("disparity")["rt"].mean().sort_index()  # over the trials, as summary.json's same_pairs
+        sem = (per.std(axis=1, ddof=1) / np.sqrt(per.notna().sum(axis=1))).reindex(m.index) if per.shape[1] > 1 else 0 * m
         ax.errorbar(m.index, m.values, yerr=np.nan_to_num(np.asarray(sem, float)), marker="o", capsize=3, color="k")
         f = _fit(m.index, m.values)
         if f["slope"] is not None:
@@ -161,6 +161,7 @@ def _fig2(df: pd.DataFrame, path, tests) -> None:
         ax.set_xticks(range(0, 181, 40))
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("mean RT, correct 'same' (cycles)")
+    fig.suptitle("error bars: s.e.m. over participants", fontsize=8, y=0.02)
     fig.tight_layout()
     figures.save(fig, path)
 
