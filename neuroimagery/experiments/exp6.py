@@ -35,6 +35,9 @@ class Exp6Config:
     train_objects: int = 3  # first objects drawn: train the posture maps
     test_objects: int = 5  # next objects: the test set (never seen in training)
     test_cubes: Optional[List[Any]] = None  # own test objects: a list of lists of [x, y, z] cube positions
+    # which objects the tests show: 'novel' = the test set (never seen in training) | 'train' = the
+    # training objects themselves (as Exp 4's Recog test: the posture maps know these shapes)
+    test_set: str = "novel"
     test_angles: List[float] = field(default_factory=lambda: [float(a) for a in range(0, 181, 20)])
     tests: List[str] = field(default_factory=lambda: ["picture", "depth"])
     view_tilt_deg: float = 25.0  # general view: tilted toward the eye about the horizontal ...
@@ -104,6 +107,8 @@ class Exp6Config:
             raise ValueError("experiment.image_width/height must lie in [64, 2048] / [48, 2048]")
         if self.hidden not in ("surface", "cube"):
             raise ValueError(f"experiment.hidden must be 'surface' or 'cube', got {self.hidden!r}")
+        if self.test_set not in ("novel", "train"):
+            raise ValueError(f"experiment.test_set must be 'novel' or 'train', got {self.test_set!r}")
         if self.posture_readout not in ("distance", "dot"):
             raise ValueError(f"experiment.posture_readout must be 'distance' or 'dot', got {self.posture_readout!r}")
         if self.unreachable not in ("extend", "clip"):
@@ -131,7 +136,7 @@ class Exp6Config:
 CONFIG = Exp6Config
 INPUTS = ()  # the eye camera of this experiment is set by its own keys (eye, fov_deg, image_*)
 CHECKPOINTS = ("exp6",)
-TEST_KEYS = ("test_objects", "test_cubes", "test_angles", "tests", "softmax_tau", "match_radius", "lca_k", "lca_w",
+TEST_KEYS = ("test_objects", "test_cubes", "test_set", "test_angles", "tests", "softmax_tau", "match_radius", "lca_k", "lca_w",
              "lca_threshold", "lca_dt", "lca_cycles", "lca_input_gain", "max_steps", "quick_objects")
 RUNTIME_KEYS = ()
 
@@ -141,6 +146,9 @@ def ineffective_keys(cfg) -> dict[str, str]:
     if e.test_cubes is not None:
         out["test_objects"] = "test_cubes replaces the built-in test set"
         out["quick_objects"] = "test_cubes replaces the built-in test set"
+        out["test_set"] = "test_cubes replaces the built-in test set"
+    elif e.test_set == "train":
+        out["test_objects"] = "test_set=train shows the training objects"
     if cfg.preset == "quick":
         out["fm_images"] = "preset=quick trains on quick_fm_images"
     if e.grid is not None:
@@ -163,6 +171,8 @@ def objects(e) -> tuple[list[np.ndarray], list[str], list[np.ndarray], list[str]
     if e.test_cubes is not None:
         test = [sm.check_object(c, f"experiment.test_cubes[{i}]") for i, c in enumerate(e.test_cubes)]
         return train, tnames, test, [f"U{i + 1}" for i in range(len(test))]
+    if e.test_set == "train":
+        return train, tnames, list(train), list(tnames)
     return train, tnames, test, [f"S{i + 1}" for i in range(len(test))]
 
 

@@ -89,7 +89,8 @@ def evaluate(cfg, run, trained) -> dict:
         used = sorted(set(df["target_object"]), key=names.index)  # the test objects of this run (preset)
         from ..vision import shepard_metzler as sm
 
-        sm.contact_sheet(scene, list(train_objs) + [test_objs[names.index(u)] for u in used], list(tnames) + used,
+        extra = [u for u in used if u not in tnames]
+        sm.contact_sheet(scene, list(train_objs) + [test_objs[names.index(u)] for u in extra], list(tnames) + extra,
                          run.figures / "exp6_stimuli.png", tilt_deg=e.view_tilt_deg, turn_deg=e.view_turn_deg)
     finally:
         scene.close()
