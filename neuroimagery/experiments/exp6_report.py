@@ -105,6 +105,7 @@ def evaluate(cfg, run, trained) -> dict:
     limits = exp6.wrist_limits()
     side = trained.side
     summary = {"experiment": "exp6", "participants": int(df["participant"].nunique()), "tests": tests,
+               "targets": {k: {"rt_r": HUMAN["rt_r"]} for k in tests},  # Shepard & Metzler's r, each kind of rotation
                "headline": headline(tests, df), "human": HUMAN, "goals": GOALS,
                "forward_model_overlap": forward_model_overlap(trained, cfg.seed),
                "grid": {"side": side, "receptive_radius": trained.radius, "offsets": trained.fm[0].K,
