@@ -211,12 +211,13 @@ class SMScene:
         import pybullet as p
         import torch
 
-        from .camera import _fk, eye_chain
+        from .camera import eye_chain
 
         self.p, self.width, self.height, self.fov, self.cube = p, int(width), int(height), float(fov_deg), float(cube_edge)
         chain = eye_chain(robot_model)
         q0 = torch.zeros(len(chain.get_joint_parameter_names()), dtype=torch.float64)
-        tf = _fk(chain, q0, "l_eye" if eye == "left" else "r_eye")  # eyes straight ahead (tilt = pan = 0)
+        frames = chain.forward_kinematics(q0.reshape(1, -1))  # eyes straight ahead (tilt = pan = 0)
+        tf = frames["l_eye" if eye == "left" else "r_eye"].get_matrix()[0].numpy()
         self.eye_pos, self.fwd, self.up = tf[:3, 3], tf[:3, 2], tf[:3, 1]
         self.right = np.cross(self.fwd, self.up)  # camera x in the world (robot root) frame
         self.centre = self.eye_pos + distance * self.fwd
