@@ -163,8 +163,8 @@ def _fig2(df: pd.DataFrame, path, tests) -> None:
         ax.set_xticks(range(0, 181, 40))
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("mean RT, correct 'same' (cycles)")
-    fig.suptitle("error bars: s.e.m. over participants", fontsize=8, y=0.02)
-    fig.tight_layout()
+    fig.text(0.5, 0.01, "error bars: s.e.m. over participants", fontsize=8, ha="center")
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     figures.save(fig, path)
 
 
