@@ -7,6 +7,7 @@ TORCH_INDEX ?=
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+BENCH_STAMP := $(VENV)/.installed-bench
 
 .PHONY: install run test test-slow bench clean
 
@@ -24,6 +25,11 @@ $(STAMP): $(PY) pyproject.toml
 
 install: $(STAMP)
 
+# the benchmarks' reference libraries (MiniSom, pydmps), on top of the install above
+$(BENCH_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e ".[bench]"
+	@touch $(BENCH_STAMP)
+
 run: $(STAMP)
 	$(PY) evaluate.py experiment=exp4 hydra.run.dir=outputs/exp4/latest
 
@@ -33,7 +39,7 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
 
-bench: $(STAMP)
+bench: $(BENCH_STAMP)
 	$(PY) benchmarks/bench_blocks.py
 
 clean:

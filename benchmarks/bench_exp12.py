@@ -29,7 +29,7 @@ def run(exp, overrides):
     t, c = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory() as d:
         s = evaluate(cfg, out_dir=d)
-    return time.perf_counter() - t, time.process_time() - c, s.get("runtime_s", {})
+    return time.perf_counter() - t, time.process_time() - c, {**s.get("runtime_s", {}), "peak_rss_mb": s.get("peak_rss_mb", {})}
 
 
 def som_equivalence(steps: int) -> None:
@@ -38,7 +38,7 @@ def som_equivalence(steps: int) -> None:
     from neuroimagery.experiments.exp2 import Exp2Config
     from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
     from neuroimagery.nn import SOM, participant_generators
-    from neuroimagery.nn.som import fit_windowed
+    from neuroimagery.nn.som_windowed import fit_windowed
 
     e = Exp2Config(som_iterations=steps)
     m = MotorRotationModel(e, 2, 0)
@@ -85,8 +85,10 @@ def main():
         wall, cpu, parts = run(ex, [f"participants={P}"] + extra)
         total[0] += wall
         total[1] += cpu
+        mem = parts["peak_rss_mb"]
         print(f"{ex}: {P} participants batched: {wall:.1f} s wall, {cpu:.1f} s CPU (train {parts.get('train')} s, "
-              f"test {parts.get('evaluate')} s)", flush=True)
+              f"test {parts.get('evaluate')} s); peak resident memory of this process: train {mem.get('train')} MiB, "
+              f"test {mem.get('evaluate')} MiB", flush=True)
         if solo:
             one = [run(ex, ["participants=1", f"seed={s}"] + extra)[:2] for s in range(P)]
             ow, oc = sum(x[0] for x in one), sum(x[1] for x in one)

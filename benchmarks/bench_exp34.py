@@ -2,6 +2,8 @@
 and the ratio against running the participants one at a time.
 
     python benchmarks/bench_exp34.py [participants] [quick|full]
+
+Peak memory: the process's peak resident set during the batched run (neuroimagery/memory.py).
 """
 import sys
 import time
@@ -9,6 +11,7 @@ from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 
+from neuroimagery import memory
 from neuroimagery.config import register_configs, validate
 from neuroimagery.experiments import exp3, exp4
 
@@ -23,11 +26,13 @@ def _cfg(name, participants, preset):
 
 def bench(mod, name, participants, preset):
     cfg = _cfg(name, participants, preset)
+    memory.reset_peak()
     t0 = time.perf_counter()
     model = mod.train_model(cfg, list(range(participants)))
     t1 = time.perf_counter()
     df, _, _ = mod.run_tests(cfg, model)
     t2 = time.perf_counter()
+    peak = memory.peak_rss_mb()
     solo = 0.0
     for p in range(participants):
         s0 = time.perf_counter()
@@ -37,7 +42,7 @@ def bench(mod, name, participants, preset):
     batched = t2 - t0
     print(f"{name}: {len(df)} trials, train {t1 - t0:.1f} s, evaluate {t2 - t1:.1f} s, "
           f"{len(df) / (t2 - t1):.0f} trials/s; batched {batched:.1f} s vs one at a time {solo:.1f} s "
-          f"(ratio {solo / batched:.2f})")
+          f"(ratio {solo / batched:.2f}); peak resident memory of the batched run (train + test) {peak} MiB")
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ physics rollouts, eye renders, and the rest (DMP integration, C1-C4 updates, boo
 An individual = one robot (repetition x situation) of one group, tested as reactive and planning.
 Wall and CPU time are both printed (on shared cores the wall time depends on the other jobs);
 loading the robot once per worker process is timed apart, since a run pays it once per worker.
+Peak memory: the process's peak resident set while the tasks ran (neuroimagery/memory.py).
 """
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
 
+    from neuroimagery import memory
     from neuroimagery.experiments import exp5
 
     kw = {}
@@ -41,6 +43,7 @@ def main(argv=None) -> int:
     exp5._task_environment(e)  # the world is built once per worker process and reused by its tasks
     t_load, c_load = time.perf_counter() - t_load, time.process_time() - c_load
     print(f"loading the world (once per worker): wall {t_load:.1f} s, CPU {c_load:.1f} s")
+    memory.reset_peak()
     t0, c0 = time.perf_counter(), time.process_time()
     for r in range(args.repetitions):
         task = dict(repetition=r, situations=[args.situation], key=f"bench{r}")
@@ -49,8 +52,10 @@ def main(argv=None) -> int:
         for k, v in res["timing"].items():
             totals[k] = totals.get(k, 0.0) + float(v)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    peak = memory.peak_rss_mb()
     print(f"tasks {args.repetitions}, individuals {individuals} (each tested reactive + planning), "
-          f"wall {wall:.1f} s, CPU {cpu:.1f} s")
+          f"wall {wall:.1f} s, CPU {cpu:.1f} s; peak resident memory of this process {peak} MiB "
+          f"(the world, loaded before, included; parallel workers are separate processes)")
     print(f"individuals per minute (one process): {60 * individuals / wall:.2f} wall, "
           f"{60 * individuals / cpu:.2f} per CPU-minute")
     acq = totals.get("acquisition_s", 0.0)

@@ -1,23 +1,53 @@
 """TensorBoard logging of scalars and of map activity as images (or nothing, ``logger=none``)."""
 from __future__ import annotations
 
+import math
+from contextlib import nullcontext
 from pathlib import Path
 
 import torch
 
+from .nn import monitor
+
+
+MIN_SIDE = 96  # pixels: small maps are enlarged (nearest neighbour) to at least this on their longer side
+STRIP = 12  # pixels: the height of a 1-D map's strip, and each unit's width at least
+
 
 def _to_image(activity: torch.Tensor) -> torch.Tensor:
-    """A 1-D or 2-D map -> ``(1, H, W)`` image in [0, 1] (each map scaled by its own range)."""
-    a = activity.detach().float()
+    """A 1-D or 2-D map -> ``(1, H, W)`` image in [0, 1] (each map scaled by its own range). A 1-D
+    map becomes a strip of ``STRIP``-pixel cells, one per unit; a small 2-D map is enlarged by an
+    integer factor, so every unit stays a visible square."""
+    a = activity.detach().float().cpu()
     if a.dim() == 1:
         a = a.unsqueeze(0)
     a = a - a.min()
     m = a.max()
-    return (a / m if m > 0 else a).unsqueeze(0)
+    a = a / m if m > 0 else a
+    h, w = a.shape
+    k = max(1, math.ceil(MIN_SIDE / max(h, w)))
+    if activity.dim() == 1:
+        k = max(k, STRIP)
+    a = a.repeat_interleave(k, 0).repeat_interleave(k, 1)
+    if activity.dim() == 1 and a.shape[0] > STRIP:
+        a = a[:STRIP]
+    return a.unsqueeze(0)
+
+
+def _hparam_value(v):
+    """A setting as TensorBoard's HParams view takes it: a number, a string or a boolean."""
+    if isinstance(v, (bool, int, float, str)):
+        return v
+    return "none" if v is None else str(v)
 
 
 class NullLogger:
     """Accepts every call and writes nothing."""
+
+    def training_curves(self):
+        """A context in which the blocks' training curves (:mod:`neuroimagery.nn.monitor`) come
+        here as scalars; with nothing written, the blocks measure nothing."""
+        return nullcontext()
 
     def scalar(self, tag: str, value: float, step: int = 0) -> None:
         pass
@@ -37,6 +67,9 @@ class NullLogger:
     def text(self, tag: str, text: str, step: int = 0) -> None:
         pass
 
+    def hparams(self, settings: dict, metrics: dict) -> None:
+        pass
+
     def flush(self) -> None:
         pass
 
@@ -45,13 +78,20 @@ class NullLogger:
 
 
 class TensorBoardLogger(NullLogger):
-    """Writes TensorBoard events under ``root`` (``DIR/tb`` of a run)."""
+    """Writes TensorBoard events under ``root`` (``DIR/tb`` of a run): one event file per run, so a
+    run rewritten into its directory replaces the old file instead of adding a second one."""
 
     def __init__(self, root: str | Path, map_images: bool = True) -> None:
         from torch.utils.tensorboard import SummaryWriter
 
+        root = Path(root)
+        for old in root.glob("events.out.tfevents.*"):
+            old.unlink()
         self.writer = SummaryWriter(log_dir=str(root))
         self.map_images = map_images
+
+    def training_curves(self):
+        return monitor.to(self.scalar)
 
     def scalar(self, tag: str, value: float, step: int = 0) -> None:
         self.writer.add_scalar(tag, float(value), step)
@@ -76,6 +116,19 @@ class TensorBoardLogger(NullLogger):
 
     def text(self, tag: str, text: str, step: int = 0) -> None:
         self.writer.add_text(tag, text, step)
+
+    def hparams(self, settings: dict, metrics: dict) -> None:
+        """The run's settings and headline figures in TensorBoard's HParams view, written into this
+        run's event file (``SummaryWriter.add_hparams`` would open a second one)."""
+        from torch.utils.tensorboard.summary import hparams
+
+        metrics = {f"hparams/{k}": float(v) for k, v in metrics.items() if isinstance(v, (int, float))}
+        exp, ssi, sei = hparams({k: _hparam_value(v) for k, v in settings.items()}, metrics)
+        fw = self.writer._get_file_writer()
+        for summary in (exp, ssi, sei):
+            fw.add_summary(summary)
+        for k, v in metrics.items():
+            self.writer.add_scalar(k, v, 0)
 
     def flush(self) -> None:
         self.writer.flush()

@@ -201,9 +201,23 @@ def pool_trials(runs: list[Run]) -> tuple[dict, pd.DataFrame]:
     counts = [int(f.participant.nunique()) for f in frames]
     summary = {"experiment": runs[0].experiment, "pooled": True, "seeds": [r.seed for r in runs],
                "participants": sum(counts), "tests": tests, "targets": targets,
+               "effects": pooled_effects(runs[0].experiment, rows),
                "runs": [{"run": str(r.dir), "seed": r.seed, "participants": n, "package": r.manifest.get("package")}
                         for r, n in zip(runs, counts)]}
     return summary, rows
+
+
+def pooled_effects(experiment: str, rows: pd.DataFrame) -> list[dict]:
+    """The experiment's effects (its ``effects(trials)``) over the participants of all runs, each
+    participant of each seed one unit (participant ids repeat across seeds, so the unit is the
+    pair); an empty list for an experiment that states none."""
+    from .config import experiment_module
+
+    fn = getattr(experiment_module(experiment), "effects", None)
+    if fn is None:
+        return []
+    unit = rows["seed"].astype(str) + ":" + rows["participant"].astype(str)
+    return fn(rows.assign(participant=pd.factorize(unit)[0]))
 
 
 def _cell(v, rate: bool, spread: bool = False) -> str:
@@ -235,6 +249,9 @@ def report_trials(summary: dict) -> Report:
             rows.append([label, *(_cell(t["per_seed"][s][m], rate) for s in seeds), _cell(a["mean"], rate),
                          _cell(a["sd"], rate, spread=True), _cell(t[m], rate), _cell(target, rate)])
         rep.table(["measure", *(f"seed {s}" for s in seeds), "mean", "SD", "pooled", "thesis"], rows)
+    if summary.get("effects"):
+        rep.h(f"Effects over all {summary['participants']} participants, the participant as the unit")
+        rep.effects(summary["effects"])
     rest = [f"{k}: {m} {_cell(v, 'rate' in m or 'success' in m)}" for k, d in targets.items() if isinstance(d, dict)
             for m, v in d.items() if (k, m) not in shown and isinstance(v, (int, float))]
     if rest:

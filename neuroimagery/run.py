@@ -16,7 +16,7 @@ from typing import Any
 import torch
 from omegaconf import DictConfig, OmegaConf
 
-from . import console, manifest as mf, progress
+from . import console, manifest as mf, memory, progress
 from .config import Config, experiment_module, validate
 from .nn.functional import intra_op_threads
 from .threads import auto_threads
@@ -242,13 +242,15 @@ def train(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
     with intra_op_threads(conf.threads or auto_threads()):  # restored afterwards
         try:
             t0 = time.perf_counter()
-            with progress.phase(f"{conf.experiment.name} train", conf.progress):
+            memory.reset_peak()
+            with progress.phase(f"{conf.experiment.name} train", conf.progress), run.logger.training_curves():
                 module.train(conf, run)
             run.timings["train"] = round(time.perf_counter() - t0, 3)
+            peaks = {"train": memory.peak_rss_mb()}
             # experiments whose simulated subjects are not cfg.participants say how many they trained
             count, unit = module.trained_count(conf) if hasattr(module, "trained_count") else (conf.participants, "participants")
             info = {"experiment": conf.experiment.name, "participants": count, "unit": unit, "runtime_s": dict(run.timings),
-                    "checkpoints": str(run.checkpoints)}
+                    "peak_rss_mb": peaks, "checkpoints": str(run.checkpoints)}
             run.write_json("train.json", info)
             return info
         finally:
@@ -267,17 +269,24 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
                 ck = Path(conf.checkpoint)
                 trained = module.load(conf, ck)
                 tj = ck / "train.json"
+                peaks = {}
                 if tj.exists():
-                    run.timings.update(read_json(tj, "training record").get("runtime_s", {}))
+                    record = read_json(tj, "training record")
+                    run.timings.update(record.get("runtime_s", {}))
+                    peaks.update(record.get("peak_rss_mb", {}))
             else:
                 t0 = time.perf_counter()
-                with progress.phase(f"{conf.experiment.name} train", conf.progress):
+                memory.reset_peak()
+                with progress.phase(f"{conf.experiment.name} train", conf.progress), run.logger.training_curves():
                     trained = module.train(conf, run)
                 run.timings["train"] = round(time.perf_counter() - t0, 3)
+                peaks = {"train": memory.peak_rss_mb()}
             t0 = time.perf_counter()
+            memory.reset_peak()
             with progress.phase(f"{conf.experiment.name} test", conf.progress):
                 summary = module.evaluate(conf, run, trained)
             run.timings["evaluate"] = round(time.perf_counter() - t0, 3)
+            peaks["evaluate"] = memory.peak_rss_mb()
             trials = run.root / "trials.csv"
             if "stimuli" in getattr(module, "INPUTS", ()) and trials.is_file():  # a user's stimuli against chance
                 import pandas as pd
@@ -288,7 +297,11 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
                 if chance is not None:
                     summary["custom_vs_chance"] = chance
             summary["runtime_s"] = dict(run.timings)
+            summary["peak_rss_mb"] = peaks  # this process's peak resident memory per phase (neuroimagery/memory.py)
             run.write_json("summary.json", summary)
+            from .analysis.summary import headline
+
+            run.logger.hparams(run.manifest["settings"] if run.manifest else mf.flatten(conf), headline(summary))
             if hasattr(module, "report"):
                 module.report(conf, run, summary)
             return summary

@@ -66,6 +66,8 @@ def test_run_writes_the_results_layout(tmp_path):
     assert set(t) >= {"n_trials", "correct_rate", "error_rate", "rotation_success_rate", "rt_mean", "rt_by_disparity",
                       "error_rate_by_disparity", "rt_slope_per_deg", "rt_r"}
     assert set(summary["runtime_s"]) == {"train", "evaluate"}
+    assert set(summary["peak_rss_mb"]) == {"train", "evaluate"}
+    assert all(v is None or v > 10 for v in summary["peak_rss_mb"].values())  # MiB: a Python process with torch
     df = pd.read_csv(tmp_path / "trials.csv")
     assert len(df) == t["n_trials"] == 2 * 37
     assert "rt_by_disparity.png" in (tmp_path / "report.md").read_text()
@@ -77,7 +79,8 @@ def test_same_seed_same_files_other_seed_other_results(tmp_path):
     _run(tmp_path / "b", "seed=3")
     _run(tmp_path / "c", "seed=4")
     read = lambda d: (tmp_path / d / "trials.csv").read_bytes()
-    summ = lambda d: {k: v for k, v in json.loads((tmp_path / d / "summary.json").read_text()).items() if k != "runtime_s"}
+    summ = lambda d: {k: v for k, v in json.loads((tmp_path / d / "summary.json").read_text()).items()
+                    if k not in ("runtime_s", "peak_rss_mb")}  # measured: time and memory
     assert read("a") == read("b") and summ("a") == summ("b")
     assert read("a") != read("c")
 

@@ -12,7 +12,8 @@ from support_numerics import assert_same_threshold, assert_same_winner, assert_w
 from support_runs import reused_run
 
 from neuroimagery.experiments.exp2 import Exp2Config
-from neuroimagery.nn.som import fit_windowed as som_fit_windowed, squared_norms
+from neuroimagery.nn.som_windowed import fit_windowed as som_fit_windowed
+from neuroimagery.nn.functional import squared_norms
 from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
 from neuroimagery.nn import SOM, participant_generators
 from neuroimagery.nn.numerics import cast_bound, rounding_bound_nonneg
@@ -164,7 +165,7 @@ def test_row_cache_and_distinct_rows_agree_with_the_direct_products():
     products have other shapes, which BLAS may block and sum in another order (with oneMKL on
     AVX-512, 8-row and larger products round differently), so they agree within the rounding
     bound of their 4096-term sums, with the same strongest output on every row."""
-    from neuroimagery.models.rotation_motor import RowCache, distinct_rows
+    from neuroimagery.nn.row_cache import RowCache, distinct_rows
 
     g = torch.Generator().manual_seed(0)
     P, n_keys, n_in, n_out = 3, 40, 4096, 300  # the sizes of C9

@@ -43,7 +43,8 @@ def test_sparse_delta_equals_connection_learn():
     Y = torch.rand(2, 12, 6, generator=g)
     a = AllToAll(9, 6, participants=2, seed=3, rules=Delta(0.1))
     b = AllToAll(9, 6, participants=2, seed=3, rules=Delta(0.1))
-    pc.train_delta_binary(a, X, Y, 0.1, batch=4)
+    a.learn(X, None, sequence=True, batch=4, target=Y)  # the binary kernel (0/1 inputs, CPU)
+    assert a.learnt_factors is None
     for s in range(0, 12, 4):
         x = X[:, s:s + 4]
         b.learn(pre=x, post=b(x), target=Y[:, s:s + 4])
@@ -77,7 +78,25 @@ def test_end_to_end_quick_run_writes_results(tmp_path):
     for f in ("trials.csv", "summary.json", "report.md", "checkpoints/exp4.pt", "figures/fig6_9a_rt.png",
               "figures/fig6_12a_recog.png", "figures/fig6_10a_rt.png", "figures/fig6_11a_rt.png"):
         assert (tmp_path / f).exists(), f
-    assert any((tmp_path / "tb").iterdir())
+    events = list((tmp_path / "tb").glob("events.out.tfevents.*"))
+    assert len(events) == 1
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    ea = EventAccumulator(str(tmp_path / "tb"), size_guidance={"images": 0, "scalars": 0})
+    ea.Reload()
+    # training curves over their own steps: the forward models' delta rule and the posture maps' Kohonen rule
+    curves = {t: len(ea.Scalars(t)) for t in ea.Tags()["scalars"] if t.startswith("train/")}
+    assert sum(t.endswith("/squared_error") and n >= 10 for t, n in curves.items()) == 3, curves
+    assert any(t.startswith("train/som/") and t.endswith("label_distance") and n >= 10 for t, n in curves.items())
+    # the sample trial is the largest-disparity same pair, logged as an image series over its rotation steps
+    tag = next(t for t in ea.Tags()["images"] if t.startswith("recog/none/same_") and t.endswith("/POCi"))
+    assert len(ea.Images(tag)) >= 3 and [e.step for e in ea.Images(tag)][:3] == [1, 2, 3]
+    assert "_hparams_/experiment" in ea.PluginTagToContent("hparams")
+    report = (tmp_path / "report.md").read_text()
+    captions = [ln for ln in report.splitlines() if ln.startswith("*Figure ")]
+    assert [int(c.split()[1].rstrip(".")) for c in captions] == list(range(1, len(captions) + 1))
+    assert captions[0].startswith("*Figure 1. (Fig. 6.9a)") and all("Thesis:" in c for c in captions)
+    assert "Holm" in report and "participant as the unit" in report
     s = json.loads((tmp_path / "summary.json").read_text())
     assert s["experiment"] == "exp4" and s["participants"] == 1
     keys = {f"{t}/{c}" for t in ("recog", "gen1", "gen2") for c in ("none", "match", "mismatch")}

@@ -5,7 +5,7 @@ from conftest import make_cfg
 
 from neuroimagery.config import validate
 from neuroimagery.experiments import exp3, exp4, protocol_ch6 as pc
-from neuroimagery.nn import AllToAll, seeding
+from neuroimagery.nn import AllToAll, Delta, seeding
 from neuroimagery.nn.numerics import rounding_bound, rounding_bound_nonneg
 
 
@@ -39,8 +39,8 @@ def test_rounding_bound_covers_reordered_sums():
 
 
 def _delta_weights(X: torch.Tensor, Y: torch.Tensor) -> torch.Tensor:
-    c = AllToAll(X.shape[-1], 1024, participants=X.shape[0], seed=0)
-    pc.train_delta_binary(c, X, Y, 0.02, 8)
+    c = AllToAll(X.shape[-1], 1024, participants=X.shape[0], seed=0, rules=Delta(0.02))
+    c.learn(X, None, sequence=True, batch=8, target=Y, method="delta_binary")
     return c.weight.clone()
 
 

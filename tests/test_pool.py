@@ -170,3 +170,17 @@ def test_the_command_and_its_exp5_name_run_as_modules(sweep, tmp_path):
     p = subprocess.run([sys.executable, "-m", "neuroimagery.pool", str(sweep / "sweep" / "0"), str(sweep / "other")],
                        capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert p.returncode == 2 and p.stderr.startswith("error: pool: runs with other settings") and p.stderr.count("\n") == 1
+
+
+def test_pooled_effects_count_each_participant_of_each_seed_once():
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    rows = [{"seed": s, "participant": p, "test": t, "condition": "none", "disparity": d,
+             "rt": d / 45 + rng.normal(0, 0.3), "correct": bool(rng.random() < 0.8)}
+            for s in (0, 1) for p in range(3) for t in ("recog", "gen1", "gen2") for d in (0, 45, 90, 135)]
+    eff = pool.pooled_effects("exp3", pd.DataFrame(rows))
+    assert eff and all(e["n"] == 6 for e in eff)  # 2 seeds x 3 participants, not 3 shared ids
+    slope = next(e for e in eff if e["effect"] == "recog: RT rises with disparity")
+    assert slope["value"] > 0 and slope["holds"]
+    assert pool.pooled_effects("demo", pd.DataFrame(rows)) == []

@@ -94,7 +94,7 @@ def test_windowed_fit_by_pieces_and_jointly_equals_online_rule():
     online rule's winners; the joint fit gives each map the weights of its own fit, to within the
     rounding of the final products (the joint loop works on other shapes)."""
     from neuroimagery.nn.numerics import rounding_bound
-    from neuroimagery.nn.som import fit_windowed, fit_windowed_many, windowed_factors
+    from neuroimagery.nn.som_windowed import fit_windowed, fit_windowed_many, windowed_factors
 
     g = torch.Generator().manual_seed(7)
     A, B = (torch.rand(4, 120, generator=g) > 0.6).float(), (torch.rand(3, 80, generator=g) > 0.6).float()
@@ -127,7 +127,7 @@ def test_windowed_weights_rebuild_from_their_factors():
     """The windowed fit keeps what it formed the weights from (scale, coefficients, patterns);
     those and the initial weights give the trained weights again, bit for bit, at a fraction of
     their size. A map trained otherwise has no factors."""
-    from neuroimagery.nn.som import fit_windowed, rebuild_windowed, windowed_factors
+    from neuroimagery.nn.som_windowed import fit_windowed, rebuild_windowed, windowed_factors
 
     X = (torch.rand(12, 400, generator=torch.Generator().manual_seed(4)) > 0.7).float()
     kw = dict(participants=2, seed=6, eta=0.3, sigma=3.0, eta_final=0.02, sigma_final=0.5, iterations=200)

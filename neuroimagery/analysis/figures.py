@@ -1,4 +1,8 @@
-"""Figures redrawn from a run (matplotlib, Agg backend). Models never draw; protocols pass data."""
+"""Figures redrawn from a run (matplotlib, Agg backend). Models never draw; protocols pass data.
+
+Every curve and bar is the mean over participants of each participant's mean, with error bars of
+one standard error of that mean over participants (``SEM``); the thesis's stated values are drawn
+dashed in black (``thesis=``), labelled "thesis"."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -12,65 +16,151 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 
-def rt_by_disparity(df: pd.DataFrame, path: str | Path, groups: Sequence[str] = ("test", "condition"),
-                    title: str = "", ylabel: str = "RT", signed: bool = False, errorbars: bool = True) -> Path:
-    """Mean RT (+- s.e.m. over participants) against disparity, one line per group."""
-    fig, ax = plt.subplots(figsize=(6, 4))
-    xcol = "signed_disparity" if signed and "signed_disparity" in df else "disparity"
-    for key, g in df.groupby(list(groups), sort=False):
-        per_p = g.groupby([xcol, "participant"])["rt"].mean().unstack()
-        m = per_p.mean(axis=1)
-        s = per_p.std(axis=1, ddof=1) / np.sqrt(per_p.shape[1]) if per_p.shape[1] > 1 else 0 * m
-        label = "/".join(map(str, key)) if isinstance(key, tuple) else str(key)
-        if errorbars:
-            ax.errorbar(m.index, m.values, yerr=s.values, marker="o", capsize=3, label=label)
+THESIS_STYLE = dict(color="black", linestyle="--", linewidth=1.2)
+
+
+def participant_means(g: pd.DataFrame, by: str, value: str) -> tuple[pd.Series, pd.Series]:
+    """Mean over participants of each participant's mean ``value`` per level of ``by``, and its
+    standard error over participants (0 with one participant)."""
+    per_p = g.groupby([by, "participant"])[value].mean().unstack()
+    m = per_p.mean(axis=1)
+    s = per_p.std(axis=1, ddof=1) / np.sqrt(per_p.shape[1]) if per_p.shape[1] > 1 else 0 * m
+    return m, s.fillna(0.0)
+
+
+def _label(key) -> str:
+    return "/".join(map(str, key)) if isinstance(key, tuple) else str(key)
+
+
+def _thesis_points(ax, thesis: Mapping[str, Sequence[tuple[float, float]]] | None, scale: float = 1.0) -> None:
+    """The thesis's stated values: ``{label: [(x, y), ...]}``, dashed black (one point: a dashed ring)."""
+    for i, (label, pts) in enumerate((thesis or {}).items()):
+        xs, ys = zip(*pts)
+        ys = [scale * y for y in ys]
+        if len(pts) == 1:
+            ax.plot(xs, ys, marker="o", markersize=9, markerfacecolor="none", label=f"thesis: {label}", **THESIS_STYLE)
         else:
-            ax.plot(m.index, m.values, marker="o", label=label)
-    ax.set_xlabel("disparity (deg)")
+            ax.plot(xs, ys, label=f"thesis: {label}", **THESIS_STYLE)
+
+
+def _finish(ax, xlabel: str, ylabel: str, title: str) -> None:
+    ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title)
-    ax.legend(fontsize=8)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
+
+
+def rt_by_disparity(df: pd.DataFrame, path: str | Path, groups: Sequence[str] = ("test", "condition"),
+                    title: str = "", ylabel: str = "RT", signed: bool = False, errorbars: bool = True,
+                    thesis: Mapping[str, Sequence[tuple[float, float]]] | None = None, x: str | None = None,
+                    xlabel: str = "disparity (deg)") -> Path:
+    """Mean RT (+- SEM over participants) against disparity (or the column ``x``), one line per group."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    xcol = x or ("signed_disparity" if signed and "signed_disparity" in df else "disparity")
+    for key, g in df.groupby(list(groups), sort=False):
+        m, s = participant_means(g, xcol, "rt")
+        if errorbars:
+            ax.errorbar(m.index, m.values, yerr=s.values, marker="o", capsize=3, label=_label(key))
+        else:
+            ax.plot(m.index, m.values, marker="o", label=_label(key))
+    _thesis_points(ax, thesis)
+    _finish(ax, xlabel, ylabel, title)
     return save(fig, path)
 
 
 def rate_by_disparity(df: pd.DataFrame, path: str | Path, column: str = "correct", error: bool = True,
-                      groups: Sequence[str] = ("test", "condition"), title: str = "") -> Path:
-    """Error (or correct) rate against disparity, one line per group."""
+                      groups: Sequence[str] = ("test", "condition"), title: str = "",
+                      thesis: Mapping[str, Sequence[tuple[float, float]]] | None = None) -> Path:
+    """Error (or correct) rate (+- SEM over participants) against disparity, one line per group."""
     fig, ax = plt.subplots(figsize=(6, 4))
     for key, g in df.groupby(list(groups), sort=False):
-        r = g.groupby("disparity")[column].mean()
-        r = 1 - r if error else r
-        label = "/".join(map(str, key)) if isinstance(key, tuple) else str(key)
-        ax.plot(r.index, 100 * r.values, marker="o", label=label)
-    ax.set_xlabel("disparity (deg)")
-    ax.set_ylabel(("error" if error else "correct") + " rate (%)")
-    ax.set_title(title)
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
+        v = g[column].astype(float)
+        m, s = participant_means(g.assign(_v=1.0 - v if error else v), "disparity", "_v")
+        ax.errorbar(m.index, 100 * m.values, yerr=100 * s.values, marker="o", capsize=3, label=_label(key))
+    _thesis_points(ax, thesis, scale=100.0)
+    _finish(ax, "disparity (deg)", ("error" if error else "correct") + " rate (%)", title)
     return save(fig, path)
+
+
+def rate_bars(df: pd.DataFrame, path: str | Path, title: str = "", by: str = "test", column: str = "correct",
+              error: bool = False, thesis: Mapping[str, float] | None = None) -> Path:
+    """Correct (or error) rate per level of ``by`` (+- SEM over participants); the thesis's value of a
+    level, where it states one, as a dashed black line across its bar."""
+    v = df[column].astype(float)
+    m, s = participant_means(df.assign(_v=1.0 - v if error else v), by, "_v")
+    order = list(dict.fromkeys(df[by]))
+    m, s = m.reindex(order), s.reindex(order)
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    ax.bar(range(len(order)), 100 * m.values, yerr=100 * s.values, capsize=4, color="tab:blue", label="this run")
+    shown = False
+    for i, k in enumerate(order):
+        if thesis and k in thesis:
+            ax.hlines(100 * thesis[k], i - 0.4, i + 0.4, label=None if shown else "thesis", **THESIS_STYLE)
+            shown = True
+    ax.set_xticks(range(len(order)), order)
+    ax.set_ylabel(("error" if error else "correct") + " rate (%)")
+    ax.set_ylim(0, 100)
+    ax.set_title(title)
+    ax.legend(fontsize=7)
+    return save(fig, path)
+
+
+CELL = 48  # pixels of one map's cell in a panel grid
+GAP = 4  # pixels between cells
+
+
+def _cell(a: np.ndarray) -> np.ndarray:
+    """A map scaled to [0, 1] by its own range and resampled by nearest neighbour onto a
+    ``CELL x CELL`` square (a 1-D map onto a strip a third as tall, across the middle); NaN
+    around it (drawn blank)."""
+    a = np.asarray(a, dtype=float)
+    if a.ndim == 1:
+        a = a[None, :]
+    if a.size:
+        a = a - a.min()
+        m = a.max()
+        a = a / m if m > 0 else a
+    h, w = a.shape
+    rows = CELL // 3 if h == 1 else CELL
+    img = a[np.arange(rows) * h // rows][:, np.arange(CELL) * w // CELL]
+    out = np.full((CELL, CELL), np.nan)
+    r0 = (CELL - rows) // 2
+    out[r0:r0 + rows] = img
+    return out
 
 
 def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, title: str = "",
                row_labels: Sequence[str] | None = None) -> Path:
-    """A grid of map activities: one row per step, one column per map (as Fig. 5.4, 6.12)."""
+    """A grid of map activities: one row per step, one column per map (as Fig. 5.4, 6.12), drawn
+    as one mosaic at its own pixel size (each map scaled by its own range, viridis, blank around
+    it), with the map names above and the row labels on the left; cheap however long the trial."""
     names = list(steps[0].keys())
-    fig, axes = plt.subplots(len(steps), len(names), figsize=(1.6 * len(names), 1.6 * len(steps)), squeeze=False)
+    R, C = len(steps), len(names)
+    pitch = CELL + GAP
+    mosaic = np.full((R * pitch - GAP, C * pitch - GAP), np.nan)
     for r, st in enumerate(steps):
         for c, n in enumerate(names):
-            a = np.asarray(st[n], dtype=float)
-            if a.ndim == 1:
-                a = a[None, :]
-            ax = axes[r, c]
-            ax.imshow(a, cmap="viridis", aspect="auto", interpolation="nearest")
-            ax.set_xticks([])
-            ax.set_yticks([])
-            if r == 0:
-                ax.set_title(n, fontsize=7)
-            if c == 0 and row_labels is not None:
-                ax.set_ylabel(row_labels[r], fontsize=7)
-    fig.suptitle(title, fontsize=9)
-    return save(fig, path)
+            mosaic[r * pitch:r * pitch + CELL, c * pitch:c * pitch + CELL] = _cell(st[n])
+    rgba = plt.get_cmap("viridis")(np.nan_to_num(mosaic))
+    rgba[np.isnan(mosaic)] = 1.0
+    dpi, left, top, pad = 100, 170, 70, 10
+    H, W = mosaic.shape
+    fw, fh = W + left + pad, H + top + pad
+    fig = plt.figure(figsize=(fw / dpi, fh / dpi), dpi=dpi)
+    fig.figimage(rgba, xo=left, yo=pad, origin="upper")
+    fig.text(0.5, 1 - 8 / fh, title, ha="center", va="top", fontsize=9)
+    for c, n in enumerate(names):
+        fig.text((left + c * pitch + CELL / 2) / fw, (pad + H + 6) / fh, n, ha="left", va="bottom", fontsize=7,
+                 rotation=45)
+    for r, lab in enumerate(row_labels if row_labels is not None else []):
+        fig.text((left - 6) / fw, (pad + H - r * pitch - CELL / 2) / fh, lab, ha="right", va="center", fontsize=7)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi, metadata={"Software": None})
+    plt.close(fig)
+    return path
 
 
 def save(fig, path: str | Path) -> Path:

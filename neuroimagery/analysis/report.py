@@ -67,21 +67,38 @@ class Report:
         """The effects table of :func:`neuroimagery.analysis.summary.effect` rows: the participant is
         the unit (paired t-tests over participants, or one-sample t-tests of their slopes), Holm's
         correction over the table's family."""
-        self.p("Each effect is tested with the simulated participant as the unit: a paired t-test over the "
-               "participants' mean RT or correct rate (value = mean difference, first condition minus the "
-               "second, with its 95 % interval), or a one-sample t-test of their RT-disparity slopes (value = "
-               "mean slope per degree). p is two-sided; p (Holm) corrects it over the rows of this table. "
-               "'holds': the expected sign with p (Holm) < 0.05; for '~0', uncorrected p >= 0.05.")
+        self.p("Each effect is tested with the simulated participant as the unit (statsmodels): a paired t-test "
+               "over the participants' mean RT or correct rate (value = mean difference, first condition minus "
+               "the second, with its 95 % interval), or a one-sample t-test of their RT-disparity slopes (value = "
+               "mean slope per degree). d_z is the standardised effect (mean over the standard deviation of the "
+               "participants' differences or slopes) with its 95 % interval from the noncentral t distribution. "
+               "p is two-sided; p (Holm) applies Holm's correction over the rows of this table, the report's "
+               "family of effects. 'holds': the expected sign with p (Holm) < 0.05; for '~0', uncorrected "
+               "p >= 0.05.")
         ci = lambda c: "-" if not c else f"[{c[0]:.3g}, {c[1]:.3g}]"  # noqa: E731
         pv = lambda v: "-" if v is None else f"{v:.2g}"  # noqa: E731
-        return self.table(["effect", "expected", "value", "95 % CI", "n", "p", "p (Holm)", "holds"],
-                          [[e["effect"], e["expected"], fmt(e["value"]), ci(e["ci95"]), e["n"], pv(e["p"]),
-                            pv(e.get("p_holm")), "-" if e["holds"] is None else ("yes" if e["holds"] else "**no**")]
+        return self.table(["effect", "expected", "value", "95 % CI", "d_z", "d_z 95 % CI", "n", "p", "p (Holm)",
+                           "holds"],
+                          [[e["effect"], e["expected"], fmt(e["value"]), ci(e["ci95"]), fmt(e.get("d_z")),
+                            ci(e.get("d_z_ci95")), e["n"], pv(e["p"]), pv(e.get("p_holm")),
+                            "-" if e["holds"] is None else ("yes" if e["holds"] else "**no**")]
                            for e in rows])
+
+    def figures(self, run_root: str | Path, paths, errorbars: str = "Error bars: SEM over participants") -> "Report":
+        """The run's figures in the thesis's order, each with a numbered caption that says what it
+        shows and what the thesis states beside it (:mod:`neuroimagery.thesis`); map panels carry
+        no error bars."""
+        from ..thesis import figure_caption, figure_order, is_map_panel
+
+        paths = sorted((Path(p) for p in paths), key=lambda p: figure_order(p.stem))
+        for i, p in enumerate(paths, 1):
+            self.figure(p, figure_caption(p.stem, i, "" if is_map_panel(p.stem) else errorbars), root=run_root)
+        return self
 
     def figure(self, path: str | Path, caption: str, root: str | Path | None = None) -> "Report":
         rel = Path(path).relative_to(root) if root is not None else Path(path)
-        self.lines += [f"![{caption}]({rel.as_posix()})", "", f"*{caption}*", ""]
+        alt = caption.split(". ")[0] if caption.startswith("Figure ") else caption
+        self.lines += [f"![{alt}]({rel.as_posix()})", "", f"*{caption}*", ""]
         return self
 
     def text(self) -> str:
@@ -95,6 +112,7 @@ class Report:
 
 def reproducibility_note(seed: int) -> str:
     return (f"Seed {seed}. With the same seed and configuration every file of this run is reproduced "
-            "exactly, except measured times (`runtime_s` in summary.json and train.json, exp5's `cost` "
+            "exactly, except measured times and memory (`runtime_s` and `peak_rss_mb` in summary.json and "
+            "train.json, exp5's `cost` "
             "times and task checkpoints' `timing`, any times printed in this report) and the TensorBoard "
             "event files (which carry timestamps).")

@@ -1,13 +1,23 @@
 """From ``trials.csv`` rows to the figures of ``summary.json`` (Experiments 1-4), and the
-statistics the reports quote."""
+statistics the reports quote.
+
+The participant is the unit of every test of an effect (statsmodels): a paired t-test over the
+participants' means, or a one-sample t-test of their slopes, each with its mean and 95 % interval,
+the standardised effect size d_z (mean over standard deviation of the participants' values) with
+its 95 % interval from the noncentral t distribution, and Holm's correction over each report's
+family of effects. Trial-level tests (``compare_rt``, ``compare_rates``) treat trials as
+independent samples and are labelled so where reports show them."""
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Iterable
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import optimize, stats
+from statsmodels.stats.multitest import multipletests
+from statsmodels.stats.weightstats import DescrStatsW
 
 TRIAL_COLUMNS = [
     "participant", "test", "condition", "target_object", "target_angle", "target_appearance",
@@ -74,7 +84,9 @@ def summarise_trials(df: pd.DataFrame) -> dict:
 def compare_rt(a: Iterable[float], b: Iterable[float]) -> dict:
     """Welch's t-test of two RT samples: means, difference, t and two-sided p."""
     a, b = np.asarray(list(a), float), np.asarray(list(b), float)
-    t, p = stats.ttest_ind(a, b, equal_var=False)
+    with warnings.catch_warnings():  # two samples of (nearly) one value, as at a ceiling: p is still defined
+        warnings.filterwarnings("ignore", "Precision loss occurred", RuntimeWarning)
+        t, p = stats.ttest_ind(a, b, equal_var=False)
     return {"mean_a": _r(a.mean(), 3), "mean_b": _r(b.mean(), 3), "diff": _r(a.mean() - b.mean(), 3),
             "t": _r(t), "p": float(p) if np.isfinite(p) else None, "n_a": int(a.size), "n_b": int(b.size)}
 
@@ -90,24 +102,62 @@ def compare_rates(a: Iterable[bool], b: Iterable[bool]) -> dict:
     return {"rate_a": _r(a.mean()), "rate_b": _r(b.mean()), "diff": _r(a.mean() - b.mean()), "p": float(p)}
 
 
+def dz_interval(values: np.ndarray, level: float = 0.95) -> tuple[float, list[float]] | tuple[None, None]:
+    """Cohen's d_z of ``values`` (mean / SD) and its ``level`` interval: the noncentrality of the
+    noncentral t distribution of the observed t, inverted at both tails, over sqrt(n). Where that
+    distribution cannot be evaluated (a very large t with few participants), the large-sample
+    interval d +- z sqrt(1/n + d^2 / 2n)."""
+    n = values.size
+    if n < 2 or values.std(ddof=1) == 0:
+        return None, None
+    d = float(values.mean() / values.std(ddof=1))
+    t, df, a = d * math.sqrt(n), n - 1, (1 - level) / 2
+
+    def nc_at(q):  # the noncentrality whose t distribution puts the observed t at quantile q
+        f = lambda nc: stats.nct.cdf(t, df, nc) - q  # noqa: E731
+        w = 6.0 * math.sqrt(1.0 + t * t / (2.0 * df)) + 1.0  # well beyond the interval's half-width
+        return optimize.brentq(f, t - w, t + w)
+
+    try:
+        lo, hi = nc_at(1 - a) / math.sqrt(n), nc_at(a) / math.sqrt(n)
+    except (ValueError, RuntimeError):
+        half = stats.norm.ppf(1 - a) * math.sqrt(1 / n + d * d / (2 * n))
+        lo, hi = d - half, d + half
+    return _r(d, 4), [_r(lo, 4), _r(hi, 4)]
+
+
+def one_sample(values, test_value: float = 0.0) -> dict:
+    """t-test of ``values`` (one per participant) against ``test_value`` (statsmodels): mean, its
+    95 % interval, t, two-sided p, d_z and its 95 % interval."""
+    v = np.asarray(values, float)
+    out = {"n": int(v.size), "mean": _r(v.mean(), 5) if v.size else None, "t": None, "p": None, "ci95": None,
+           "d_z": None, "d_z_ci95": None}
+    if v.size >= 2 and v.std(ddof=1) > 0:
+        ds = DescrStatsW(v)
+        t, p, _ = ds.ttest_mean(test_value)
+        lo, hi = ds.tconfint_mean(0.05)
+        d, dci = dz_interval(v - test_value)
+        out.update(t=_r(t), p=float(p), ci95=[_r(lo, 5), _r(hi, 5)], d_z=d, d_z_ci95=dci)
+    elif v.size >= 2:  # every participant alike: no spread to test against
+        m = float(v.mean())
+        out.update(p=1.0 if m == test_value else 0.0, ci95=[_r(m, 5), _r(m, 5)])
+    return out
+
+
 def paired_by_participant(a: pd.DataFrame, b: pd.DataFrame, value: str) -> dict:
     """The participant as the unit: each participant's mean of ``value`` in ``a`` and in ``b``,
     compared by a paired t-test over the participants present in both (two-sided p), with the
-    mean difference ``a - b`` and its 95 % interval."""
+    mean difference ``a - b``, its 95 % interval and d_z."""
     ma = a.groupby("participant")[value].mean()
     mb = b.groupby("participant")[value].mean()
     both = ma.index.intersection(mb.index)
     x, y = ma.loc[both].to_numpy(float), mb.loc[both].to_numpy(float)
-    d = x - y
-    out = {"n": int(d.size), "mean_a": _r(x.mean(), 4) if d.size else None, "mean_b": _r(y.mean(), 4) if d.size else None,
-           "diff": _r(d.mean(), 4) if d.size else None, "t": None, "p": None, "ci95": None}
-    if d.size >= 2 and d.std(ddof=1) > 0:
-        t, p = stats.ttest_rel(x, y)
-        half = stats.t.ppf(0.975, d.size - 1) * d.std(ddof=1) / math.sqrt(d.size)
-        out.update(t=_r(t), p=float(p), ci95=[_r(d.mean() - half, 4), _r(d.mean() + half, 4)])
-    elif d.size >= 2:
-        out.update(p=1.0 if d.mean() == 0 else 0.0, ci95=[_r(d.mean(), 4), _r(d.mean(), 4)])
-    return out
+    res = one_sample(x - y)
+    res["diff"] = _r(res.pop("mean"), 4) if res["mean"] is not None else None
+    res.update(mean_a=_r(x.mean(), 4) if x.size else None, mean_b=_r(y.mean(), 4) if y.size else None)
+    if res["ci95"]:
+        res["ci95"] = [_r(c, 4) for c in res["ci95"]]
+    return res
 
 
 def slope_by_participant(df: pd.DataFrame, x: str = "disparity", y: str = "rt") -> dict:
@@ -118,11 +168,25 @@ def slope_by_participant(df: pd.DataFrame, x: str = "disparity", y: str = "rt") 
         xs, ys = g[x].to_numpy(float), g[y].to_numpy(float)
         if np.ptp(xs) > 0:
             slopes.append(float(np.polyfit(xs, ys, 1)[0]))
-    s = np.asarray(slopes)
-    out = {"n": int(s.size), "mean_slope": _r(s.mean(), 5) if s.size else None, "t": None, "p": None}
-    if s.size >= 2 and s.std(ddof=1) > 0:
-        t, p = stats.ttest_1samp(s, 0.0)
-        out.update(t=_r(t), p=float(p))
+    res = one_sample(slopes)
+    res["mean_slope"] = res.pop("mean")
+    return res
+
+
+def repeated_anova(df: pd.DataFrame, factor: str, value: str = "rt") -> dict:
+    """One-way repeated-measures ANOVA of the participants' mean ``value`` per level of ``factor``
+    (statsmodels ``AnovaRM``; the participant as the unit): F, its degrees of freedom and p."""
+    from statsmodels.stats.anova import AnovaRM
+
+    cell = df.groupby(["participant", factor], as_index=False)[value].mean()
+    full = cell.groupby("participant")[factor].nunique() == cell[factor].nunique()
+    cell = cell[cell["participant"].isin(full[full].index)]
+    out = {"factor": factor, "n": int(cell["participant"].nunique()), "F": None, "df": None, "p": None}
+    if out["n"] < 2 or cell[factor].nunique() < 2 or cell[value].std() == 0:
+        return out
+    res = AnovaRM(cell, value, "participant", within=[factor]).fit().anova_table.iloc[0]
+    if np.isfinite(res["F Value"]):
+        out.update(F=_r(res["F Value"]), df=[int(res["Num DF"]), int(res["Den DF"])], p=float(res["Pr > F"]))
     return out
 
 
@@ -138,18 +202,18 @@ def effect(name: str, expected: str, res: dict, key: str = "diff") -> dict:
     else:
         holds = (v > 0 if expected == ">0" else v < 0) and p < 0.05
     return {"effect": name, "expected": expected, "value": v, "ci95": res.get("ci95"), "p": p, "n": res.get("n"),
-            "holds": holds}
+            "d_z": res.get("d_z"), "d_z_ci95": res.get("d_z_ci95"), "holds": holds}
 
 
 def holm(rows: list[dict]) -> list[dict]:
-    """Add ``p_holm``: Holm's step-down correction over the family ``rows`` (their ``p``)."""
-    ps = [(r["p"], i) for i, r in enumerate(rows) if r.get("p") is not None]
-    ps.sort()
-    m, running = len(ps), 0.0
-    for rank, (p, i) in enumerate(ps):
-        running = max(running, min(1.0, (m - rank) * p))
-        rows[i]["p_holm"] = running
-    for r in rows:  # a signed effect holds on the corrected p; '~0' keeps the uncorrected (stricter) one
+    """Add ``p_holm``: Holm's step-down correction (statsmodels ``multipletests``) over the family
+    ``rows`` (their ``p``); a signed effect then holds on the corrected p."""
+    idx = [i for i, r in enumerate(rows) if r.get("p") is not None]
+    if idx:
+        adj = multipletests([rows[i]["p"] for i in idx], method="holm")[1]
+        for i, q in zip(idx, adj):
+            rows[i]["p_holm"] = float(q)
+    for r in rows:  # '~0' keeps the uncorrected (stricter) p
         if r.get("holds") is not None and r["expected"] != "~0":
             r["holds"] = bool((r["value"] > 0 if r["expected"] == ">0" else r["value"] < 0) and r["p_holm"] < 0.05)
     return rows
@@ -170,4 +234,18 @@ def custom_vs_chance(df: pd.DataFrame) -> dict | None:
         out.update(t=_r(t), p_greater=float(p), above_chance=bool(rates.mean() > 0.5 and p < 0.05))
     elif rates.size >= 1:
         out["above_chance"] = bool(rates.min() > 0.5 and rates.size >= 2)
+    return out
+
+
+HEADLINE_KEYS = ("correct_rate", "error_rate", "rotation_success_rate", "rt_mean", "rt_slope_per_deg", "rt_r")
+
+
+def headline(summary: dict) -> dict:
+    """The figures a sweep compares (TensorBoard's HParams view): ``<test>/<key>`` for the per-test
+    ``HEADLINE_KEYS`` of ``summary["tests"]``, and the summary's own top-level numbers."""
+    out = {k: v for k, v in summary.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    for test, t in (summary.get("tests") or {}).items():
+        if isinstance(t, dict):
+            out.update({f"{test}/{k}": t[k] for k in HEADLINE_KEYS
+                        if isinstance(t.get(k), (int, float)) and not isinstance(t.get(k), bool)})
     return out

@@ -15,7 +15,9 @@ import torch
 
 from ..analysis import figures
 from ..analysis.report import Report
-from ..analysis.summary import compare_rates, compare_rt, summarise_trials
+from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, repeated_anova,
+                                slope_by_participant, summarise_trials)
+from ..thesis import EXP2 as THESIS
 from ..models.rotation_motor import ANGLES, MotorRotationModel
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of,
                            record_figures_and_scalars, stimulus_set, to_np,
@@ -103,7 +105,8 @@ CHECKPOINTS = ("model",)
 RUNTIME_KEYS = ("som_threads", "auto_threads")  # thread counts: speed only
 TEST_KEYS = ()  # the model is built from every key, so each one counts as a training setting
 CONDITIONS = ("none", "match", "mismatch")
-TARGETS = {"all/none": {"rotation_success_rate": 192 / 196, "correct_rate": 168 / 196}}
+TARGETS = {"all/none": {"rotation_success_rate": THESIS["rotation success"].value,
+                        "correct_rate": THESIS["correct answers"].value}}
 
 
 def _e(cfg) -> Exp2Config:
@@ -190,7 +193,7 @@ def evaluate(cfg, run, trained) -> dict:
                                   "correct_mismatch_vs_none": compare_rates(mis["correct"], base["correct"])},
                "object_type_anova": {"F": round(float(f.statistic), 4) if np.isfinite(f.statistic) else None,
                                      "p": float(f.pvalue) if np.isfinite(f.pvalue) else None},
-               "targets": TARGETS}
+               "targets": TARGETS, "effects": effects(df)}
     shown = {}
     b0 = base[base["participant"] == 0].reset_index(drop=True)
     succ = b0.index[b0["rotated_ok"] & (b0["rotation_steps"] >= 3)]
@@ -217,6 +220,23 @@ def evaluate(cfg, run, trained) -> dict:
     return record_figures_and_scalars(run, summary, shown, tests, "exp2")
 
 
+def effects(df) -> list[dict]:
+    """The effects the thesis states (section 5.2.3, thesis lines 859 and 869) on the trials of
+    test ``all``, each with the participant as the unit; Holm's correction over the family."""
+    a = df[df["test"] == "all"]
+    base, mis = a[a["condition"] == "none"], a[a["condition"] == "mismatch"]
+    rows = [effect("RT rises with disparity (none)", ">0", slope_by_participant(base), "mean_slope"),
+            effect("RT: mismatch slower than none", ">0", paired_by_participant(mis, base, "rt")),
+            effect("correct rate: mismatch = none", "~0",
+                   paired_by_participant(mis.assign(c=mis["correct"].astype(float)),
+                                         base.assign(c=base["correct"].astype(float)), "c"))]
+    a = repeated_anova(base, "pair_type")
+    rows.append({"effect": "RT: no effect of the object types (AA, AB, BA, BB; repeated-measures ANOVA F)",
+                 "expected": "~0", "value": a["F"], "ci95": None, "p": a["p"], "n": a["n"], "d_z": None,
+                 "d_z_ci95": None, "holds": None if a["p"] is None else a["p"] >= 0.05})
+    return holm(rows)
+
+
 def report(cfg, run, summary) -> None:
     T = summary["tests"]
     n = T["all/none"]
@@ -226,10 +246,14 @@ def report(cfg, run, summary) -> None:
     r.p(f"{summary['participants']} simulated robots, 196 pairs each, three proprioception conditions. "
         f"SOM training steps: {_e(cfg).som_iterations} (thesis 10,000).")
     r.h("Results beside the thesis")
-    r.targets([("rotation success (none)", n["rotation_success_rate"], 192 / 196, True),
-               ("correct answers (none)", n["correct_rate"], 168 / 196, True),
+    success, correct = THESIS["rotation success"].value, THESIS["correct answers"].value
+    r.targets([("rotation success (none)", n["rotation_success_rate"], success, True),
+               ("correct answers (none)", n["correct_rate"], correct, True),
                ("r(disparity, mean RT) (none)", n["rt_r"], None, False),
-               ("correct answers (mismatch)", T["all/mismatch"]["correct_rate"], 168 / 196, True)])
+               ("correct answers (mismatch)", T["all/mismatch"]["correct_rate"], correct, True)])
+    r.h("Effects, the participant as the unit")
+    r.effects(summary.get("effects", []))
+    r.h("Trial-level tests (trials as independent samples)")
     m, w = pr["rt_mismatch_vs_none_paired"], pr["rt_mismatch_vs_none"]
     mp = pr["rt_match_vs_none_paired"]
     r.p(f"Mismatched proprioception: mean RT {m['mean_a']} vs {m['mean_b']} with none "

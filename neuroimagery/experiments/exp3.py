@@ -21,10 +21,10 @@ from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import effect, holm, paired_by_participant, slope_by_participant, summarise_trials
 from ..nn import seeding
 from . import protocol_ch6 as pc
-from .exp4 import _bar
+from ..thesis import EXP3 as THESIS_TARGETS
 
 TESTS = ("recog", "gen1", "gen2")
-THESIS = {"recog/none": 0.187, "gen1/none": 0.247, "gen2/none": 0.543}  # error rates, Fig. 6.5b
+THESIS = {k.removesuffix(" error rate"): t.value for k, t in THESIS_TARGETS.items() if k.endswith("error rate")}
 
 
 @dataclass
@@ -117,7 +117,7 @@ def ineffective_keys(cfg) -> dict[str, str]:
 def _model(cfg, ids):
     from ..models.rotation_generalising import RotationGeneralising
 
-    return RotationGeneralising(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0))
+    return RotationGeneralising(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0), ids)
 
 
 def train_model(cfg, ids, eye=None):
@@ -127,8 +127,8 @@ def train_model(cfg, ids, eye=None):
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
     n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
     X, Y, _ = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner, offsets=(0, 1, 2))
-    pc.train_delta_binary(model.c6, X, Y, e.eta_fm, e.fm_batch)
-    return pc.train_posture_maps_and_freeze(cfg, eye, model, (model.c2, model.c3), e.posture_angles, gens, ids)
+    model.fit_forward_model(X, Y, e.fm_batch, progress=pc.batches_bar("forward model"))
+    return pc.train_posture_maps(cfg, eye, model, e.posture_angles, gens)
 
 
 def train(cfg, run):
@@ -145,8 +145,7 @@ def load(cfg, checkpoint_dir):
 def run_tests(cfg, model, eye=None, record: int = 0):
     e = cfg.experiment
     eye = pc.make_eye(cfg) if eye is None else eye
-    P = model.c2.weight.shape[0]
-    ids = getattr(model, "participant_ids", list(range(cfg.participants)))[:P]
+    ids, P = model.participant_ids, model.participants
     if cfg.stimuli.kind == "folder":
         sets = {"custom": pc.stimulus_set(cfg, e.recog_set)}
     else:
@@ -161,8 +160,9 @@ def run_tests(cfg, model, eye=None, record: int = 0):
         tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         gens = seeding.participant_generators(cfg.seed, ids, stream=100 + k)
-        out = model.run(tgt, rot, gens, record=record)
-        histories[f"{test}/none"] = out.pop("history")
+        shown = pc.sample_rows(table, record)
+        out = model.run(tgt, rot, gens, record=shown)
+        histories[f"{test}/none"] = {"names": pc.sample_names(table, shown), "trials": out.pop("history")}
         frames.append(pc.trial_rows(table, out, ids))
     return pd.concat(frames, ignore_index=True), histories, banks
 
@@ -179,22 +179,22 @@ def evaluate(cfg, run, trained) -> dict:
     # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
     summary = {"experiment": "exp3", "participants": int(df["participant"].nunique()), "tests": tests,
                "targets": {k: {"error_rate": v} for k, v in THESIS.items()}, "forward_model_iou": iou,
-               "effects": _effects(df)}
+               "effects": effects(df)}
     for key, hist in histories.items():
-        pc.log_history(run.logger, hist, key)
+        pc.log_history(run.logger, hist["trials"], key, hist["names"])
     f = run.figures
-    figures.rt_by_disparity(df, f / "fig6_5a_rt.png", groups=("test",), title="Fig. 6.5a RT (rotation steps)")
-    _bar(df.assign(correct=~df["correct"].astype(bool)), f / "fig6_5b_error.png", "Fig. 6.5b error rates")
+    gen2_zero = {"Gen-II at 0 deg": [(0.0, THESIS_TARGETS["gen2/none steps at 0 deg"].value)]}
+    figures.rt_by_disparity(df, f / "fig6_5a_rt.png", groups=("test",), title="Fig. 6.5a RT (rotation steps)",
+                            ylabel="RT (rotation steps)", thesis=gen2_zero if "gen2" in set(df["test"]) else None)
+    figures.rate_bars(df, f / "fig6_5b_error.png", "Fig. 6.5b error rates", error=True,
+                      thesis={k.split("/")[0]: v for k, v in THESIS.items()})
     figures.rate_by_disparity(df, f / "fig6_5c_error.png", groups=("test",), title="Fig. 6.5c error rate by disparity")
     for key, hist in histories.items():
-        if hist and hist[0]:
-            steps = [{k: v.numpy() for k, v in st.items()} for st in hist[0]]
-            figures.map_panels(steps, f / f"maps_{key.replace('/', '_')}.png", title=f"{key}: sample trial",
-                               row_labels=[f"step {i}" for i in range(len(steps))])
+        pc.sample_panels(f / f"maps_{key.replace('/', '_')}.png", key, hist["trials"], hist["names"])
     return summary
 
 
-def _effects(df) -> list[dict]:
+def effects(df) -> list[dict]:
     """The effects the thesis states (section 6.1.2), each judged with the participant as the unit;
     Holm's correction over the family."""
     d = df.assign(error=(~df["correct"].astype(bool)).astype(float))
@@ -251,6 +251,5 @@ def report(cfg, run, summary) -> None:
         "rules that fix them are listed in docs/exp3.md and docs/choices.md.",
     ])
     r.h("Figures")
-    for p in sorted(run.figures.glob("*.png")):
-        r.figure(p, p.stem.replace("_", " "), root=run.root)
+    r.figures(run.root, run.figures.glob("*.png"))
     r.write(run.report_path)

@@ -22,10 +22,11 @@ from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_
                                 summarise_trials)
 from ..nn import seeding
 from . import protocol_ch6 as pc
+from ..thesis import EXP4 as THESIS_TARGETS
 
 TESTS = ("recog", "gen1", "gen2")
 CONDITIONS = ("none", "match", "mismatch")
-THESIS = {"recog/none": 0.79, "gen1/none": 0.86, "gen2/none": 0.59}  # correct rates, Fig. 6.9c
+THESIS = {k.removesuffix(" correct rate"): t.value for k, t in THESIS_TARGETS.items() if k.endswith("correct rate")}
 
 
 @dataclass
@@ -155,7 +156,7 @@ def _ids(cfg) -> list[int]:
 def _model(cfg, ids):
     from ..models.rotation_embodied import RotationEmbodied
 
-    return RotationEmbodied(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0))
+    return RotationEmbodied(cfg.experiment, seeding.participant_generators(cfg.seed, ids, stream=0), ids)
 
 
 def train_model(cfg, ids, eye=None):
@@ -166,23 +167,8 @@ def train_model(cfg, ids, eye=None):
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
     n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
     X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.dot_inner)
-    for m, conn in enumerate(model.fm):
-        Xm, Ym = _images_of_move(X, Y, moves, m)
-        pc.train_delta_binary(conn, Xm, Ym, e.eta_fm, e.fm_batch)
-    return pc.train_posture_maps_and_freeze(cfg, eye, model, (model.c16, model.c17), e.ppc_angles, gens, ids)
-
-
-def _images_of_move(X, Y, moves, m):
-    """The training pairs whose randomly drawn movement is ``m``, in their order, per participant
-    (padded at the end with empty images, which the delta rule leaves without effect), so each
-    forward model sees mini-batches of ``fm_batch`` of its own images."""
-    P = X.shape[0]
-    rows = [(moves[k] == m).nonzero().squeeze(-1) for k in range(P)]
-    L = max(int(r.numel()) for r in rows)
-    Xm, Ym = torch.zeros(P, L, X.shape[-1]), torch.zeros(P, L, Y.shape[-1])
-    for k, r in enumerate(rows):
-        Xm[k, :r.numel()], Ym[k, :r.numel()] = X[k, r], Y[k, r]
-    return Xm, Ym
+    model.fit_forward_models(X, Y, moves, e.fm_batch, progress=pc.batches_bar("forward model"))
+    return pc.train_posture_maps(cfg, eye, model, e.ppc_angles, gens)
 
 
 def train(cfg, run):
@@ -214,8 +200,7 @@ def run_tests(cfg, model, eye=None, record: int = 0):
     """All tests and conditions -> (trials DataFrame, sample histories, banks)."""
     e = cfg.experiment
     eye = pc.make_eye(cfg) if eye is None else eye
-    P = model.c16.weight.shape[0]
-    ids = getattr(model, "participant_ids", _ids(cfg))[:P]
+    ids, P = model.participant_ids, model.participants
     frames, histories, banks = [], {}, {}
     k = 0
     for test, sset in _test_sets(cfg).items():
@@ -232,8 +217,9 @@ def run_tests(cfg, model, eye=None, record: int = 0):
                 conds.append((cond, noise, seeding.participant_generators(cfg.seed, ids, stream=100 + k)))
                 k += 1
         # all conditions of a test in one batch: they share the targets and the first step
-        for name, out in zip(names, model.run_conditions(tgt, rot, conds, record=record, )):
-            histories[f"{test}/{name}"] = out.pop("history")
+        shown = pc.sample_rows(table, record)
+        for name, out in zip(names, model.run_conditions(tgt, rot, conds, record=shown)):
+            histories[f"{test}/{name}"] = {"names": pc.sample_names(table, shown), "trials": out.pop("history")}
             frames.append(pc.trial_rows(table.assign(condition=name), out, ids))
     return pd.concat(frames, ignore_index=True), histories, banks
 
@@ -256,7 +242,7 @@ def _stats(df: pd.DataFrame) -> dict:
     return out
 
 
-def _effects(df: pd.DataFrame) -> list[dict]:
+def effects(df: pd.DataFrame) -> list[dict]:
     """The effects the thesis states (section 6.2.3), each judged with the participant as the unit:
     paired t-tests over participants on their mean RT or correct rate, one-sample t-tests of their
     RT-disparity slopes; Holm's correction over the family."""
@@ -339,61 +325,55 @@ def evaluate(cfg, run, trained) -> dict:
     # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
     summary = {"experiment": "exp4", "participants": int(df["participant"].nunique()), "tests": tests,
                "targets": {k: {"correct_rate": v} for k, v in THESIS.items()},
-               "effects": _effects(df), "statistics": _stats(df), "statistics_by_disparity": _stats_by_disparity(df),
+               "effects": effects(df), "statistics": _stats(df), "statistics_by_disparity": _stats_by_disparity(df),
                "rt_by_rotation_steps": _rt_vs_steps(df),
                "rt_by_required_steps": _rt_vs_required_steps(df, e.step_deg)}
     # generalisation of the three-dot forward models to the test shapes
     iou = {}
     for test, bank in banks.items():
         iou[test] = pc.generalisation_iou(lambda x: trained.forward_step(
-            x.expand(trained.c16.weight.shape[0], -1, -1) if x.shape[0] == 1 else x,
-            torch.zeros(trained.c16.weight.shape[0], x.shape[1], dtype=torch.long)), bank, e.step_deg, 3, e.map_size)
+            x.expand(trained.participants, -1, -1) if x.shape[0] == 1 else x,
+            torch.zeros(trained.participants, x.shape[1], dtype=torch.long)), bank, e.step_deg, 3, e.map_size)
     summary["forward_model_iou"] = iou
     for key, hist in histories.items():
-        pc.log_history(run.logger, hist, key)
+        pc.log_history(run.logger, hist["trials"], key, hist["names"])
     for key, v in tests.items():
         run.logger.scalars({"correct_rate": v["correct_rate"], "rt_mean": v["rt_mean"]}, prefix=f"{key}/")
-    _figures(run, df, histories)
+    _figures(run, df, histories, e.step_deg)
     return summary
 
 
-def _figures(run, df, histories) -> None:
+def _figures(run, df, histories, step_deg: float) -> None:
     f = run.figures
     base = df[df["condition"] == "none"]
-    figures.rt_by_disparity(base, f / "fig6_9a_rt.png", groups=("test",), title="Fig. 6.9a RT (cycles)")
+    thesis = {k.split("/")[0]: v for k, v in THESIS.items()}
+    figures.rt_by_disparity(base, f / "fig6_9a_rt.png", groups=("test",), title="Fig. 6.9a RT (cycles)",
+                            ylabel="RT (accumulator cycles)")
     figures.rate_by_disparity(base, f / "fig6_9b_error.png", groups=("test",), title="Fig. 6.9b error rate")
-    _bar(base, f / "fig6_9c_correct.png", "Fig. 6.9c correct responses")
+    figures.rate_bars(base, f / "fig6_9c_correct.png", "Fig. 6.9c correct responses", thesis=thesis)
+    dec = base[base["decided"].astype(bool)] if "decided" in base else base
+    req = dec.assign(required=(dec["disparity"] / step_deg).round().astype(int))
+    per_step = THESIS_TARGETS["cycles per rotation step"].value
+    ns = sorted(set(req["required"]))
+    figures.rt_by_disparity(req, f / "fig6_9d_steps.png", groups=("test",), x="required",
+                            xlabel="rotation steps the disparity requires", ylabel="RT (accumulator cycles)",
+                            title="RT against the required rotation steps (decided trials)",
+                            thesis={"slightly above 10 n": [(n, per_step * n) for n in ns]} if len(ns) > 1 else None)
     for test, fig in (("recog", "fig6_10"), ("gen1", "fig6_11"), ("custom", "fig6_10_custom")):
         d = df[df["test"] == test]
         if d.empty:
             continue
-        figures.rt_by_disparity(d, f / f"{fig}a_rt.png", groups=("condition",), title=f"{test}: RT by proprioception")
+        figures.rt_by_disparity(d, f / f"{fig}a_rt.png", groups=("condition",), title=f"{test}: RT by proprioception",
+                                ylabel="RT (accumulator cycles)")
         figures.rate_by_disparity(d, f / f"{fig}b_error.png", groups=("condition",), title=f"{test}: error rate")
-        _bar(d, f / f"{fig}c_correct.png", f"{test}: correct responses", by="condition")
+        figures.rate_bars(d, f / f"{fig}c_correct.png", f"{test}: correct responses", by="condition")
     panels = [("recog/none", "fig6_12a_recog"), ("gen1/none", "fig6_12b_gen1"), ("gen2/none", "fig6_12c_gen2"),
               ("recog/match", "fig6_13a_match"), ("recog/mismatch", "fig6_13b_mismatch"),
               ("custom/none", "fig6_12_custom")]
     for key, name in panels:
-        hist = histories.get(key) or []
-        if hist and hist[0]:
-            steps = [{k: v.numpy() for k, v in st.items()} for st in hist[0]]
-            figures.map_panels(steps, f / f"{name}.png", title=f"{key}: sample trial, one row per step",
-                               row_labels=[f"step {i + 1}" for i in range(len(steps))])
-
-
-def _bar(df, path, title, by="test"):
-    import matplotlib.pyplot as plt
-
-    per = df.groupby([by, "participant"])["correct"].mean().unstack()
-    order = [k for k in per.index]
-    fig, ax = plt.subplots(figsize=(5, 3.5))
-    m, s = 100 * per.mean(axis=1), 100 * per.std(axis=1, ddof=1).fillna(0)
-    ax.bar(range(len(order)), m.values, yerr=s.values, capsize=4)
-    ax.set_xticks(range(len(order)), order)
-    ax.set_ylabel("correct responses (%)")
-    ax.set_ylim(0, 100)
-    ax.set_title(title)
-    figures.save(fig, path)
+        hist = histories.get(key)
+        if hist:
+            pc.sample_panels(f / f"{name}.png", key, hist["trials"], hist["names"])
 
 
 def report(cfg, run, summary) -> None:
@@ -456,6 +436,5 @@ def report(cfg, run, summary) -> None:
         "effect of every departure from the thesis.",
     ])
     r.h("Figures")
-    for p in sorted(run.figures.glob("*.png")):
-        r.figure(p, p.stem.replace("_", " "), root=run.root)
+    r.figures(run.root, run.figures.glob("*.png"))
     r.write(run.report_path)

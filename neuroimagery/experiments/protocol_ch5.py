@@ -173,7 +173,6 @@ def finish_report(r, cfg, run, summary: dict, custom_limit: str) -> None:
         r.h("User stimuli")
         r.p(f"Rotation success {c['rotation_success_rate']}, correct answers {c['correct_rate']}. " + custom_limit)
     r.h("Figures")
-    for k, v in summary.get("figures", {}).items():
-        r.figure(run.root / v, k.replace("_", " "), root=run.root)
+    r.figures(run.root, [run.root / v for v in summary.get("figures", {}).values()])
     r.p(reproducibility_note(cfg.seed))
     r.write(run.report_path)

@@ -3,9 +3,6 @@
 * the stimulus bank: edge maps of every item of a set, computed once per run and shared by all
   participants (they see the same screen);
 * the trial table of a test (every pair of every object) and its ``trials.csv`` rows;
-* ``train_delta_binary``: the delta rule of eq. 6.4 on a mini-batch of binary inputs, touching
-  only the columns of the active inputs (the binary products themselves are in
-  ``neuroimagery.nn.binary``);
 * the three-dot training set of the forward models (thesis Fig. 6.3, 6.8);
 * the generalisation check of the forward models (IoU of imagined vs. true rotated edge maps);
 * sample-trial logging and the step-by-step map panels (Fig. 6.12-6.13);
@@ -26,6 +23,7 @@ import torch
 from .. import progress
 from ..errors import UserInputError
 from ..nn import seeding
+from ..analysis import figures
 from ..analysis.summary import TRIAL_COLUMNS
 
 
@@ -136,45 +134,10 @@ def trial_rows(table: pd.DataFrame, out: dict, participants: Sequence[int]) -> p
     return pd.concat(frames, ignore_index=True)[TRIAL_COLUMNS + [c for c in ("decided", "rotations") if c in out]]
 
 
-# ---------------------------------------------------------------------- binary fast paths
-@torch.no_grad()
-def train_delta_binary(conn, X: torch.Tensor, Y: torch.Tensor, eta: float, batch: int) -> None:
-    """Delta rule (eq. 6.4, ``Delta(eta, reduction='sum')``) on binary inputs, in mini-batches.
-
-    ``X`` ``(P, N, in)`` 0/1, ``Y`` ``(P, N, out)`` targets. Each mini-batch of ``batch`` patterns
-    is evaluated at the same weights and the summed change is applied, exactly as
-    ``conn.learn(pre=x, post=conn(x), target=y)`` with a ``Delta`` rule would do, but only the
-    weight columns of active inputs are read and written.
-
-    Deterministic: a prediction adds its active weight columns one after the other, and each
-    weight receives its changes in the order of the mini-batch's patterns (``index_add_``, which
-    adds in index order on the CPU; ``index_put_(accumulate=True)`` does not, with several
-    threads). Every number is thus a fixed sequence of IEEE additions and products, the same at
-    any thread count and on any CPU.
-    """
-    W = conn.weight  # (P, out, in)
-    P, O, I = W.shape
-    Wt = torch.cat([W.transpose(1, 2), torch.zeros(P, 1, O)], dim=1).contiguous()  # row I = padding
-    rows_of = Wt.view(P * (I + 1), O)  # participant p's weight column i is row p (I + 1) + i
-    base = (torch.arange(P) * (I + 1)).view(P, 1, 1)
-    N = X.shape[1]
-    for s in progress.bar(range(0, N, batch), what="forward model", unit="batch"):
-        x, y = X[:, s:s + batch], Y[:, s:s + batch]
-        on = x > 0.5
-        K = int(on.sum(-1).max())
-        if K == 0:
-            continue
-        # rows of each pattern's active inputs (ascending), padded with the participant's zero row I
-        order = torch.argsort((~on).to(torch.int8), dim=-1, stable=True)[..., :K]
-        valid = torch.gather(on, -1, order)
-        rows = base + torch.where(valid, order, torch.full_like(order, I))  # (P, b, K)
-        out = rows_of[rows[..., 0]]
-        for k in range(1, K):
-            out = out + rows_of[rows[..., k]]  # (P, b, O)
-        err = eta * (y - out)
-        rows_of.index_add_(0, rows.reshape(-1), err.unsqueeze(2).expand(-1, -1, K, -1).reshape(-1, O))
-        Wt[:, I] = 0
-    conn.weight.copy_(Wt[:, :I].transpose(1, 2))
+def batches_bar(what: str):
+    """A progress wrapper for a model's training loop (``progress=`` of its fit methods)."""
+    unit = "map" if what == "posture maps" else "batch"
+    return lambda it: progress.bar(it, what=what, unit=unit)
 
 
 def three_dot_training_set(generators, n: int, angles: Sequence[float], size: int, inner: int,
@@ -228,26 +191,58 @@ def sample_generators(seed: int, participants: Sequence[int], stream: int):
     return seeding.participant_generators(seed, list(participants), stream=stream)
 
 
-def log_history(logger, history: list, prefix: str) -> None:
-    """Every map of every step of recorded sample trials to TensorBoard."""
+def sample_rows(table: pd.DataFrame, n: int) -> list[int]:
+    """The rows of a test's trial table shown step by step (figures, TensorBoard): ``n`` pairs at
+    the test's largest disparity, a same pair first, then a mirror pair, alternating, each the
+    first of its kind in the table's order. The labels only choose what is displayed; the model
+    runs every trial alike."""
+    if n <= 0 or table.empty:
+        return []
+    big = table[table["disparity"] == table["disparity"].max()]
+    kinds = [list(big.index[big["same"].astype(bool)]), list(big.index[~big["same"].astype(bool)])]
+    out: list[int] = []
+    while len(out) < n and any(kinds):
+        for rows in kinds:
+            if rows and len(out) < n:
+                out.append(int(table.index.get_loc(rows.pop(0))))
+    return out
+
+
+def sample_names(table: pd.DataFrame, rows: Sequence[int]) -> list[str]:
+    """``same_135deg`` / ``mirror_135deg`` names of the sample trials ``rows``."""
+    t = table.iloc[list(rows)]
+    return [f"{'same' if s else 'mirror'}_{int(d)}deg" for s, d in zip(t["same"].astype(bool), t["disparity"])]
+
+
+def log_history(logger, history: list, prefix: str, names: Sequence[str] | None = None) -> None:
+    """Every map of every step of the recorded sample trials to TensorBoard, as image series whose
+    step is the rotation step (1 = the first)."""
     for trial_k, steps in enumerate(history):
+        name = names[trial_k] if names is not None else f"trial{trial_k}"
         for s, maps in enumerate(steps):
-            logger.maps({k: torch.as_tensor(v) for k, v in maps.items()}, step=s + 1, prefix=f"{prefix}/trial{trial_k}/")
+            logger.maps({k: torch.as_tensor(v) for k, v in maps.items()}, step=s + 1, prefix=f"{prefix}/{name}/")
 
 
-def train_posture_maps_and_freeze(cfg, eye, model, soms, angles: Sequence[float], generators, ids):
-    """Train the posture maps ``soms`` (supervised, factored) on the training set ``cfg.experiment.train_set``
-    labelled by the nearest of ``angles``, then put ``model`` in eval mode, cache its tables and record the
-    participant ids; returns ``model``."""
+def sample_panels(path, key: str, history: list, names: Sequence[str]):
+    """One figure of the sample trials of ``key``: one row per rotation step of each trial."""
+    steps, labels = [], []
+    for name, trial in zip(names, history):
+        for i, st in enumerate(trial):
+            steps.append({k: torch.as_tensor(v).numpy() for k, v in st.items()})
+            labels.append(f"{name.replace('_', ' ')}, step {i + 1}")
+    if not steps:
+        return None
+    return figures.map_panels(steps, path, title=f"{key}: sample trials, one row per rotation step", row_labels=labels)
+
+
+def train_posture_maps(cfg, eye, model, angles: Sequence[float], generators):
+    """Train the model's posture maps (``model.fit_posture_maps``) on the training set
+    ``cfg.experiment.train_set`` labelled by the nearest of ``angles``, then put ``model`` in eval
+    mode for testing; returns ``model``."""
     e = cfg.experiment
     bank = StimulusBank.build(eye, stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
-    labels = bank.angle_labels(angles)
-    for som in progress.bar(soms, what="posture maps", unit="map"):
-        som.fit(bank.maps, labels=labels, generators=generators, method="factored")
-    model.eval()
-    model.freeze()
-    model.participant_ids = list(ids)
-    return model
+    model.fit_posture_maps(bank.maps, bank.angle_labels(angles), generators, progress=batches_bar("posture maps"))
+    return model.eval()
 
 
 def save_model(run, name: str, model, ids) -> None:
@@ -256,16 +251,13 @@ def save_model(run, name: str, model, ids) -> None:
 
 
 def load_model(checkpoint_dir, name: str, build):
-    """Rebuild a model with ``build(participant_ids)`` from a training run and freeze it for testing."""
+    """Rebuild a model with ``build(participant_ids)`` from a training run, in eval mode for testing."""
     from ..run import load_checkpoint
 
     ck = load_checkpoint(checkpoint_dir, name)
     model = build(ck["participants"])
     model.load_state_dict(ck["state_dict"])
-    model.eval()
-    model.freeze()
-    model.participant_ids = list(ck["participants"])
-    return model
+    return model.eval()
 
 
 def error_split(tests: dict) -> str:

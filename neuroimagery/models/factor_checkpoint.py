@@ -10,7 +10,7 @@ import torch
 from ..nn.functional import intra_op_threads
 from ..nn.hebbian_closed_form import hebbian_shared, rebuild_indexed
 from ..nn.numerics import cast_bound, rounding_bound
-from ..nn.som import rebuild_windowed
+from ..nn.som_windowed import rebuild_windowed
 
 PROBE_ROWS = [0, -1]  # the rows of each rebuilt weight checked on load
 

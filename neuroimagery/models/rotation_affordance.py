@@ -30,8 +30,7 @@ from torch import nn
 
 from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators, seeding
 from ..nn.functional import intra_op_threads
-from ..nn.hebbian_closed_form import hebbian_shared
-from ..nn.som import fit_windowed as som_fit_windowed, windowed_factors
+from ..nn.som_windowed import windowed_factors
 from .factor_checkpoint import FactorCheckpoint
 
 
@@ -109,31 +108,27 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         post = self.posture_code(obj, ang)  # (T, 3255)
         nxt = ang - torch.sign(ang) * torch.clamp(ang.abs(), max=e.step_deg)
         nxt_img = torch.stack([images[(int(o), float(a))] for o, a in zip(obj, nxt)])
-        self.c1.weight.copy_(hebbian_shared(self.c1.weight, x, post, e.hebb_eta))  # affordance
-        self.c2.weight.copy_(hebbian_shared(self.c2.weight, post, nxt_img, e.hebb_eta))  # forward model
+        self.train()
+        self.c1.learn(x, post, sequence=True)  # affordance, online outstar over the shared sequence
+        self.c2.learn(post, nxt_img, sequence=True)  # forward model
         # what the large weights are formed from, for compact_state (C5 learns step by step: saved in full)
-        self._factors = fx = {"c1.weight": {"kind": "hebbian_shared", "pre": x, "post": post, "eta": e.hebb_eta},
-                              "c2.weight": {"kind": "hebbian_shared", "pre": post, "post": nxt_img, "eta": e.hebb_eta}}
+        self._factors = fx = {k: c.learnt_factors for k, c in (("c1.weight", self.c1), ("c2.weight", self.c2))
+                              if c.learnt_factors is not None}
         # matching SOM on the 4 combinations of upright images, then the answer association
         up = [images[(0, 0.0)], images[(1, 0.0)]]
         pairs = [(i, j) for i in (0, 1) for j in (0, 1)]
         X = torch.stack([torch.cat([up[i], up[j]]) for i, j in pairs])  # (4, 2048)
         P = self.c1.participants
-        self.pfc2.train()
         order = seeding.randint(participant_generators(self.seed, P, stream=4), X.shape[0], (e.som_iterations,))
         with intra_op_threads(e.som_threads, cap=True):  # each SOM step is small: extra threads only add hand-offs
-            if e.som_method == "windowed":
-                som_fit_windowed(self.pfc2, X, order)
-                fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
-            else:
-                self.pfc2.fit(X, order=order, method=e.som_method)
+            self.pfc2.fit(X, order=order, method=e.som_method)
+        if e.som_method == "windowed":  # the other methods leave no factors: the weights are saved in full
+            fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
         act, _ = self.pfc2_activity(X[:, :1024].expand(P, -1, -1), X[:, 1024:].expand(P, -1, -1))
         yes = torch.tensor([i == j for i, j in pairs])
         target = self.answer_code(yes)  # (4, 200)
-        self.c5.train()
-        for _ in range(e.hebb_epochs):
-            for k in range(len(pairs)):
-                self.c5.learn(act[:, k:k + 1], target[k].expand(P, 1, -1))
+        ks = list(range(len(pairs))) * e.hebb_epochs  # the 4 pairs in turn, one per step
+        self.c5.learn(act[:, ks], target[ks], sequence=True)
         self.eval()
 
     # ------------------------------------------------------------------ a trial

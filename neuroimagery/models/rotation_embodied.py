@@ -35,6 +35,14 @@ from ..nn.binary import binary_matmul, binary_matmul_rows
 MOVES = ("Ml", "Ms", "Mr")
 
 
+def sample_indices(record, trials: int) -> list[int]:
+    """The trials whose maps a run returns step by step: ``record`` leading trials (an int) or the
+    given trial indices (any that exist), in the order given."""
+    if isinstance(record, int):
+        return list(range(min(record, trials)))
+    return [int(k) for k in record if 0 <= int(k) < trials]
+
+
 def triangle_weights(n: int) -> torch.Tensor:
     """Hard-wired PPCc -> PMCm weights ``(3, n*n)`` (eq. 6.10): lower -> Ml, diagonal -> Ms, upper -> Mr."""
     r = torch.arange(n).view(n, 1).expand(n, n)
@@ -103,12 +111,27 @@ def posture_maps(p, n_in: int, units: int, generators, names: Sequence[str]) -> 
     return [SOM(name=name, **kw) for name in names]
 
 
-class RotationEmbodied(nn.Module):
-    """The Experiment 4 network for ``P`` participants (``generators``: one per participant)."""
+def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The training pairs whose randomly drawn movement is ``m``, in their order, per participant
+    (padded at the end with empty images, which the delta rule leaves without effect), so each
+    forward model sees mini-batches of its own images."""
+    P = X.shape[0]
+    rows = [(moves[k] == m).nonzero().squeeze(-1) for k in range(P)]
+    L = max(int(r.numel()) for r in rows)
+    Xm, Ym = torch.zeros(P, L, X.shape[-1]), torch.zeros(P, L, Y.shape[-1])
+    for k, r in enumerate(rows):
+        Xm[k, :r.numel()], Ym[k, :r.numel()] = X[k, r], Y[k, r]
+    return Xm, Ym
 
-    def __init__(self, p, generators: Sequence[torch.Generator]) -> None:
+
+class RotationEmbodied(nn.Module):
+    """The Experiment 4 network for ``P`` participants (``generators``: one per participant;
+    ``participant_ids``: who they are, kept for the caller, default ``0..P-1``)."""
+
+    def __init__(self, p, generators: Sequence[torch.Generator], participant_ids: Sequence[int] | None = None) -> None:
         super().__init__()
         self.p = p
+        self.participant_ids = list(range(len(generators)) if participant_ids is None else participant_ids)
         n = p.map_size * p.map_size
         self.n, self.size = n, p.map_size
         self.step_angles = (float(p.step_deg), 0.0, -float(p.step_deg))  # Ml, Ms, Mr
@@ -124,7 +147,39 @@ class RotationEmbodied(nn.Module):
         self.register_buffer("flip_index", flips)  # (units, n) hard-wired C10 per target posture
         self._tables: list[torch.Tensor] | None = None
 
+    @property
+    def participants(self) -> int:
+        return self.c16.weight.shape[0]
+
     # ------------------------------------------------------------------ learning
+    def fit_forward_models(self, X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, batch: int,
+                           progress=None) -> None:
+        """C1-C3 by the delta rule (eq. 6.4) in mini-batches of ``batch``: forward model ``m`` on the
+        pairs ``X`` ``(P, N, n)`` -> ``Y`` ``(P, N, n)`` whose drawn movement ``moves`` ``(P, N)`` is
+        ``m`` (:func:`images_of_move`); ``progress`` optionally wraps each one's mini-batches."""
+        self.train()
+        for m, conn in enumerate(self.fm):
+            Xm, Ym = images_of_move(X, Y, moves, m)
+            conn.learn(Xm, None, sequence=True, batch=batch, target=Ym, progress=progress)
+
+    def fit_posture_maps(self, maps: torch.Tensor, labels: torch.Tensor, generators, progress=None) -> None:
+        """C16 and C17 (supervised Kohonen, eq. 6.14-6.16) on edge ``maps`` ``(N, n)`` labelled with
+        their wrist-posture units; ``progress`` optionally wraps the list of maps."""
+        self.train()
+        soms = [self.c16, self.c17]
+        for som in (progress(soms) if progress is not None else soms):
+            som.fit(maps, labels=labels, generators=generators, method="factored")
+
+    def train(self, mode: bool = True):
+        """``eval()`` caches the transposed forward-model weights of the binary fast path; ``train()``
+        drops the cache."""
+        super().train(mode)
+        if mode:
+            self._tables = None
+        else:
+            self.freeze()
+        return self
+
     def freeze(self) -> None:
         """Cache the transposed forward-model weights used by the binary fast path."""
         self._tables = [c.weight.transpose(1, 2).contiguous() for c in self.fm]
@@ -201,7 +256,7 @@ class RotationEmbodied(nn.Module):
     # ------------------------------------------------------------------ trials
     @torch.no_grad()
     def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, proprioception: str = "none",
-            noise: bool = False, record: int = 0, flipped: torch.Tensor | None = None) -> dict:
+            noise: bool = False, record=0, flipped: torch.Tensor | None = None) -> dict:
         """Run a batch of trials. ``target``/``rotated``: binary edge maps ``(P, B, n)``.
 
         ``proprioception``: ``none``, ``match`` (wrist signal on the PPCp unit of the mental
@@ -211,12 +266,13 @@ class RotationEmbodied(nn.Module):
         second input that the noise of the image-to-posture mapping does not touch), with
         ``'visual'`` before it (both signals share the noise and the [0, 1] ceiling). Randomness (softmax selection, noise,
         time-out answers) comes from ``generators``, one per participant, drawn in a fixed order.
-        ``record``: number of leading trials of participant 0 whose maps are returned per step.
+        ``record``: the trials of participant 0 whose maps are returned per step, as a number of
+        leading trials or a sequence of trial indices.
         """
         return self.run_conditions(target, rotated, [(proprioception, noise, generators)], record, flipped)[0]
 
     @torch.no_grad()
-    def run_conditions(self, target: torch.Tensor, rotated: torch.Tensor, conditions, record: int = 0,
+    def run_conditions(self, target: torch.Tensor, rotated: torch.Tensor, conditions, record=0,
                        flipped: torch.Tensor | None = None) -> list[dict]:
         """Run the same trials ``(P, B, n)`` under several conditions ``[(proprioception, noise,
         generators), ...]``; returns one result dict per condition (see :meth:`run`).
@@ -255,8 +311,9 @@ class RotationEmbodied(nn.Module):
         steps = torch.zeros(C, Q, dtype=torch.long)
         rotations = torch.zeros(C, Q, dtype=torch.long)
         angle = torch.zeros(C, Q)
-        histories: list[list[list[dict]]] = [[[] for _ in range(min(record, B))] for _ in range(C)]
-        rec = [(q, k) for k in range(min(record, B)) for q in [k]]  # participant 0, trials 0..record-1
+        shown = sample_indices(record, B)
+        histories: list[list[list[dict]]] = [[[] for _ in shown] for _ in range(C)]
+        rec = list(zip(shown, range(len(shown))))  # (flat row q of participant 0, history slot)
 
         gain = lca_gain(p)
 

@@ -27,7 +27,7 @@ from torch import nn
 from ..nn import AllToAll, Delta, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul
-from .rotation_embodied import posture_maps, triangle_weights
+from .rotation_embodied import posture_maps, sample_indices, triangle_weights
 
 MOVES = ("n1", "n2", "n3")
 
@@ -35,9 +35,10 @@ MOVES = ("n1", "n2", "n3")
 class RotationGeneralising(nn.Module):
     """The Experiment 3 network for ``P`` participants (``generators``: one per participant)."""
 
-    def __init__(self, p, generators: Sequence[torch.Generator]) -> None:
+    def __init__(self, p, generators: Sequence[torch.Generator], participant_ids: Sequence[int] | None = None) -> None:
         super().__init__()
         self.p = p
+        self.participant_ids = list(range(len(generators)) if participant_ids is None else participant_ids)
         n = p.map_size * p.map_size
         self.n, self.size = n, p.map_size
         self.step_angles = (-float(p.step_deg), 0.0, float(p.step_deg))  # n1 cw, n2 none, n3 ccw
@@ -47,6 +48,33 @@ class RotationGeneralising(nn.Module):
         # M1_1 -> M1_2 hard-wired masks: lower-left -> n1, diagonal -> n2, upper-right -> n3
         self.register_buffer("m1_masks", triangle_weights(nu))
         self._table: torch.Tensor | None = None
+
+    @property
+    def participants(self) -> int:
+        return self.c2.weight.shape[0]
+
+    def fit_forward_model(self, X: torch.Tensor, Y: torch.Tensor, batch: int, progress=None) -> None:
+        """C6 by the delta rule (eq. 6.4) in mini-batches of ``batch`` on the pairs ``X`` ``(P, N, 3n)``
+        (the image in the PP_1 block of its movement) -> ``Y`` ``(P, N, n)``."""
+        self.train()
+        self.c6.learn(X, None, sequence=True, batch=batch, target=Y, progress=progress)
+
+    def fit_posture_maps(self, maps: torch.Tensor, labels: torch.Tensor, generators, progress=None) -> None:
+        """C2 and C3 (supervised Kohonen, eq. 6.7-6.8) on edge ``maps`` ``(N, n)`` labelled with
+        their posture units; ``progress`` optionally wraps the list of maps."""
+        self.train()
+        soms = [self.c2, self.c3]
+        for som in (progress(soms) if progress is not None else soms):
+            som.fit(maps, labels=labels, generators=generators, method="factored")
+
+    def train(self, mode: bool = True):
+        """``eval()`` caches the transposed C6 weights of the binary fast path; ``train()`` drops it."""
+        super().train(mode)
+        if mode:
+            self._table = None
+        else:
+            self.freeze()
+        return self
 
     def freeze(self) -> None:
         self._table = self.c6.weight.transpose(1, 2).contiguous()
@@ -121,8 +149,10 @@ class RotationGeneralising(nn.Module):
         return torch.where(sel.unsqueeze(-1), (pred > self.p.fm_threshold).float(), x)
 
     @torch.no_grad()
-    def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record: int = 0, **_) -> dict:
-        """Run a batch of trials (binary edge maps ``(P, B, n)``); see the module docstring."""
+    def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record=0, **_) -> dict:
+        """Run a batch of trials (binary edge maps ``(P, B, n)``); see the module docstring.
+        ``record``: the trials of participant 0 whose maps are returned per step (a number of
+        leading trials or a sequence of trial indices)."""
         p = self.p
         P, B, _ = target.shape
         nu = len(p.posture_angles)
@@ -133,7 +163,8 @@ class RotationGeneralising(nn.Module):
         rotations = torch.zeros(P, B, dtype=torch.long)
         angle = torch.zeros(P, B)
         step_deg = torch.tensor(self.step_angles)
-        history: list[list[dict]] = [[] for _ in range(min(record, B))]
+        shown = sample_indices(record, B)
+        history: list[list[dict]] = [[] for _ in shown]
         for s in range(p.max_steps + 1):
             act = ~done
             if not bool(act.any()):
@@ -145,9 +176,9 @@ class RotationGeneralising(nn.Module):
             stop = act & ((move == 1) | (rotations >= p.max_steps))
             go = act & ~stop
             new = self.forward_step(pp2, move, go)
-            for k in range(len(history)):
+            for j, k in enumerate(shown):
                 if bool(act[0, k]):
-                    history[k].append({"PFC_1": pfc1[0, k].view(self.size, self.size), "PP_2": pp2[0, k].view(self.size, self.size),
+                    history[j].append({"PFC_1": pfc1[0, k].view(self.size, self.size), "PP_2": pp2[0, k].view(self.size, self.size),
                                        "SS": ss[0, k], "PMC_1": pmc1[0, k], "M1_1": m11[0, k].view(nu, nu), "M1_2": m12[0, k],
                                        "PFC_2": self.uncovered(pfc1[0, k], pp2[0, k]).view(self.size, self.size)})
             angle = angle + torch.where(go, step_deg[move], torch.zeros(()))

@@ -20,7 +20,7 @@ SS posture, its image); and C9, C10 and C2 learn after the SOM M1_1 has finished
 The competition inside SS (forward prediction + weaker proprioception, which also pre-activates
 the field) and inside PMC_2 is a dynamic field run to threshold; the SS field runs along the
 wrist-angle axis (100 units). The SOMs train by the batched windowed form of the online rule
-(``nn.som.fit_windowed_many``) unless ``som_method`` says otherwise. RT =
+(``SOM.fit(method='windowed')``) unless ``som_method`` says otherwise. RT =
 SS competition cycles over the rotation steps + PMC_2 cycles (1 cycle = 1 ms).
 """
 from __future__ import annotations
@@ -28,8 +28,10 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from ..nn.hebbian_closed_form import hebbian_indexed_many, hebbian_shared
-from ..nn.som import fit_windowed_many, squared_norms, windowed_factors
+from ..nn.learning import IndexedRows
+from ..nn.row_cache import RowCache, distinct_rows
+from ..nn.functional import squared_norms
+from ..nn.som_windowed import windowed_factors
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 from ..nn.functional import intra_op_threads
 from .factor_checkpoint import FactorCheckpoint
@@ -127,14 +129,13 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         ``e.som_method``.
 
         All three methods run the same online rule and return the same winners; they differ in
-        cost only. ``windowed`` trains the maps together (``nn.som.fit_windowed_many``; ``parts``
-        names the input segments whose distinct pieces it works with). The per-step work is
-        small, so it runs on ``e.som_threads`` intra-op threads.
+        cost only (``windowed`` works with the distinct pieces of the input segments ``parts``).
+        The per-step work is small, so it runs on ``e.som_threads`` intra-op threads.
         """
+        m = self.e.som_method
         with intra_op_threads(self.e.som_threads, cap=True):
-            if self.e.som_method == "windowed":
-                return fit_windowed_many(jobs)
-            return [som.fit(X, order=order, method=self.e.som_method) for som, X, order, _ in jobs]
+            return [som.fit(X, order=order, method=m, parts=parts if m == "windowed" else None)
+                    for som, X, order, parts in jobs]
 
     @torch.no_grad()
     def babble(self, steps: int) -> dict:
@@ -179,12 +180,10 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         seq = list(range(14)) * e.c1_epochs
         # what each trained weight is formed from, for compact_state (key: the state_dict entry)
         self._factors = fx = {}
-        self.c1.weight.copy_(hebbian_shared(self.c1.weight, img[seq], all7.expand(len(seq), -1), e.hebb_eta))
-        fx["c1.weight"] = {"kind": "hebbian_shared", "pre": img[seq], "post": all7.expand(len(seq), -1).contiguous(),
-                           "eta": e.hebb_eta}
+        self.train()
+        self.c1.learn(img[seq], all7.expand(len(seq), -1), sequence=True)
         own = self.pmc1_code(torch.tensor([a for _, a in items]), e.bias)
-        self.c6.weight.copy_(hebbian_shared(self.c6.weight, img[seq], own[seq], e.hebb_eta))
-        fx["c6.weight"] = {"kind": "hebbian_shared", "pre": img[seq], "post": own[seq], "eta": e.hebb_eta}
+        self.c6.learn(img[seq], own[seq], sequence=True)
         # babbling stream: the SOM M1_1 (C7, C8) first, over all som_iterations steps; then C9, C10 and
         # C2 on the first hebb_steps steps of the same stream, C9 and C10 from the trained M1_1's clusters
         # (the thesis trains them step by step alongside the SOM; Table 5.1 gives C2 84 cycles, not 1,960)
@@ -199,8 +198,6 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         pairs = [(i, j) for i in range(14) for j in range(14)]
         Y = torch.stack([torch.cat([img[i], img[j]]) for i, j in pairs])
         gens = participant_generators(self.seed, P, stream=9)
-        self.m11.train()
-        self.pfc2.train()
         self.fit_soms([(self.m11, X, pat[:, : e.som_iterations], (3100, 3100)),  # [SS, PMC_1]
                        (self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som_iterations,)), (1024, 1024))])  # [PP, PFC_1]
         if e.som_method == "windowed":  # the other methods leave no factors: their weights are saved in full
@@ -215,25 +212,22 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         ss_set = self.ss_code(torch.tensor([o for o, _ in items]), torch.tensor([a for _, a in items]))  # (14, 3100)
         # C9 and C10 see the same M1_1 sequence (participant p: m_act[p, pat[p, :Th]], Th x 4096)
         # of the finished SOM; C9: M1_1 cluster -> executed command, C10: M1_1 cluster -> next SS posture
-        hf = []  # factors of C9, C10, C2, C5 in that order
-        w9, w10 = hebbian_indexed_many(lambda p: m_act[p, pat[p, :Th]], [(self.c9.weight, b["act"][:, :Th] + 1, acts),
-                                                                         (self.c10.weight, nxt_idx, ss_set)], e.hebb_eta, hf)
-        self.c9.weight.copy_(w9)
-        self.c10.weight.copy_(w10)
+        m11_seq = IndexedRows(m_act, pat[:, :Th])
+        self.c9.learn(m11_seq, IndexedRows(acts, b["act"][:, :Th] + 1), sequence=True)
+        self.c10.learn(m11_seq, IndexedRows(ss_set, nxt_idx), sequence=True)
         # C2: next SS posture -> its image, on the same hebb_steps babbling steps (1,960 presentations of
         # the 14 posture/image pairs; Table 5.1 lists C2 with 14 patterns and 84 cycles, as C1 and C6)
-        (w2,) = hebbian_indexed_many(lambda p: ss_set[nxt_idx[p]], [(self.c2.weight, nxt_idx, img)], e.hebb_eta, hf)
-        self.c2.weight.copy_(w2)
+        self.c2.learn(IndexedRows(ss_set, nxt_idx), IndexedRows(img, nxt_idx), sequence=True)
         # C5: PFC_2's cluster to the answer clusters
         same = torch.tensor([items[i][0] == items[j][0] for i, j in pairs])
         order = torch.stack([torch.cat([torch.randperm(196, generator=g_) for _ in range(e.c5_epochs)]) for g_ in gens])
         p_act = self.som_bump(self.pfc2, Y.expand(P, -1, -1))
         ans = self.pmc2.flat(self.pmc2.encode(torch.tensor([[4.5, 4.5], [4.5, 14.5]])))
-        (w5,) = hebbian_indexed_many(lambda p: p_act[p, order[p]], [(self.c5.weight, (~same[order]).long(), ans)],
-                                     e.hebb_eta, hf)
-        self.c5.weight.copy_(w5)
-        for k, f in zip(("c9.weight", "c10.weight", "c2.weight", "c5.weight"), hf):
-            fx[k] = {"kind": "hebbian_indexed", **f}
+        self.c5.learn(IndexedRows(p_act, order), IndexedRows(ans, (~same[order]).long()), sequence=True)
+        for k in ("c1", "c6", "c9", "c10", "c2", "c5"):  # what each closed form formed the weights from
+            f = getattr(self, k).learnt_factors
+            if f is not None:
+                fx[f"{k}.weight"] = f
         self.eval()
         return {"m11_patterns": X, "pfc2_patterns": Y}
 
@@ -360,63 +354,3 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         """C9 and C10 net input of the M1_1 cluster around each winner ``bmu`` ``(P, L)``."""
         m = self.som_bump(self.m11, bmu=bmu)
         return self.c9.net(m), self.c10.net(m)
-
-
-MIN_ROWS = 8  # products over fewer rows may take another BLAS path (matrix-vector) with other rounding
-
-
-class RowCache:
-    """Per-participant outputs of ``fn`` for integer keys, each computed once.
-
-    ``fn(keys)`` maps keys ``(P, L)`` to a tuple of ``(P, L, ...)`` tensors, one row per key, and
-    must compute each row independently of the others (as a batched matrix product does). Calling
-    the cache with keys ``(P, B)`` returns ``fn(keys)`` by evaluating only the keys it has not seen
-    yet, over at least ``MIN_ROWS`` rows. The rows equal those of ``fn(keys)`` to float rounding,
-    not bit for bit: BLAS may sum a product of other shapes in another order (with oneMKL on
-    AVX-512, 8-row products round otherwise than larger ones).
-    """
-
-    def __init__(self, participants: int, n_keys: int, fn) -> None:
-        self.fn = fn
-        self.slot = torch.full((participants, n_keys), -1, dtype=torch.long)
-        self.values: tuple[torch.Tensor, ...] | None = None
-
-    def __call__(self, keys: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        P = self.slot.shape[0]
-        pi = torch.arange(P).unsqueeze(1)
-        flat = keys.reshape(P, -1)
-        need = torch.zeros_like(self.slot, dtype=torch.bool)
-        need[pi, flat] = True
-        need &= self.slot < 0
-        counts = need.sum(1)
-        if int(counts.max()) > 0:
-            L = max(int(counts.max()), MIN_ROWS)
-            # each participant's new keys first (ascending), padded with its smallest key
-            order = torch.sort((~need).to(torch.int8), dim=1, stable=True).indices[:, :L]
-            pos = torch.arange(L).unsqueeze(0)
-            real = pos < counts.unsqueeze(1)
-            new = torch.where(real, order, torch.where(counts.unsqueeze(1) > 0, order[:, :1], flat[:, :1]))
-            out = self.fn(new)
-            base = 0 if self.values is None else self.values[0].shape[1]
-            self.values = out if self.values is None else tuple(torch.cat([v, o], 1) for v, o in zip(self.values, out))
-            pr, jr = real.nonzero(as_tuple=True)
-            self.slot[pr, new[pr, jr]] = base + jr
-        idx = self.slot[pi, flat]
-        return tuple(v[pi, idx].reshape(*keys.shape, *v.shape[2:]) for v in self.values)
-
-
-def distinct_rows(fn, x: torch.Tensor) -> torch.Tensor:
-    """``fn(x)`` for ``x`` ``(P, B, n)`` computed on the distinct rows of ``x`` only.
-
-    ``fn`` maps ``(P, L, n)`` to ``(P, L, ...)`` row by row (as :class:`RowCache`'s functions);
-    the rows shared by every participant are evaluated once for each and gathered back.
-    """
-    P, B, n = x.shape
-    u, inv = torch.unique(x.reshape(-1, n), dim=0, return_inverse=True)
-    if u.shape[0] >= B:
-        return fn(x)
-    if u.shape[0] < MIN_ROWS:
-        u = torch.cat([u, u[:1].expand(MIN_ROWS - u.shape[0], -1)])
-    out = fn(u.unsqueeze(0).expand(P, -1, -1).contiguous())
-    inv = inv.reshape(P, B)
-    return out[torch.arange(P).unsqueeze(1), inv]

@@ -48,6 +48,7 @@ class Connection(nn.Module):
         self.F = transfer(transfer_fn)
         self.register_buffer("weight", weight.detach().clone())
         self.rules = nn.ModuleList([rules] if isinstance(rules, Rule) else list(rules))
+        self.learnt_factors: dict | None = None  # what a closed-form sequence formed the weights from
 
     @property
     def participants(self) -> int:
@@ -72,14 +73,32 @@ class Connection(nn.Module):
         return self.F(self.net(x))
 
     @torch.no_grad()
-    def learn(self, pre: torch.Tensor, post: torch.Tensor | None = None, return_delta: bool = False,
-              **kw) -> torch.Tensor | None:
+    def learn(self, pre, post=None, return_delta: bool = False, *, sequence: bool = False, batch: int = 1,
+              method: str = "auto", progress=None, **kw) -> torch.Tensor | None:
         """Apply every rule's change in place (only in ``train()`` mode).
 
-        With a single rule that can update in place (Hebbian, Delta) the change is never formed
-        and ``None`` is returned, unless ``return_delta`` asks for it.
+        One step (default): ``pre`` ``(P, B, in)``, ``post`` ``(P, B, out)``; the ``B`` patterns'
+        changes are computed at the same weights. With a single rule that can update in place
+        (Hebbian, Delta) the change is never formed and ``None`` is returned, unless
+        ``return_delta`` asks for it.
+
+        ``sequence=True``: ``pre``, ``post`` (and ``target``) are sequences of ``T`` steps,
+        ``(T, n)`` shared by every participant, ``(P, T, n)``, or
+        :class:`~neuroimagery.nn.learning.IndexedRows`, applied in order ``batch`` steps at a time
+        (``post=None`` with ``Delta``: the connection's own output at the current weights). The
+        implementation is chosen from the rule and the inputs' shape and sparsity among those
+        registered in :mod:`neuroimagery.nn.learning` (``method='auto'``; ``'plain'``: one
+        :meth:`learn` step per group); what a closed form formed the weights from is left in
+        ``learnt_factors``. ``progress`` optionally wraps the iterable of steps.
         """
         if not self.training or len(self.rules) == 0:
+            return None
+        if sequence:
+            if return_delta:
+                raise ValueError("return_delta is for one step, not a sequence")
+            from .learning import learn_sequence
+
+            learn_sequence(self, pre, post, batch, method, progress, **kw)
             return None
         pre_b, _ = as_batched(pre, self.n_in, "pre")
         if post is not None:

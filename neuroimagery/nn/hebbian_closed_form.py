@@ -1,4 +1,6 @@
-"""Closed forms of the online outstar Hebbian rule (eq. 4.2-4.3).
+"""Closed forms of the online outstar Hebbian rule (eq. 4.2-4.3), registered as implementations
+of :class:`~neuroimagery.nn.Hebbian` over a sequence (:mod:`neuroimagery.nn.learning`:
+``conn.learn(pre, post, sequence=True)`` picks them).
 
 With one pattern per step the update ``W <- W (1 - eta x_i) + eta y_j x_i`` is affine in the weights,
 so a whole training sequence reduces to a few matrix products. These functions give the same weights
@@ -9,7 +11,7 @@ from __future__ import annotations
 
 import torch
 
-from .connections import AllToAll
+from .learning import IndexedRows, Kernel, register
 from .rules import Hebbian
 
 
@@ -43,6 +45,8 @@ def hebbian_shared(weight0: torch.Tensor, pre: torch.Tensor, post: torch.Tensor,
 
 def hebbian_online(weight0: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, eta: float) -> torch.Tensor:
     """Reference: the same training through ``AllToAll.learn`` one pattern at a time (slow)."""
+    from .connections import AllToAll
+
     P, n_out, n_in = weight0.shape
     c = AllToAll(n_in, n_out, participants=P, init="zeros", rules=Hebbian(eta, "outstar"))
     c.weight.copy_(weight0)
@@ -123,3 +127,40 @@ def rebuild_indexed(weight0: torch.Tensor, factors: dict) -> torch.Tensor:
     for p in range(P):
         _form_indexed(out[p:p + 1], weight0[p:p + 1], a[p:p + 1], C[p:p + 1], post_set)
     return out
+
+
+# ------------------------------------------------------------------ registered kernels
+def _online_outstar(conn, rule, batch: int) -> bool:
+    return type(rule) is Hebbian and rule.form == "outstar" and batch == 1 and conn.weight.dim() == 3
+
+
+def _applies_shared(conn, rule, pre, post, batch, kw) -> bool:
+    return (_online_outstar(conn, rule, batch) and not kw and isinstance(pre, torch.Tensor)
+            and isinstance(post, torch.Tensor) and pre.dim() == 2 and post.dim() == 2)
+
+
+@torch.no_grad()
+def _run_shared(conn, rule, pre, post, batch, progress, kw) -> dict:
+    conn.weight.copy_(hebbian_shared(conn.weight, pre, post, rule.eta))
+    return {"kind": "hebbian_shared", "pre": pre, "post": post.contiguous(), "eta": rule.eta}
+
+
+def _applies_indexed(conn, rule, pre, post, batch, kw) -> bool:
+    return (_online_outstar(conn, rule, batch) and not kw and isinstance(post, IndexedRows) and post.shared
+            and (isinstance(pre, IndexedRows) or isinstance(pre, torch.Tensor)))
+
+
+@torch.no_grad()
+def _run_indexed(conn, rule, pre, post, batch, progress, kw) -> dict:
+    if isinstance(pre, IndexedRows):
+        pre_of = pre.of
+    else:
+        pre_of = (lambda p: pre) if pre.dim() == 2 else (lambda p: pre[p])
+    factors: list = []
+    (w,) = hebbian_indexed_many(pre_of, [(conn.weight, post.index, post.table)], rule.eta, factors)
+    conn.weight.copy_(w)
+    return {"kind": "hebbian_indexed", **factors[0]}
+
+
+register(Kernel("hebbian_shared", _applies_shared, _run_shared))
+register(Kernel("hebbian_indexed", _applies_indexed, _run_indexed))

@@ -3,21 +3,13 @@
 
 Weights ``(P, units, in)``: row ``k`` of participant ``p`` is unit ``k``'s prototype. Training is
 online (one pattern per participant per iteration, as in the thesis's algorithm) and batched over
-participants. Two exact implementations of the same online rule are offered:
-
-* ``method='online'`` updates the weight matrix at every step (cost ``units x in`` per step);
-* ``method='factored'`` never touches the weights while training. Every weight vector stays a
-  scaled combination ``w_k = c_k (w0_k + sum_n R_kn x_n)`` of its initial value and the ``N``
-  training patterns, so the step ``w_k <- (1 - a_k) w_k + a_k x_s`` only rescales ``c_k`` and
-  adds to ``R_ks``; distances come from maintained dot products with the patterns and closed-form
-  norms. A step costs ``(units in the neighbourhood) x N``, independent of the input size, and
-  the weights are formed once at the end. Same sequence of winners, same weights up to float
-  rounding (see ``tests/test_som.py``).
-
-* ``method='windowed'`` (unsupervised 2-D maps) is the factored form again, but each participant
-  touches only the square of units its own truncated neighbourhood reaches, so batching many
-  participants does not widen the region updated at each step (:func:`fit_windowed`, in
-  :mod:`neuroimagery.nn.som_windowed`; CPU only).
+participants. :meth:`SOM.fit` trains by one of the registered implementations of that online
+rule (:mod:`neuroimagery.nn.som_trainers`): ``method='online'`` (every unit updated at every
+presentation: the fused kernel of :mod:`neuroimagery.nn.som_online` for the Kohonen rules, one
+:meth:`SOM.step` per step otherwise), ``'factored'`` (:mod:`~neuroimagery.nn.som_factored`: the weights
+never touched while training) or ``'windowed'`` (:mod:`~neuroimagery.nn.som_windowed`: the
+factored form per participant neighbourhood window, unsupervised 2-D maps, CPU). They give the
+same winners and the same weights up to float rounding (``tests/test_som.py``).
 
 ``method='auto'`` picks ``factored`` when ``N < n_in`` and the initial and final learning rates
 (``eta``, ``eta_final``) are below 1, ``online`` otherwise; ``N`` is the number of rows of the
@@ -32,11 +24,10 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from . import seeding
+from . import monitor, seeding
 from .functional import as_batched, check_rate, check_tensor, checks_enabled, grid_coords, squared_norms
 from .rules import Kohonen, SupervisedKohonen
-from .som_windowed import (WINDOWED_BLOCK, fit_windowed, fit_windowed_many, form_windowed_weights,  # noqa: F401
-                           rebuild_windowed, windowed_factors)
+from .som_trainers import TRAINERS, choose
 
 ORDER_STREAM = 1  # stream of participant_generators(seed, P, stream) a SOM built from a seed draws fit() orders from
 
@@ -144,7 +135,7 @@ class SOM(nn.Module):
     @torch.no_grad()
     def fit(self, patterns: torch.Tensor, iterations: int | None = None, labels: torch.Tensor | None = None,
             generators: Sequence[torch.Generator] | None = None, order: torch.Tensor | None = None,
-            method: str = "auto", progress: bool = False) -> torch.Tensor:
+            method: str = "auto", progress: bool = False, parts: Sequence[int] | None = None) -> torch.Tensor:
         """Train on ``patterns`` (``(N, in)`` shared, or ``(P, N, in)`` per participant).
 
         Each iteration every participant draws one pattern at random (its own generator, or the
@@ -157,8 +148,8 @@ class SOM(nn.Module):
         pattern order is drawn (or taken from ``order``) and returned, ``(P, iterations)`` pattern
         indices, not winners.
         """
-        if method not in ("auto", "online", "factored", "windowed"):
-            raise ValueError(f"method must be 'auto', 'online', 'factored' or 'windowed', got {method!r}")
+        if method != "auto" and method not in TRAINERS:
+            raise ValueError(f"method must be 'auto' or one of {sorted(TRAINERS)}, got {method!r}")
         check_tensor("patterns", patterns, (self.n_in,))
         P = self.participants
         X = patterns.to(self.weight.dtype)
@@ -190,24 +181,19 @@ class SOM(nn.Module):
             raise ValueError(f"order must have shape ({P}, {T}), got {tuple(order.shape)}")
         if not self.training:
             return order
-        if method == "auto":
-            fast = N < self.n_in and max(self.rule.eta0, self.rule.eta1) < 1 and dev.type != "meta"
-            method = "factored" if fast else "online"
-        if method in ("factored", "windowed") and dev.type == "meta":
-            raise ValueError(f"method={method!r} needs the weights' values; on the meta device use 'online'")
-        if method == "factored" and max(self.rule.eta0, self.rule.eta1) >= 1:
-            raise ValueError("method='factored' needs learning rates below 1 (a unit may not jump onto a pattern)")
+        trainer = choose(self, X, labels, method, {"parts": parts})
         it = range(T)
         if progress:
             from tqdm.auto import tqdm
 
             it = tqdm(it, desc=f"SOM {self.name}", leave=False)
-        if method == "windowed":
-            if labels is not None:
-                raise ValueError("method='windowed' trains unsupervised maps; use 'factored' with labels")
-            return fit_windowed(self, X, order)
-        fn = self._fit_factored if method == "factored" else self._fit_online
-        return fn(X, order, labels, it)
+        winners = trainer.fit(self, X, order, labels, it, parts=parts)
+        if monitor.active():  # the trained map's final state, at its own step count
+            tag = f"train/som/{self.name or 'som'}"
+            monitor.record(f"{tag}/quantisation_error_final", self.quantization_error(X).mean(), int(self.steps))
+            if self.units > 1:
+                monitor.record(f"{tag}/topographic_error_final", self.topographic_error(X).mean(), int(self.steps))
+        return winners
 
     def _order_generators(self) -> list[torch.Generator]:
         if self.order_generators is None:
@@ -216,81 +202,6 @@ class SOM(nn.Module):
                                  "(one per participant) or an explicit order")
             self.order_generators = seeding.participant_generators(self.seed, self.participants, ORDER_STREAM)
         return self.order_generators
-
-    def _fit_online(self, X, order, labels, it) -> torch.Tensor:
-        P = self.participants
-        p = torch.arange(P, device=order.device)
-        winners = torch.empty_like(order)
-        for t in it:
-            s = order[:, t]
-            x = X[p, s]
-            w = None if labels is None else labels[p, s]
-            winners[:, t] = self.step(x, w)
-        return winners
-
-    def _fit_factored(self, X, order, labels, it) -> torch.Tensor:
-        """Exact online training without touching the weights (see the module docstring).
-
-        Invariants, per participant and unit ``k`` (``W0`` the initial weights, ``x_n`` the patterns;
-        ``Q`` and ``R`` are stored pattern-major):
-        ``w_k = c_k (W0_k + sum_m R_km x_m)`` and ``w_k . x_n = c_k Q_kn`` with
-        ``Q_kn = W0_k . x_n + sum_m R_km G_mn``, ``G = X X^T``. A step with rate ``a_k`` toward
-        ``x_s`` sets ``c_k <- (1 - a_k) c_k``, ``R_ks += a_k / c_k``, ``Q_k += (a_k / c_k) G_s``: only the
-        units inside the neighbourhood (``a_k > 0``) are touched. Norms ``|w_k|^2`` are updated in
-        closed form; a unit-sum normalisation (supervised maps) only rescales ``c_k``.
-        """
-        P, N, _ = X.shape
-        p = torch.arange(P, device=X.device)
-        dt = torch.float64  # the recurrences are exact in real arithmetic; float64 keeps them so
-        W0 = self.weight
-        # pattern-major layouts, so that the column of pattern s is one contiguous row
-        G = torch.bmm(X, X.transpose(1, 2)).to(dt)  # (P, N, N)
-        Q = torch.bmm(X, W0.transpose(1, 2)).to(dt)  # (P, N, U)   Q[n, k] = W0_k . x_n (+ sum_m R_km G_mn)
-        R = X.new_zeros(P, N, self.units, dtype=dt)  # R[n, k] = R_kn
-        nrm = (W0 * W0).sum(-1).to(dt)  # (P, U)
-        c = X.new_ones(P, self.units, dtype=dt)
-        rowsum = W0.sum(-1).to(dt)
-        xsum = X.sum(-1).to(dt)  # (P, N)
-        grid = self.grid.to(dt)
-        normalise = isinstance(self.rule, SupervisedKohonen) and self.rule.normalise
-        winners = torch.empty_like(order)
-        t0 = int(self.steps)
-        for t in it:
-            s = order[:, t]
-            Gs = G[p, s]  # (P, N)
-            Ds = c * Q[p, s]  # (P, U)  w_k . x_s
-            win = (nrm - 2 * Ds).argmin(-1) if labels is None else labels[p, s]
-            winners[:, t] = win
-            eta, sigma = self.rule.schedule(t0 + t)
-            a = float(eta) * self.rule.neighbourhood(grid, win, sigma.to(dt))  # (P, U)
-            b = 1 - a
-            nrm = b * b * nrm + 2 * a * b * Ds + a * a * Gs[p, s].unsqueeze(-1)
-            c = b * c
-            on = (a > 0).any(0).nonzero()  # units inside any participant's neighbourhood
-            lo, hi = int(on[0]), int(on[-1]) + 1  # a contiguous span of units: updated in place as a view
-            u = a[:, lo:hi] / c[:, lo:hi]  # (P, k), zero outside the neighbourhoods
-            Q[:, :, lo:hi].baddbmm_(Gs.unsqueeze(-1), u.unsqueeze(1))
-            R[p, s, lo:hi] += u
-            if normalise:
-                rowsum = b * rowsum + a * xsum[p, s].unsqueeze(-1)
-                k = 1.0 / rowsum.clamp_min(1e-300)
-                nrm = nrm * k * k
-                c = c * k
-                rowsum = torch.ones_like(rowsum)
-            small = c < 1e-12  # fold tiny scales back in before they cost precision
-            if bool(small.any()):
-                pi, ki = small.nonzero(as_tuple=True)
-                Q[pi, :, ki] *= c[pi, ki].unsqueeze(-1)
-                R[pi, :, ki] *= c[pi, ki].unsqueeze(-1)
-                c_fold = torch.ones_like(c)
-                c_fold[pi, ki] = c[pi, ki]
-                W0 = W0 * c_fold.unsqueeze(-1).to(W0.dtype)
-                c[pi, ki] = 1.0
-        # w_k = c_k W0_k + sum_n (c_k R_kn) x_n, formed once (the scaled coefficients are O(1))
-        cR = (R * c.unsqueeze(1)).to(X.dtype)  # (P, N, U)
-        self.weight.copy_(c.unsqueeze(-1).to(W0.dtype) * W0 + torch.bmm(cR.transpose(1, 2), X))
-        self.steps += order.shape[1]
-        return winners
 
     def quantization_error(self, patterns: torch.Tensor) -> torch.Tensor:
         """Mean distance of each participant's patterns to their BMU prototype -> ``(P,)``."""

@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 
 from neuroimagery.vision.edges import principal_axis
-from neuroimagery.vision.shapes import _CELL, Shape
+from neuroimagery.vision.shapes import CELL, Shape
 from neuroimagery.vision.stimulus_sets import StimulusSet, get_stimulus_set, list_stimulus_sets
 
 __all__ = [
@@ -191,10 +191,10 @@ def shape_cells(shape: Shape) -> Optional[np.ndarray]:
     """The cell grid (bool) of a shape drawn from a polyomino grid, or None for other shapes."""
     m = shape.mask[_PAD:-_PAD, _PAD:-_PAD]
     h, w = m.shape
-    if h % _CELL or w % _CELL or shape.mask.shape != (h + 2 * _PAD, w + 2 * _PAD):
+    if h % CELL or w % CELL or shape.mask.shape != (h + 2 * _PAD, w + 2 * _PAD):
         return None
-    cells = m[_CELL // 2::_CELL, _CELL // 2::_CELL].astype(bool)
-    return cells if np.array_equal(np.kron(cells, np.ones((_CELL, _CELL), bool)), m > 0) else None
+    cells = m[CELL // 2::CELL, CELL // 2::CELL].astype(bool)
+    return cells if np.array_equal(np.kron(cells, np.ones((CELL, CELL), bool)), m > 0) else None
 
 
 def near_copy_distance(a: np.ndarray, b: np.ndarray) -> int:

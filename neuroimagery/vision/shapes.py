@@ -29,11 +29,11 @@ CANVAS = 128  # default side in pixels of a one-object image
 RADIUS_FRACTION = 0.40  # farthest shape point from its centroid, as a fraction of the side
 RED_BGR = (40, 40, 210)  # shape colour (BGR)
 BACKGROUND_BGR = (225, 225, 225)  # light grey background (BGR)
-_CELL = 48  # pixels per polyomino cell in the stored mask
+CELL = 48  # pixels per polyomino cell in the stored mask
 _MIN_WORK = 384  # shapes are warped at >= this resolution, then area-averaged to the canvas
 
 
-def grid_mask(grid: str, cell: int = _CELL) -> np.ndarray:
+def grid_mask(grid: str, cell: int = CELL) -> np.ndarray:
     """Binary mask (uint8 0/1) of a polyomino written row by row, rows separated by '/'.
 
     '#' is a filled cell, '.' an empty one; the first row is the top of the shape.

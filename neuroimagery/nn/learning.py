@@ -1,0 +1,154 @@
+"""Registered implementations of a rule applied over a training sequence
+(``Connection.learn(..., sequence=True)``).
+
+A sequence is ``T`` presentations applied one after the other, ``batch`` patterns at a time, each
+group evaluated at the weights the previous group left (``batch=1``: the online rule of the
+thesis). The plain implementation does exactly that, calling :meth:`Connection.learn` once per
+group. Faster implementations of the same arithmetic are registered here, as a simulator's builder
+keeps several kernels for one rule, and the connection picks the first whose ``applies`` accepts
+the rule and the inputs' shape and sparsity (``method='auto'``); ``method='plain'`` forces the
+step-by-step form. Each fast one is tested against the plain one (``tests/test_learning.py``).
+
+Registered here (their modules register them on import):
+
+* ``hebbian_shared`` (:mod:`.hebbian_closed_form`): outstar Hebbian, one pattern per step, the
+  same sequence for every participant (2-D ``pre`` and ``post``): the closed form of the whole
+  sequence as a few matrix products;
+* ``hebbian_indexed`` (:mod:`.hebbian_closed_form`): outstar Hebbian, one pattern per step, the
+  outputs drawn from a small set (``post`` an :class:`IndexedRows`): the same closed form, summed
+  per output pattern;
+* ``delta_binary`` (:mod:`.binary_delta`): the delta rule on 0/1 inputs in mini-batches on the
+  CPU, touching only the weight columns of the active inputs.
+
+A kernel may leave what it formed the weights from in ``conn.learnt_factors`` (a dict with a
+``kind``), which compact checkpoints store instead of the weights; the plain form leaves ``None``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import torch
+
+from . import monitor
+
+
+class IndexedRows:
+    """A sequence of rows drawn from a small set: row ``t`` of participant ``p`` is
+    ``table[index[p, t]]`` (``table`` ``(K, n)``, shared) or ``table[p, index[p, t]]`` (``table``
+    ``(P, K, n)``, per participant). ``index`` ``(P, T)``. Kernels use the set; the plain form
+    gathers the rows."""
+
+    def __init__(self, table: torch.Tensor, index: torch.Tensor) -> None:
+        if table.dim() not in (2, 3) or index.dim() != 2:
+            raise ValueError(f"IndexedRows: table (K, n) or (P, K, n) and index (P, T), got {tuple(table.shape)}, "
+                             f"{tuple(index.shape)}")
+        if table.dim() == 3 and table.shape[0] != index.shape[0]:
+            raise ValueError(f"IndexedRows: table of {table.shape[0]} participants, index of {index.shape[0]}")
+        self.table, self.index = table, index.long()
+
+    shared = property(lambda self: self.table.dim() == 2)
+    width = property(lambda self: self.table.shape[-1])
+    length = property(lambda self: self.index.shape[1])
+    participants = property(lambda self: self.index.shape[0])
+
+    def of(self, p: int) -> torch.Tensor:
+        """Participant ``p``'s sequence ``(T, n)``."""
+        return self.table[self.index[p]] if self.shared else self.table[p, self.index[p]]
+
+    def rows(self, lo: int, hi: int) -> torch.Tensor:
+        """Steps ``lo..hi`` of every participant ``(P, hi - lo, n)``."""
+        idx = self.index[:, lo:hi]
+        if self.shared:
+            return self.table[idx]
+        return self.table[torch.arange(self.participants).unsqueeze(1), idx]
+
+
+def length(x) -> int:
+    """Number of steps of a sequence: ``(T, n)``, ``(P, T, n)`` or :class:`IndexedRows`."""
+    return x.length if isinstance(x, IndexedRows) else x.shape[-2]
+
+
+def rows(x, lo: int, hi: int, P: int) -> torch.Tensor:
+    """Steps ``lo..hi`` of a sequence for ``P`` participants ``(P, hi - lo, n)``."""
+    if isinstance(x, IndexedRows):
+        return x.rows(lo, hi)
+    return x[lo:hi].expand(P, -1, -1) if x.dim() == 2 else x[:, lo:hi]
+
+
+@dataclass(frozen=True)
+class Kernel:
+    """``applies(conn, rule, pre, post, batch, kw) -> bool``; ``run(conn, rule, pre, post, batch,
+    progress, kw) -> factors dict | None`` trains ``conn`` in place."""
+
+    name: str
+    applies: Callable
+    run: Callable
+
+
+KERNELS: dict[str, Kernel] = {}
+
+
+def register(kernel: Kernel) -> Kernel:
+    """Add ``kernel`` (replacing one of the same name); ``auto`` tries them in registration order."""
+    KERNELS[kernel.name] = kernel
+    return kernel
+
+
+def error_curve(conn) -> str:
+    """The tag of a connection's training curve of squared errors (:mod:`.monitor`)."""
+    return f"train/{conn.name or 'connection'}/squared_error"
+
+
+def run_plain(conn, pre, post, batch: int, progress=None, **kw) -> None:
+    """The plain form: :meth:`Connection.learn` once per group of ``batch`` steps, in order; a rule
+    that reads the actual output (``Delta``, with no ``post``) gets the connection's output at
+    the current weights. With a ``target`` and a reader listening (:mod:`.monitor`), each group's
+    squared error before its change is the connection's training curve."""
+    P, T = conn.participants, length(pre)
+    starts = range(0, T, batch)
+    watch = monitor.Curve(error_curve(conn), len(starts)) if "target" in kw and monitor.active() else None
+    for b, s in enumerate(progress(starts) if progress is not None else starts):
+        x = rows(pre, s, s + batch, P)
+        y = rows(post, s, s + batch, P) if post is not None else conn(x)
+        extra = {k: rows(v, s, s + batch, P) if k == "target" else v for k, v in kw.items()}
+        if watch is not None:
+            watch.add(b, (extra["target"] - y).pow(2).sum(-1).mean())
+        conn.learn(x, y, **extra)
+
+
+def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", progress=None, **kw) -> None:
+    """Train ``conn`` on a sequence (see the module docstring); ``progress`` optionally wraps the
+    iterable of steps (e.g. a progress bar)."""
+    if int(batch) < 1:
+        raise ValueError(f"batch must be >= 1, got {batch}")
+    P = conn.participants
+    for name, x in (("pre", pre), ("post", post), ("target", kw.get("target"))):
+        if x is None:
+            continue
+        if isinstance(x, IndexedRows):
+            if x.participants != P:
+                raise ValueError(f"{name}: {x.participants} participants for a connection of {P}")
+        elif x.dim() not in (2, 3) or (x.dim() == 3 and x.shape[0] != P):
+            raise ValueError(f"{name} must be (T, n) or ({P}, T, n), got {tuple(x.shape)}")
+    T = length(pre)
+    if any(x is not None and length(x) != T for x in (post, kw.get("target"))):
+        raise ValueError("pre, post and target must have the same number of steps")
+    conn.learnt_factors = None
+    if method == "plain":
+        return run_plain(conn, pre, post, int(batch), progress, **kw)
+    if method != "auto" and method not in KERNELS:
+        raise ValueError(f"method must be 'auto', 'plain' or one of {sorted(KERNELS)}, got {method!r}")
+    names = list(KERNELS) if method == "auto" else [method]
+    rule = conn.rules[0] if len(conn.rules) == 1 else None
+    for name in names:
+        k = KERNELS[name]
+        if rule is not None and k.applies(conn, rule, pre, post, int(batch), kw):
+            conn.learnt_factors = k.run(conn, rule, pre, post, int(batch), progress, kw)
+            return None
+        if method != "auto":
+            raise ValueError(f"method={method!r} does not apply to this rule or these inputs")
+    return run_plain(conn, pre, post, int(batch), progress, **kw)
+
+
+from . import binary_delta, hebbian_closed_form  # noqa: E402,F401  (they register their kernels)

@@ -1,0 +1,87 @@
+"""The factored form of online Kohonen training (``SOM.fit(method='factored')``): the same
+sequence of steps as the plain rule (eq. 4.5; supervised eq. 6.7-6.8), without touching the
+weights while training.
+
+Every weight vector stays a scaled combination ``w_k = c_k (w0_k + sum_n R_kn x_n)`` of its
+initial value and the ``N`` training patterns, so the step ``w_k <- (1 - a_k) w_k + a_k x_s``
+only rescales ``c_k`` and adds to ``R_ks``; distances come from maintained dot products with the
+patterns and closed-form norms. A step costs ``(units in the neighbourhood) x N``, independent of
+the input size, and the weights are formed once at the end. Same sequence of winners, same
+weights up to float rounding (``tests/test_som.py`` checks both against the plain rule).
+"""
+from __future__ import annotations
+
+import torch
+
+from .rules import SupervisedKohonen
+from .som_trainers import curve
+
+
+@torch.no_grad()
+def fit_factored(som, X: torch.Tensor, order: torch.Tensor, labels: torch.Tensor | None, it) -> torch.Tensor:
+    """Train ``som`` on ``X`` ``(P, N, in)`` in the pattern ``order`` ``(P, T)`` (forced winners
+    ``labels`` ``(P, N)`` or None), stepping through ``it``; returns the winners ``(P, T)``.
+
+    Invariants, per participant and unit ``k`` (``W0`` the initial weights, ``x_n`` the patterns;
+    ``Q`` and ``R`` are stored pattern-major):
+    ``w_k = c_k (W0_k + sum_m R_km x_m)`` and ``w_k . x_n = c_k Q_kn`` with
+    ``Q_kn = W0_k . x_n + sum_m R_km G_mn``, ``G = X X^T``. A step with rate ``a_k`` toward
+    ``x_s`` sets ``c_k <- (1 - a_k) c_k``, ``R_ks += a_k / c_k``, ``Q_k += (a_k / c_k) G_s``: only the
+    units inside the neighbourhood (``a_k > 0``) are touched. Norms ``|w_k|^2`` are updated in
+    closed form; a unit-sum normalisation (supervised maps) only rescales ``c_k``.
+    """
+    P, N, _ = X.shape
+    p = torch.arange(P, device=X.device)
+    dt = torch.float64  # the recurrences are exact in real arithmetic; float64 keeps them so
+    W0 = som.weight
+    # pattern-major layouts, so that the column of pattern s is one contiguous row
+    G = torch.bmm(X, X.transpose(1, 2)).to(dt)  # (P, N, N)
+    Q = torch.bmm(X, W0.transpose(1, 2)).to(dt)  # (P, N, U)   Q[n, k] = W0_k . x_n (+ sum_m R_km G_mn)
+    R = X.new_zeros(P, N, som.units, dtype=dt)  # R[n, k] = R_kn
+    nrm = (W0 * W0).sum(-1).to(dt)  # (P, U)
+    c = X.new_ones(P, som.units, dtype=dt)
+    rowsum = W0.sum(-1).to(dt)
+    xsum = X.sum(-1).to(dt)  # (P, N)
+    grid = som.grid.to(dt)
+    normalise = isinstance(som.rule, SupervisedKohonen) and som.rule.normalise
+    winners = torch.empty_like(order)
+    t0 = int(som.steps)
+    watch = curve(som, order.shape[1])
+    for t in it:
+        s = order[:, t]
+        Gs = G[p, s]  # (P, N)
+        Ds = c * Q[p, s]  # (P, U)  w_k . x_s
+        win = (nrm - 2 * Ds).argmin(-1) if labels is None else labels[p, s]
+        winners[:, t] = win
+        if watch is not None:  # |w_win - x_s| from the invariants
+            watch.add(t, (nrm[p, win] - 2 * Ds[p, win] + Gs[p, s]).clamp_min(0).sqrt().mean())
+        eta, sigma = som.rule.schedule(t0 + t)
+        a = float(eta) * som.rule.neighbourhood(grid, win, sigma.to(dt))  # (P, U)
+        b = 1 - a
+        nrm = b * b * nrm + 2 * a * b * Ds + a * a * Gs[p, s].unsqueeze(-1)
+        c = b * c
+        on = (a > 0).any(0).nonzero()  # units inside any participant's neighbourhood
+        lo, hi = int(on[0]), int(on[-1]) + 1  # a contiguous span of units: updated in place as a view
+        u = a[:, lo:hi] / c[:, lo:hi]  # (P, k), zero outside the neighbourhoods
+        Q[:, :, lo:hi].baddbmm_(Gs.unsqueeze(-1), u.unsqueeze(1))
+        R[p, s, lo:hi] += u
+        if normalise:
+            rowsum = b * rowsum + a * xsum[p, s].unsqueeze(-1)
+            k = 1.0 / rowsum.clamp_min(1e-300)
+            nrm = nrm * k * k
+            c = c * k
+            rowsum = torch.ones_like(rowsum)
+        small = c < 1e-12  # fold tiny scales back in before they cost precision
+        if bool(small.any()):
+            pi, ki = small.nonzero(as_tuple=True)
+            Q[pi, :, ki] *= c[pi, ki].unsqueeze(-1)
+            R[pi, :, ki] *= c[pi, ki].unsqueeze(-1)
+            c_fold = torch.ones_like(c)
+            c_fold[pi, ki] = c[pi, ki]
+            W0 = W0 * c_fold.unsqueeze(-1).to(W0.dtype)
+            c[pi, ki] = 1.0
+    # w_k = c_k W0_k + sum_n (c_k R_kn) x_n, formed once (the scaled coefficients are O(1))
+    cR = (R * c.unsqueeze(1)).to(X.dtype)  # (P, N, U)
+    som.weight.copy_(c.unsqueeze(-1).to(W0.dtype) * W0 + torch.bmm(cR.transpose(1, 2), X))
+    som.steps += order.shape[1]
+    return winners

@@ -1,0 +1,131 @@
+"""What a researcher reads: figures in the thesis's order with numbered captions, sample trials
+chosen to show rotation, statistics with the participant as the unit, and TensorBoard files."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from neuroimagery.analysis.summary import dz_interval, headline, holm, one_sample, repeated_anova
+from neuroimagery.experiments import protocol_ch6 as pc
+from neuroimagery.logger import STRIP, TensorBoardLogger
+from neuroimagery.thesis import EXP3, EXP4, FIGURES, figure_caption, figure_order, is_map_panel
+
+
+def test_sample_rows_are_a_same_and_a_mirror_pair_at_the_largest_disparity():
+    t = pd.DataFrame({"disparity": [0, 90, 180, 180, 180, 90], "same": [True, True, False, False, True, False]})
+    rows = pc.sample_rows(t, 2)
+    assert rows == [4, 2]
+    assert pc.sample_names(t, rows) == ["same_180deg", "mirror_180deg"]
+    assert pc.sample_rows(t, 3) == [4, 2, 3]
+    assert pc.sample_rows(t, 0) == []
+
+
+def test_figures_come_in_the_thesis_order_with_numbered_captions():
+    stems = ["fig6_11a_rt", "fig6_9c_correct", "fig6_10b_error", "fig6_9a_rt", "fig6_12a_recog", "fig5_5a_rt"]
+    assert sorted(stems, key=figure_order) == ["fig5_5a_rt", "fig6_9a_rt", "fig6_9c_correct", "fig6_10b_error",
+                                                "fig6_11a_rt", "fig6_12a_recog"]
+    c = figure_caption("fig6_9c_correct", 3, "Error bars: SEM over participants")
+    assert c.startswith("Figure 3. (Fig. 6.9c)") and "SEM over participants" in c and "79 %" in c
+    assert "(line 1248)" in c
+    assert is_map_panel("fig6_12a_recog") and not is_map_panel("fig6_9a_rt")
+    assert all(f.line > 0 and f.states for f in FIGURES.values())
+    # the stated values are those the reports compare with
+    assert EXP3["gen2/none error rate"].value == 0.543 and EXP4["recog/none correct rate"].value == 0.79
+
+
+def test_effect_size_interval_matches_its_large_sample_approximation():
+    rng = np.random.default_rng(0)
+    v = rng.normal(0.5, 1.0, 400)
+    d, (lo, hi) = dz_interval(v)
+    half = 1.96 * math.sqrt(1 / v.size + d * d / (2 * v.size))
+    assert lo < d < hi
+    assert lo == pytest.approx(d - half, abs=0.01) and hi == pytest.approx(d + half, abs=0.01)
+    res = one_sample(v)
+    assert res["ci95"][0] < res["mean"] < res["ci95"][1] and res["p"] < 1e-6
+
+
+def test_holm_correction_over_a_family():
+    rows = [{"p": 0.01, "expected": ">0", "value": 1.0, "holds": True},
+            {"p": 0.04, "expected": ">0", "value": 1.0, "holds": True},
+            {"p": 0.03, "expected": ">0", "value": 1.0, "holds": True}]
+    out = holm(rows)
+    assert [r["p_holm"] for r in out] == pytest.approx([0.03, 0.06, 0.06])
+    assert [r["holds"] for r in out] == [True, False, False]
+
+
+def test_repeated_measures_anova_finds_a_within_participant_effect():
+    rng = np.random.default_rng(1)
+    rows = [{"participant": p, "kind": k, "rt": 10 + 3 * (k == "b") + rng.normal(0, 0.5) + p}
+            for p in range(8) for k in ("a", "b", "c") for _ in range(4)]
+    res = repeated_anova(pd.DataFrame(rows), "kind")
+    assert res["n"] == 8 and res["df"] == [2, 14] and res["p"] < 1e-6
+
+
+def test_headline_takes_per_test_figures():
+    s = {"participants": 10, "tests": {"recog/none": {"correct_rate": 0.8, "rt_mean": 40.0, "n_trials": 5}}}
+    assert headline(s) == {"participants": 10, "recog/none/correct_rate": 0.8, "recog/none/rt_mean": 40.0}
+
+
+def _accumulate(root):
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    ea = EventAccumulator(str(root), size_guidance={"images": 0, "scalars": 0})
+    ea.Reload()
+    return ea
+
+
+def test_tensorboard_one_event_file_readable_strips_and_hparams(tmp_path):
+    for _ in range(2):  # a run rewritten into its directory
+        lg = TensorBoardLogger(tmp_path)
+        for s in range(3):
+            lg.map("sample/PMCm", torch.tensor([0.0, 1.0, 0.5]), step=s + 1)
+        lg.hparams({"seed": 0, "experiment.eta": 0.1, "experiment.sets": [1, 2]}, {"recog/correct_rate": 0.7})
+        lg.close()
+    assert len(list(tmp_path.glob("events.out.tfevents.*"))) == 1
+    ea = _accumulate(tmp_path)
+    img = ea.Images("sample/PMCm")
+    assert [e.step for e in img] == [1, 2, 3]
+    assert img[0].width % 3 == 0 and img[0].width // 3 >= STRIP and img[0].height == STRIP  # one cell per unit
+    assert {"_hparams_/experiment", "_hparams_/session_start_info"} <= set(ea.PluginTagToContent("hparams"))
+    assert [e.value for e in ea.Scalars("hparams/recog/correct_rate")] == pytest.approx([0.7])
+
+
+@pytest.mark.parametrize("method", ["online", "factored"])
+def test_som_training_curve_falls_and_reports_the_final_state(method):
+    from neuroimagery.nn import SOM, monitor
+
+    g = torch.Generator().manual_seed(0)
+    X = torch.rand(40, 16, generator=g)
+    som = SOM((6, 6), 16, participants=2, seed=1, eta=0.3, iterations=400, sigma=2.0, name="test")
+    seen = []
+    with monitor.to(lambda tag, v, step: seen.append((tag, v, step))):
+        som.fit(X, method=method)
+    curve = [(s, v) for t, v, s in seen if t == "train/som/test/winner_distance"]
+    assert len(curve) == 100 and curve[-1][0] == 400
+    assert np.mean([v for _, v in curve[-10:]]) < 0.8 * np.mean([v for _, v in curve[:10]])
+    finals = {t for t, _, s in seen if s == 400 and t.endswith("_final")}
+    assert finals == {"train/som/test/quantisation_error_final", "train/som/test/topographic_error_final"}
+    seen.clear()
+    SOM((6, 6), 16, participants=2, seed=1, iterations=50).fit(X)  # no reader: nothing measured
+    assert seen == [] and not monitor.active()
+
+
+@pytest.mark.parametrize("method", ["delta_binary", "plain"])
+def test_forward_model_training_curve_falls(method):
+    from neuroimagery.nn import AllToAll, Delta, monitor
+
+    g = torch.Generator().manual_seed(0)
+    X = (torch.rand(1, 400, 30, generator=g) < 0.2).float()
+    Y = X.roll(1, dims=-1)  # a learnable map: each unit copies its neighbour
+    conn = AllToAll(30, 30, participants=1, generators=[torch.Generator().manual_seed(1)], rules=Delta(0.1),
+                    name="C1")
+    seen = []
+    with monitor.to(lambda tag, v, step: seen.append((tag, v, step))):
+        conn.learn(X, sequence=True, batch=4, method=method, target=Y)
+    curve = [v for t, v, _ in seen if t == "train/C1/squared_error"]
+    assert len(curve) == 100
+    assert np.mean(curve[-10:]) < 0.2 * np.mean(curve[:10])
