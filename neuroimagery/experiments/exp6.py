@@ -60,6 +60,9 @@ class Exp6Config:
     eta_fm: float = 0.1  # thesis 0.1
     fm_images: int = 84000  # dot images per participant, shared at random among the 7 moves (~20 per voxel per model)
     fm_batch: int = 32  # images per delta-rule update (changes at the same weights, summed; few share a voxel)
+    # torch threads while the forward models and posture maps learn (at most the run's): their updates
+    # are many small operations, which several threads slow down (speed only)
+    train_threads: int = 1
     # --- posture maps (supervised Kohonen, eq. 6.14-6.16) -------------------------------------
     posture_angles: List[float] = field(default_factory=lambda: [float(a) for a in range(0, 181, 20)])
     eta_posture: float = 0.1  # thesis 0.1
@@ -95,7 +98,7 @@ class Exp6Config:
         for k in ("lca_k", "lca_w", "match_radius", "object_seed"):
             if getattr(self, k) < 0:
                 raise ValueError(f"experiment.{k} must be >= 0, got {getattr(self, k)!r}")
-        for k in ("train_objects", "test_objects", "fm_images", "fm_batch", "posture_iterations", "lca_cycles", "max_steps",
+        for k in ("train_objects", "test_objects", "fm_images", "fm_batch", "train_threads", "posture_iterations", "lca_cycles", "max_steps",
                   "quick_objects", "quick_fm_images"):
             if int(getattr(self, k)) < 1:
                 raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
@@ -138,7 +141,7 @@ INPUTS = ()  # the eye camera of this experiment is set by its own keys (eye, fo
 CHECKPOINTS = ("exp6",)
 TEST_KEYS = ("test_objects", "test_cubes", "test_set", "test_angles", "tests", "softmax_tau", "match_radius", "lca_k", "lca_w",
              "lca_threshold", "lca_dt", "lca_cycles", "lca_input_gain", "max_steps", "quick_objects")
-RUNTIME_KEYS = ()
+RUNTIME_KEYS = ("train_threads",)
 
 
 def ineffective_keys(cfg) -> dict[str, str]:
@@ -286,7 +289,10 @@ def train_model(cfg, ids, scene=None):
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
     n_img = e.quick_fm_images if cfg.preset == "quick" else e.fm_images
     model.train()
-    dot_training(model, gens, n_img, e.fm_batch)
+    from ..nn.functional import intra_op_threads
+
+    with intra_op_threads(e.train_threads, cap=True):
+        dot_training(model, gens, n_img, e.fm_batch)
     own = scene is None
     scene = make_scene(e) if own else scene
     try:
@@ -297,9 +303,10 @@ def train_model(cfg, ids, scene=None):
     finally:
         if own:
             scene.close()
-    for a in range(3):
-        for som in (model.c16[a], model.c17[a]):
-            som.fit(X, labels=labels[:, a], generators=gens, method="factored")
+    with intra_op_threads(e.train_threads, cap=True):
+        for a in range(3):
+            for som in (model.c16[a], model.c17[a]):
+                som.fit(X, labels=labels[:, a], generators=gens, method="factored")
     model.eval()
     model.participant_ids = list(ids)
     return model
