@@ -21,7 +21,7 @@ from .errors import UserInputError
 from .validation import check_finite
 from .vision.config import StimuliConfig, VisionConfig
 
-EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "demo")
+EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "exp6", "demo")
 # conf/hydra/launcher/submitit_*.yaml share their names with the launcher plugin's schemas, which
 # Hydra 1.3 still checks them against, with a deprecation warning; they list every key and work
 # without the schema too. Set on import: a sweep job of the submitit launcher composes its
