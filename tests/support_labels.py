@@ -34,14 +34,16 @@ def answers(df: pd.DataFrame) -> pd.DataFrame:
     return df[cols].reset_index(drop=True)
 
 
-def assert_run_tests_read_no_labels(monkeypatch, module, cfg, model) -> None:
-    """Exp. 3-4: ``module.run_tests`` on the chosen trials, then on the same trials with every label
-    column shuffled (``protocol_ch6.trial_table`` wrapped): the outputs are identical."""
-    from neuroimagery.experiments import protocol_ch6 as pc
+def assert_run_tests_read_no_labels(monkeypatch, module, cfg, model, tables=None, moved: str = "target_angle") -> None:
+    """Exp. 3-4 (and 6): ``module.run_tests`` on the chosen trials, then on the same trials with every
+    label column shuffled (``tables.trial_table`` wrapped; ``protocol_ch6`` by default): the outputs
+    are identical, while the label column ``moved`` did change."""
+    if tables is None:
+        from neuroimagery.experiments import protocol_ch6 as tables
 
     base, _, _ = module.run_tests(cfg, model)
-    original = pc.trial_table
-    monkeypatch.setattr(pc, "trial_table", lambda *a, **k: shuffle_labels(original(*a, **k), seed=7))
+    original = tables.trial_table
+    monkeypatch.setattr(tables, "trial_table", lambda *a, **k: shuffle_labels(original(*a, **k), seed=7))
     shuffled, _, _ = module.run_tests(cfg, model)
-    assert (shuffled["target_angle"].to_numpy() != base["target_angle"].to_numpy()).any()
+    assert (shuffled[moved].to_numpy() != base[moved].to_numpy()).any()
     pd.testing.assert_frame_equal(answers(shuffled), answers(base))

@@ -26,7 +26,7 @@ from neuroimagery.run import evaluate, train
 from conftest import make_cfg
 
 ROOT = Path(__file__).resolve().parents[1]
-EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "demo")
+EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "exp6", "demo")
 LIMIT_S = 10.0  # a refusal must come within seconds: these are checks, not work
 
 

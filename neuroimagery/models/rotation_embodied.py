@@ -32,17 +32,10 @@ from torch import nn
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul, binary_matmul_rows
+from .recording import sample_indices
 from .params import ForwardModelParams, PostureMapParams
 
 MOVES = ("Ml", "Ms", "Mr")
-
-
-def sample_indices(record, trials: int) -> list[int]:
-    """The trials whose maps a run returns step by step: ``record`` leading trials (an int) or the
-    given trial indices (any that exist), in the order given."""
-    if isinstance(record, int):
-        return list(range(min(record, trials)))
-    return [int(k) for k in record if 0 <= int(k) < trials]
 
 
 def triangle_weights(n: int) -> torch.Tensor:

@@ -29,7 +29,8 @@ from ..nn import AllToAll, Delta, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul
 from .params import ForwardModelParams, PostureMapParams
-from .rotation_embodied import posture_maps, sample_indices, triangle_weights
+from .recording import sample_indices
+from .rotation_embodied import posture_maps, triangle_weights
 
 MOVES = ("n1", "n2", "n3")
 
