@@ -9,7 +9,7 @@ from scipy import stats
 
 from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
-from ..analysis.summary import summarise_trials
+from ..analysis.summary import effect, holm, one_sample, slope_by_participant, summarise_trials
 from ..nn import seeding
 from . import exp6
 
@@ -40,6 +40,27 @@ def same_pair_rt(df: pd.DataFrame) -> dict:
         out[label] = {"n": int(len(d)), "rt_by_angle": {str(int(k)): round(float(v), 3) for k, v in g.items()},
                       "rt_slope_per_deg": f["slope"], "rt_intercept": f["intercept"], "rt_r": f["r"]}
     return out
+
+
+def effects(df: pd.DataFrame) -> list[dict]:
+    """Shepard & Metzler's effects, each with the participant as the unit (Holm over the family):
+    RT of correct same pairs rises with angle in each kind of rotation, the two slopes alike, and
+    the correct rate above chance."""
+    ok = df[df["same"].astype(bool) & df["correct"].astype(bool)]
+    by = {t: ok[ok["test"] == t] for t in ("picture", "depth") if (ok["test"] == t).any()}
+    rows = [effect(f"{t}: RT of correct same pairs rises with angle", ">0", slope_by_participant(d), "mean_slope")
+            for t, d in by.items()]
+    if len(by) == 2:
+        per = {t: {p: np.polyfit(g["disparity"], g["rt"], 1)[0] for p, g in d.groupby("participant")
+                   if g["disparity"].nunique() > 1} for t, d in by.items()}
+        both = sorted(set(per["picture"]) & set(per["depth"]))
+        res = one_sample([per["picture"][p] - per["depth"][p] for p in both])
+        res["diff"] = res.pop("mean")
+        rows.append(effect("slopes alike: picture plane minus depth (per participant)", "~0", res))
+    res = one_sample(df.assign(c=df["correct"].astype(float)).groupby("participant")["c"].mean() - 0.5)
+    res["diff"] = res.pop("mean")
+    rows.append(effect("correct rate above chance (rate minus 0.5)", ">0", res))
+    return holm(rows)
 
 
 def headline(tests: dict, df: pd.DataFrame) -> dict:
@@ -106,7 +127,7 @@ def evaluate(cfg, run, trained) -> dict:
     side = trained.side
     summary = {"experiment": "exp6", "participants": int(df["participant"].nunique()), "tests": tests,
                "targets": {k: {"rt_r": HUMAN["rt_r"]} for k in tests},  # Shepard & Metzler's r, each kind of rotation
-               "headline": headline(tests, df), "human": HUMAN, "goals": GOALS,
+               "headline": headline(tests, df), "effects": effects(df), "human": HUMAN, "goals": GOALS,
                "forward_model_overlap": forward_model_overlap(trained, cfg.seed),
                "grid": {"side": side, "receptive_radius": trained.radius, "offsets": trained.fm[0].K,
                         "cube_voxels": round(exp6.cube_voxels(e, side), 4),
@@ -213,6 +234,8 @@ def report(cfg, run, summary) -> None:
              ["r >= 0.9 in both conditions", str(h["rt_r"]), ">= 0.9", g["rt_r_at_least_0.9"]],
              ["same pairs answered 'same'", f"{100 * h['same_yes_rate']:.1f} %", "-", "-"],
              ["trials decided within 20 steps", f"{100 * h['decided_rate']:.1f} %", "-", "-"]])
+    r.h("Effects, the participant as the unit")
+    r.effects(summary.get("effects", []))
     r.h("All tests")
     r.table(["test", "trials", "correct", "rotated to the target", "RT mean", "RT slope/deg (all)", "rt_r (all)", "mirror 'different'"],
             [[k, v["n_trials"], f"{100 * v['correct_rate']:.1f} %", f"{100 * v['rotation_success_rate']:.1f} %",
