@@ -129,6 +129,9 @@ def test_forward_model_training_curve_falls(method):
     curve = [v for t, v, _ in seen if t == "train/C1/squared_error"]
     assert len(curve) == 100
     assert np.mean(curve[-10:]) < 0.2 * np.mean(curve[:10])
+    final = {t: (v, s) for t, v, s in seen if t.endswith("_final")}
+    assert final["train/C1/weight_max_final"] == (pytest.approx(float(conn.weight.max())), 400)
+    assert final["train/C1/weight_norm_final"][0] == pytest.approx(float(conn.weight[0].norm()))
 
 
 def _robots(rise: float, planning_gap: float, seed: int = 0) -> pd.DataFrame:

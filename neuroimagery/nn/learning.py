@@ -135,6 +135,14 @@ def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", p
     if any(x is not None and length(x) != T for x in (post, kw.get("target"))):
         raise ValueError("pre, post and target must have the same number of steps")
     conn.learnt_factors = None
+    _learn(conn, pre, post, batch, method, progress, kw)
+    if monitor.active():  # the final state of every implementation, closed forms included
+        w = conn.weight.detach()
+        monitor.record(f"train/{conn.name or 'connection'}/weight_norm_final", w.flatten(1).norm(dim=1).mean(), T)
+        monitor.record(f"train/{conn.name or 'connection'}/weight_max_final", w.amax(), T)
+
+
+def _learn(conn, pre, post, batch, method, progress, kw) -> None:
     if method == "plain":
         return run_plain(conn, pre, post, int(batch), progress, **kw)
     if method != "auto" and method not in KERNELS:
