@@ -193,9 +193,10 @@ class Rotation3D(nn.Module):
                 hit = (q == k).nonzero()
                 if hit.numel():
                     i = int(hit[0])
-                    hist[k].append({"PFCt": pfct[k], "PFCft": pfcft[k], "POCi": poci[i], "POCp": pocp[i],
-                                    "PFCtm": tm[i], "PFCfm": fm[i], "PMCm": torch.nn.functional.one_hot(move[i], len(MOVES)).float(),
-                                    "PMCd": dec.state[i].clone()})
+                    maps = {"PFCt": pfct[k], "PFCft": pfcft[k], "POCi": poci[i], "POCp": pocp[i], "PFCtm": tm[i],
+                            "PFCfm": fm[i], "PMCm": torch.nn.functional.one_hot(move[i], len(MOVES)).float(),
+                            "PMCd": dec.state[i]}
+                    hist[k].append({n: m.clone() for n, m in maps.items()})  # a view would pin the batch's step
             keep = ~dec.decided
             q, poci, y = q[keep], pocp[keep], dec.state[keep]
             if q.numel() == 0:

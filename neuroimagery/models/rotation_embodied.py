@@ -479,9 +479,11 @@ class RotationEmbodied(nn.Module):
         return outs
 
     def _snapshot(self, pfct, pfcft, poci, pocp, ppct, ppcp, move, tm, fm, y) -> dict:
-        v = lambda x: x.view(self.size, self.size)
+        """One step of a sample trial's maps, copied: a view would keep the whole batch's tensor
+        of that step alive for the rest of the run."""
+        v = lambda x: x.reshape(self.size, self.size).clone()  # noqa: E731
         nu = ppct.shape[-1]
-        return {"PFCt": v(pfct), "PFCft": v(pfcft), "POCi": v(poci), "POCp": v(pocp), "PPCt": ppct,
+        return {"PFCt": v(pfct), "PFCft": v(pfcft), "POCi": v(poci), "POCp": v(pocp), "PPCt": ppct.clone(),
                 "PPCp": torch.zeros(nu), "PPCc": torch.zeros(nu, nu),
                 "PMCm": torch.nn.functional.one_hot(move, 3).float(), "PFCtm": v(tm), "PFCfm": v(fm), "PMCd": y.clone()}
 
@@ -492,4 +494,4 @@ class RotationEmbodied(nn.Module):
             hit = (qc == qq).nonzero()
             if hit.numel() and history[k]:
                 i = int(hit[0])
-                history[k][-1]["PPCp"], history[k][-1]["PPCc"] = ppcp[i], ppcc[i]
+                history[k][-1]["PPCp"], history[k][-1]["PPCc"] = ppcp[i].clone(), ppcc[i].clone()

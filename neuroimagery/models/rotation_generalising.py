@@ -259,9 +259,10 @@ class RotationGeneralising(nn.Module):
             new = self.forward_step(pp2, move, go)
             for j, k in enumerate(shown):
                 if bool(act[0, k]):
-                    history[j].append({"PFC_1": pfc1[0, k].view(self.size, self.size), "PP_2": pp2[0, k].view(self.size, self.size),
-                                       "SS": ss[0, k], "PMC_1": pmc1[0, k], "M1_1": m11[0, k].view(nu, nu), "M1_2": m12[0, k],
-                                       "PFC_2": self.uncovered(pfc1[0, k], pp2[0, k]).view(self.size, self.size)})
+                    maps = {"PFC_1": pfc1[0, k].view(self.size, self.size), "PP_2": pp2[0, k].view(self.size, self.size),
+                            "SS": ss[0, k], "PMC_1": pmc1[0, k], "M1_1": m11[0, k].view(nu, nu), "M1_2": m12[0, k],
+                            "PFC_2": self.uncovered(pfc1[0, k], pp2[0, k]).view(self.size, self.size)}
+                    history[j].append({n: m.clone() for n, m in maps.items()})  # a view would pin the batch
             angle = angle + torch.where(go, step_deg[move], torch.zeros(()))
             rotations = rotations + go.long()
             pp2 = new
