@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-import torch
 
 from ..analysis import figures
 from ..analysis.report import Report
@@ -21,7 +20,7 @@ from ..analysis.summary import effect, holm, slope_by_participant, summarise_tri
 from ..thesis import EXP1 as THESIS
 from ..models.params import FieldParams, SomParams, moved_keys
 from ..models.rotation_affordance import AffordanceParams, AffordanceRotationModel
-from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of, pearson,
+from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of,
                            record_figures_and_scalars, stimulus_set,
                            to_np, train_and_save, trials_frame)
 
