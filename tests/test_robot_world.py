@@ -19,20 +19,7 @@ def world():
 
 def _line(world, posture, head_target_delta, T=150):
     """Joint trajectory from the posture whose rake head moves by ``head_target_delta`` (small IK)."""
-    q0 = world.initial_posture(posture)
-    start = world.kin.rake_head_position(q0)
-    target = start + torch.tensor(head_target_delta)
-    q = q0.clone().requires_grad_(True)
-    opt = torch.optim.Adam([q], lr=0.01)
-    for _ in range(300):
-        opt.zero_grad()
-        loss = ((world.kin.rake_head_position(world.kin.clamp(q)) - target) ** 2).sum()
-        loss.backward()
-        opt.step()
-    q1 = world.kin.clamp(q.detach())
-    s = torch.linspace(0, 1, T).unsqueeze(1)
-    s = 3 * s**2 - 2 * s**3
-    return (q0 + s * (q1 - q0)).unsqueeze(0)
+    return _line_from(world, world.initial_posture(posture), head_target_delta, T)
 
 
 def _path(world, posture, deltas, T=60):
@@ -47,6 +34,7 @@ def _path(world, posture, deltas, T=60):
 
 
 def _line_from(world, q0, delta, T):
+    """Joint trajectory from joint angles ``q0`` whose rake head moves by ``delta`` (small IK)."""
     start = world.kin.rake_head_position(q0)
     target = start + torch.tensor(delta)
     q = q0.clone().requires_grad_(True)
