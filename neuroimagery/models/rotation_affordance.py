@@ -32,6 +32,7 @@ from torch import nn
 
 from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators, seeding
 from ..nn.functional import intra_op_threads
+from ..nn.row_cache import RowCache, distinct_rows
 from ..nn.som_windowed import windowed_factors
 from .factor_checkpoint import FactorCheckpoint
 from .params import FieldParams, SomParams
@@ -174,9 +175,10 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
 
     # ------------------------------------------------------------------ a trial
     @torch.no_grad()
-    def select_posture(self, pc: torch.Tensor):
-        """C1 then the competition in PMC_1: winning (row, column), cycles, PMC_1 net input."""
-        s = self.c1.net(pc)  # (P, B, 3255)
+    def select_posture(self, pc: torch.Tensor | None = None, net: torch.Tensor | None = None):
+        """C1 then the competition in PMC_1: winning (row, column), cycles, PMC_1 net input.
+        ``net``: C1's net input ``(P, B, 3255)`` of ``pc`` when the caller has it already."""
+        s = self.c1.net(pc) if net is None else net  # (P, B, 3255)
         s = s / s.amax(-1, keepdim=True).clamp_min(1e-9)
         grid = s.reshape(*s.shape[:-1], 31, 105)
         prof = grid.amax(-2) ** self.e.sharpen  # wrist-angle profile
@@ -207,22 +209,25 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         live = torch.ones(P, B, dtype=torch.bool)
         ok = torch.zeros(P, B, dtype=torch.bool)
         frames = [[] for _ in range(record)]
-        col_angle = self.pmc1.coords[:105, 1]
+        # the forward model's image and C1's net input on it depend only on (participant, winning
+        # cluster): computed once per distinct winner (RowCache) and looked up
+        forward = RowCache(P, self.pmc1.n, self._forward_step)
+        net = distinct_rows(self.c1.net, pc)  # C1's net input of the current images
         for _ in range(e.max_cycles):
-            row, col, cyc, s = self.select_posture(pc)
+            row, col, cyc, s = self.select_posture(net=net)
             rt += torch.where(live, cyc, torch.zeros_like(cyc))
-            centred = col_angle[col].abs() <= e.centre_tolerance_deg
+            centred = self.pmc1.coords[col, 1].abs() <= e.centre_tolerance_deg
             ok |= live & centred
-            cluster = self.pmc1.flat(self.pmc1.encode(torch.stack([self.pmc1.coords[row * 105, 0], col_angle[col]], -1)))
-            for k in range(record):
-                frames[k].append({"PC": pc[0, k].reshape(32, 32).clone(), "PMC_1": cluster[0, k].reshape(31, 105).clone()})
+            if record:
+                cluster = self._cluster(row[:1, :record] * 105 + col[:1, :record])
+                for k in range(record):
+                    frames[k].append({"PC": pc[0, k].reshape(32, 32).clone(), "PMC_1": cluster[0, k].reshape(31, 105).clone()})
             live = live & ~centred
             if not live.any():
                 break
-            img = self.c2.net(cluster)  # the forward model: this cycle's image update
-            img = img / img.amax(-1, keepdim=True).clamp_min(1e-9)
-            img = (img >= e.image_threshold).float()
+            img, img_net = forward(row * 105 + col)  # the forward model: this cycle's image update
             pc = torch.where(live.unsqueeze(-1), img, pc)
+            net = torch.where(live.unsqueeze(-1), img_net, net)
             steps += live.long()
         act, bmu = self.pfc2_activity(pc, pfc1)
         a = self.c5.net(act)
@@ -238,3 +243,17 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
             frames[k].append({"PC": pc[0, k].reshape(32, 32), "PFC_1": pfc1[0, k].reshape(32, 32),
                               "PFC_2": grid.reshape(32, 64), "PMC_2": d.state[0, k].reshape(10, 20)})
         return out
+
+    def _cluster(self, unit: torch.Tensor) -> torch.Tensor:
+        """The PMC_1 posture cluster ``(..., 3255)`` centred on each unit index of ``unit`` (the
+        object row's and the wrist column's preferred values)."""
+        c = self.pmc1.coords
+        return self.pmc1.flat(self.pmc1.encode(torch.stack([c[unit, 0], c[unit, 1]], -1)))
+
+    def _forward_step(self, unit: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """For winning PMC_1 units ``(P, L)``: C2's image of their cluster, max-normalised and
+        thresholded (the next mental image), and C1's net input of that image."""
+        img = self.c2.net(self._cluster(unit))
+        img = img / img.amax(-1, keepdim=True).clamp_min(1e-9)
+        img = (img >= self.e.image_threshold).float()
+        return img, self.c1.net(img)
