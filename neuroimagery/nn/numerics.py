@@ -15,6 +15,8 @@ case: typical differences are a few units in the last place.
 """
 from __future__ import annotations
 
+import contextlib
+
 import torch
 
 
@@ -42,3 +44,30 @@ def cast_bound(value: torch.Tensor, dtype: torch.dtype = torch.float32) -> torch
     last place of ``value`` (``eps |value|``, at least the smallest normal number)."""
     fi = torch.finfo(dtype)
     return (fi.eps * value.abs()).clamp_min(fi.tiny)
+
+
+
+def subnormals_flushed() -> bool:
+    """Whether this thread now flushes subnormal floats to zero (probed: ``1e-38 * 0.01``)."""
+    return bool(torch.tensor([1e-38]) * 0.01 == 0)
+
+
+@contextlib.contextmanager
+def flush_subnormals(on: bool = True):
+    """Run the block with subnormal floats (below ``torch.finfo(dtype).tiny``, 1.2e-38 in float32)
+    read and written as zero on this thread (the CPU's flush-to-zero / denormals-are-zero modes),
+    restoring the previous mode afterwards; yields whether the CPU has the mode.
+
+    Population codes hold Gaussian tails far below that size, and on x86 an arithmetic operation
+    with a subnormal operand or result takes a slow microcode path: a product over such codes can
+    run thirty times slower. Flushing changes only values that are themselves subnormal; a sum
+    whose terms reach the normal range keeps its bits unless one of its partial sums stays within
+    a factor ``2^24`` of the subnormal range. Torch's intra-op worker threads keep their own mode,
+    so on several threads some of those subnormal values are kept."""
+    before = subnormals_flushed()
+    supported = torch.set_flush_denormal(bool(on))
+    try:
+        yield supported
+    finally:
+        if supported:
+            torch.set_flush_denormal(before)
