@@ -123,6 +123,38 @@ def test_windowed_fit_by_pieces_and_jointly_equals_online_rule():
         fit_windowed(mk(200, 3), X, ox, parts=(100, 80))
 
 
+def test_windowed_compiled_loop_gives_the_torch_loops_bits(monkeypatch):
+    """The compiled step loop of the windowed fit (numba) does the torch loop's float64 arithmetic
+    in the same order: winners, weights and factors are the same bits, for two maps trained
+    together (pieces, a padded piece column) and with scales small enough to be folded back."""
+    from neuroimagery.nn import som_windowed_kernel as kernel
+    from neuroimagery.nn.som_windowed import fit_windowed_many, windowed_factors
+
+    if not kernel.available():
+        pytest.skip("numba is not installed: the torch loop is the only one")
+    g = torch.Generator().manual_seed(11)
+    A, B = torch.rand(4, 60, generator=g) ** 8, (torch.rand(3, 40, generator=g) > 0.6).float()
+    X = torch.cat([A.repeat_interleave(3, 0), B.repeat(4, 1)], 1)  # (12, 100): 4 x 3 pieces
+    Y = (torch.rand(9, 70, generator=g) > 0.5).float()
+    kw = dict(participants=3, eta=0.6, sigma=4.0, eta_final=0.3, sigma_final=0.8, iterations=400)
+    ox = seeding.randint(participant_generators(1, 3), 12, (400,))
+    oy = seeding.randint(participant_generators(2, 3), 9, (400,))
+    runs = []
+    for compiled in (True, False):
+        if not compiled:
+            monkeypatch.setattr(kernel, "numba", None)
+        maps = SOM((6, 7), 100, seed=3, **kw), SOM((6, 7), 70, seed=4, **kw)
+        for m in maps:
+            m.rule.cutoff = 0.01
+        win = fit_windowed_many([(maps[0], X, ox, (60, 40)), (maps[1], Y, oy, None)])
+        runs.append((win, [m.weight.clone() for m in maps], [windowed_factors(m) for m in maps]))
+    (wa, Wa, Fa), (wb, Wb, Fb) = runs
+    assert all(torch.equal(x, y) for x, y in zip(wa, wb))
+    assert all(torch.equal(x, y) for x, y in zip(Wa, Wb))
+    assert all(torch.equal(fa[k], fb[k]) for fa, fb in zip(Fa, Fb) for k in fa)
+    assert (Fa[0]["scale"] < 1e-12).any()  # below the fold threshold: some scales were folded back
+
+
 def test_windowed_weights_rebuild_from_their_factors():
     """The windowed fit keeps what it formed the weights from (scale, coefficients, patterns);
     those and the initial weights give the trained weights again, bit for bit, at a fraction of

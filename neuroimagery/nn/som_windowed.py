@@ -103,7 +103,6 @@ def fit_windowed_many(jobs) -> list[torch.Tensor]:
     N = max(X.shape[1] for X in Xs)
     K = max(Ks)
     S = max(po.shape[-1] for po in piece_ofs)
-    pi = torch.arange(P)
     # V[p, j, k] = w_k . piece_j / c_k (piece-major; one padding unit, index U, absorbs the window
     # cells that fall off the map); G[p, n, j] = x_n . piece_j on piece j's segment; gdiag = |x_n|^2
     V = torch.zeros(P, K, U + 1, dtype=dt)
@@ -137,18 +136,46 @@ def fit_windowed_many(jobs) -> list[torch.Tensor]:
     c = torch.ones(P, U + 1, dtype=dt)
     f = torch.ones(P, U + 1, dtype=dt)
     R = torch.zeros(P, U + 1, N, dtype=dt)
-    reach = float(np.sqrt(2.0 * np.log(1.0 / rule.cutoff))) if rule.cutoff > 0 else float("inf")
     o = torch.arange(-(rows - 1), rows).unsqueeze(1), torch.arange(-(cols - 1), cols).unsqueeze(0)
     offs = torch.stack(torch.broadcast_tensors(*o), -1).reshape(-1, 2)  # every grid offset
     d2_offs = (offs**2).sum(-1).double()
     offs, d2_offs = offs[d2_offs.argsort(stable=True)], d2_offs.sort(stable=True).values  # nearest first
+    winners = torch.empty_like(order)
+    from . import som_windowed_kernel as kernel
+
+    steps = kernel.run if kernel.available() else _steps_torch
+    steps(rule, int(s0.steps), V, nrm, c, f, R, G, gdiag, piece_of, order, winners, offs, d2_offs, rows, cols)
+    out, i = [], 0
+    for (som, patterns, _, _), X32 in zip(jobs, X32s):
+        W0, Nj = som.weight, X32.shape[1]
+        scales, coefs = [], []
+        for p in range(som.participants):  # w_k = c_k f_k W0_k + (c_k R_k) X: coefficients in float64, product in the weights' precision
+            coefs.append((c[i, :U, None] * R[i, :U, :Nj]).to(W0.dtype))
+            scales.append((c[i, :U] * f[i, :U]).to(W0.dtype))
+            form_windowed_weights(W0[p], scales[-1], coefs[-1], X32[p])
+            i += 1
+        som.steps += order.shape[1]
+        # what the final weights were formed from (see ``windowed_factors``); not part of the state
+        som.windowed_factors = {"scale": torch.stack(scales), "coef": torch.stack(coefs),
+                                "patterns": X32[0].clone() if patterns.dim() == 2 else X32.clone()}
+        out.append(winners[i - som.participants:i])
+    return out
+
+
+@torch.no_grad()
+def _steps_torch(rule, t0, V, nrm, c, f, R, G, gdiag, piece_of, order, winners, offs, d2_offs, rows, cols) -> None:
+    """The steps of :func:`fit_windowed_many` as tensor operations, in place on ``V``, ``nrm``,
+    ``c``, ``f``, ``R`` and ``winners`` (the compiled loop of :mod:`.som_windowed_kernel` does the
+    same arithmetic)."""
+    P, K, U1 = V.shape
+    U, N, S, dt = U1 - 1, R.shape[2], piece_of.shape[2], V.dtype
+    pi = torch.arange(P)
+    reach = float(np.sqrt(2.0 * np.log(1.0 / rule.cutoff))) if rule.cutoff > 0 else float("inf")
     R_f, nrm_f, c_f, V_rows, V_f = R.view(-1), nrm.view(-1), c.view(-1), V.view(P * K, U + 1), V.view(-1)
     # rows of V_rows holding each step's pattern pieces: (T, P, segments)
     piece_rows = (pi.view(P, 1, 1) * K + piece_of[pi.unsqueeze(1), order]).transpose(0, 1).contiguous()
     vbase = (pi.view(P, 1, 1) * K + torch.arange(K).view(1, K, 1)) * (U + 1)  # (P, K, 1) offsets of V's rows
     base = (pi * (U + 1)).unsqueeze(1)
-    winners = torch.empty_like(order)
-    t0 = int(s0.steps)
     for t in range(order.shape[1]):
         s = order[:, t]
         rows_s = piece_rows[t]  # (P, segments)
@@ -194,21 +221,6 @@ def fit_windowed_many(jobs) -> list[torch.Tensor]:
             R[pp_, uu] *= cc
             f[pp_, uu] *= cc.squeeze(-1)
             c[pp_, uu] = 1.0
-    out, i = [], 0
-    for (som, patterns, _, _), X32 in zip(jobs, X32s):
-        W0, Nj = som.weight, X32.shape[1]
-        scales, coefs = [], []
-        for p in range(som.participants):  # w_k = c_k f_k W0_k + (c_k R_k) X: coefficients in float64, product in the weights' precision
-            coefs.append((c[i, :U, None] * R[i, :U, :Nj]).to(W0.dtype))
-            scales.append((c[i, :U] * f[i, :U]).to(W0.dtype))
-            form_windowed_weights(W0[p], scales[-1], coefs[-1], X32[p])
-            i += 1
-        som.steps += order.shape[1]
-        # what the final weights were formed from (see ``windowed_factors``); not part of the state
-        som.windowed_factors = {"scale": torch.stack(scales), "coef": torch.stack(coefs),
-                                "patterns": X32[0].clone() if patterns.dim() == 2 else X32.clone()}
-        out.append(winners[i - som.participants:i])
-    return out
 
 
 WINDOWED_BLOCK = 512  # units per block of the final product (each row of a product is its own)
