@@ -49,6 +49,24 @@ def test_indexed_outstar_sequence_equals_the_plain_rule(per_participant_pre):
     _same_outcomes(a, b, pre.rows(0, T))
 
 
+@pytest.mark.parametrize("flush", [False, True])
+def test_compiled_suffix_products_are_torchs_cumulative_products(flush):
+    """The closed forms' decay products (compiled when numba is installed) are the bits of
+    ``torch.cumprod`` from the last step back, with and without subnormals flushed, also where
+    the running products underflow."""
+    from neuroimagery.nn.hebbian_closed_form import suffix_products
+    from neuroimagery.nn.numerics import flush_subnormals
+
+    g = torch.Generator().manual_seed(5)
+    keep = 1 - 0.3 * torch.cat([torch.rand(600, 40, generator=g), (torch.rand(600, 30, generator=g) > 0.5).float()], 1)
+    with flush_subnormals(flush):
+        suffix, whole = suffix_products(keep)
+        rev = torch.cumprod(torch.flip(keep, [0]), 0)
+        ref = torch.cat([torch.flip(rev, [0])[1:], torch.ones(1, 70)], 0)
+    assert torch.equal(suffix, ref) and torch.equal(whole, rev[-1])
+    assert (whole == 0).any() and (suffix[-100] > 0).all()  # products that underflow, and ones that do not yet
+
+
 def test_binary_delta_minibatches_equal_the_plain_rule():
     g = torch.Generator().manual_seed(2)
     X = (torch.rand(2, 30, 16, generator=g) > 0.7).float()

@@ -9,6 +9,7 @@ pattern (tested to ~1e-7), at a fraction of the cost.
 """
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from .learning import IndexedRows, Kernel, register
@@ -88,9 +89,8 @@ def hebbian_indexed_many(pre_of, targets, eta: float, factors: list | None = Non
     for p in range(targets[0][0].shape[0]):
         pre = pre_of(p).unsqueeze(0)  # (1, T, in)
         keep = 1.0 - eta * pre.float()
-        rev = torch.cumprod(torch.flip(keep, [1]), 1)
-        suffix = torch.cat([torch.flip(rev, [1])[:, 1:], torch.ones_like(keep[:, :1])], 1)
-        a = rev[:, -1]  # (1, in)
+        suffix, a = suffix_products(keep[0])
+        suffix, a = suffix.unsqueeze(0), a.unsqueeze(0)  # (1, T, in), (1, in)
         c = eta * pre.float() * suffix  # (1, T, in)
         _, T, n_in = pre.shape
         for out, (weight0, post_index, post_set), (ka, kc) in zip(outs, targets, kept):
@@ -104,6 +104,49 @@ def hebbian_indexed_many(pre_of, targets, eta: float, factors: list | None = Non
         factors.extend({"a": torch.cat(ka), "C": torch.cat(kc), "post_set": post_set.float().clone()}
                        for (ka, kc), (_, _, post_set) in zip(kept, targets))
     return outs
+
+
+def suffix_products(keep: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """For ``keep`` ``(T, n)`` (float32): ``S_t = prod_{s > t} keep_s`` ``(T, n)`` and the whole
+    product ``prod_s keep_s`` ``(n,)``, as ``torch.cumprod`` forms them from the last step back
+    (each running product in float64, stored in float32). Compiled with numba when it is installed
+    (one pass, every column at once; the same operations, so the same bits), torch otherwise."""
+    if _suffix_kernel() is None or keep.dtype != torch.float32 or keep.device.type != "cpu":
+        rev = torch.cumprod(torch.flip(keep, [0]), 0)
+        return torch.cat([torch.flip(rev, [0])[1:], torch.ones_like(keep[:1])], 0), rev[-1]
+    k = keep.contiguous()
+    suffix, whole = torch.empty_like(k), torch.empty(k.shape[1], dtype=k.dtype)
+    _suffix_kernel()(k.numpy(), suffix.numpy(), whole.numpy())
+    return suffix, whole
+
+
+def _suffix_loop(keep, suffix, whole):  # pragma: no cover  (compiled)
+    T, n = keep.shape
+    cum = np.ones(n, dtype=np.float64)
+    for i in range(n):
+        suffix[T - 1, i] = 1.0
+    for t in range(T - 1, 0, -1):
+        for i in range(n):
+            cum[i] *= np.float64(keep[t, i])
+            suffix[t - 1, i] = np.float32(cum[i])
+    for i in range(n):
+        cum[i] *= np.float64(keep[0, i])
+        whole[i] = np.float32(cum[i])
+
+
+_SUFFIX = []
+
+
+def _suffix_kernel():
+    """The compiled :func:`_suffix_loop`, or None without numba."""
+    if not _SUFFIX:
+        try:
+            import numba
+        except ImportError:
+            _SUFFIX.append(None)
+        else:
+            _SUFFIX.append(numba.njit(cache=True, nogil=True)(_suffix_loop))
+    return _SUFFIX[0]
 
 
 def _form_indexed(out: torch.Tensor, weight0: torch.Tensor, a: torch.Tensor, C: torch.Tensor,
