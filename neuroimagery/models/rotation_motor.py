@@ -158,14 +158,22 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         Bm = torch.einsum("pui,ki->pku", w[..., 3100:], pm)  # (P, 7, U)
         nrm = squared_norms(w).unsqueeze(1)  # (P, 1, U)
         ns, npm = (ss * ss).sum(-1), (pm * pm).sum(-1)
-        P = w.shape[0]
+        P, n_pm = w.shape[0], pm.shape[0]
         pi = torch.arange(P)
+
+        def winners(key: torch.Tensor) -> tuple[torch.Tensor]:  # key (P, L) = ss_index * 7 + des_index
+            si, di = key // n_pm, key % n_pm
+            d = nrm - 2 * (A[pi[:, None], si] + Bm[pi[:, None], di]) + (ns[si] + npm[di]).unsqueeze(-1)
+            return (d.argmin(-1),)
+
+        # each (participant, SS code, desired posture) is searched once: a row's distances and its
+        # argmin are elementwise, the same numbers in any batch
+        cache = RowCache(P, ss.shape[0] * n_pm, winners)
 
         def bmu(si: torch.Tensor, di: torch.Tensor) -> torch.Tensor:
             shp = si.shape
-            si, di = si.reshape(P, -1), di.reshape(P, -1)
-            d = nrm - 2 * (A[pi[:, None], si] + Bm[pi[:, None], di]) + (ns[si] + npm[di]).unsqueeze(-1)
-            return d.argmin(-1).reshape(shp)
+            (b,) = cache((si * n_pm + di).reshape(P, -1))
+            return b.reshape(shp)
 
         return bmu
 
