@@ -155,6 +155,29 @@ def test_windowed_compiled_loop_gives_the_torch_loops_bits(monkeypatch):
     assert (Fa[0]["scale"] < 1e-12).any()  # below the fold threshold: some scales were folded back
 
 
+def test_fit_together_gives_each_map_its_own_fit():
+    """``fit_together`` trains the windowed maps of one schedule in one loop: each map gets the
+    winners, weights and step count of its own ``SOM.fit``; a map of another implementation trains
+    alone, and one in eval mode returns its order, as ``fit`` does."""
+    from neuroimagery.nn.som import fit_together
+
+    g = torch.Generator().manual_seed(3)
+    X, Y = (torch.rand(10, 50, generator=g) > 0.5).float(), torch.rand(7, 30, generator=g)
+    kw = dict(participants=2, eta=0.3, sigma=3.0, eta_final=0.02, sigma_final=0.5, iterations=200)
+    ox = seeding.randint(participant_generators(1, 2), 10, (200,))
+    oy = seeding.randint(participant_generators(2, 2), 7, (200,))
+    mk = lambda: (SOM((8, 8), 50, seed=1, **kw), SOM((8, 8), 30, seed=2, **kw), SOM((5,), 30, seed=3, **kw))  # noqa: E731
+    fits = lambda m: [(m[0], dict(patterns=X, order=ox, method="windowed")),  # noqa: E731
+                      (m[1], dict(patterns=Y, order=oy, method="windowed")), (m[2], dict(patterns=Y, order=oy, method="online"))]
+    alone, joint = mk(), mk()
+    ref = [som.fit(**f) for som, f in fits(alone)]
+    got = fit_together(fits(joint))
+    for a, b, wa, wb in zip(alone, joint, ref, got):
+        assert torch.equal(wa, wb) and torch.equal(a.weight, b.weight) and int(a.steps) == int(b.steps) == 200
+    evald = mk()[0].eval()
+    assert torch.equal(fit_together([(evald, dict(patterns=X, order=ox, method="windowed"))])[0], ox)
+
+
 def test_windowed_weights_rebuild_from_their_factors():
     """The windowed fit keeps what it formed the weights from (scale, coefficients, patterns);
     those and the initial weights give the trained weights again, bit for bit, at a fraction of

@@ -33,6 +33,7 @@ from torch import nn
 from ..nn.learning import IndexedRows
 from ..nn.row_cache import RowCache, distinct_rows
 from ..nn.functional import squared_norms
+from ..nn.som import fit_together
 from ..nn.som_windowed import windowed_factors
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 from ..nn.functional import intra_op_threads
@@ -188,9 +189,9 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         The per-step work is small, so it runs on ``e.som.threads`` intra-op threads.
         """
         m = self.e.som.method
-        with intra_op_threads(self.e.som.threads, cap=True):
-            return [som.fit(X, order=order, method=m, parts=parts if m == "windowed" else None)
-                    for som, X, order, parts in jobs]
+        with intra_op_threads(self.e.som.threads, cap=True):  # maps of one schedule train in one loop
+            return fit_together([(som, dict(patterns=X, order=order, method=m, parts=parts if m == "windowed" else None))
+                                 for som, X, order, parts in jobs])
 
     @torch.no_grad()
     def babble(self, steps: int) -> dict:

@@ -135,7 +135,8 @@ class SOM(nn.Module):
     @torch.no_grad()
     def fit(self, patterns: torch.Tensor, iterations: int | None = None, labels: torch.Tensor | None = None,
             generators: Sequence[torch.Generator] | None = None, order: torch.Tensor | None = None,
-            method: str = "auto", progress: bool = False, parts: Sequence[int] | None = None) -> torch.Tensor:
+            method: str = "auto", progress: bool = False, parts: Sequence[int] | None = None,
+            _together: list | None = None) -> torch.Tensor:
         """Train on ``patterns`` (``(N, in)`` shared, or ``(P, N, in)`` per participant).
 
         Each iteration every participant draws one pattern at random (its own generator, or the
@@ -187,7 +188,12 @@ class SOM(nn.Module):
             from tqdm.auto import tqdm
 
             it = tqdm(it, desc=f"SOM {self.name}", leave=False)
-        winners = trainer.fit(self, X, order, labels, it, parts=parts)
+        if _together is not None:  # fit_together: the map's checked call, trained with the others
+            _together.append((self, trainer, X, order, labels, parts))
+            return None
+        return self._finish(X, trainer.fit(self, X, order, labels, it, parts=parts))
+
+    def _finish(self, X: torch.Tensor, winners: torch.Tensor) -> torch.Tensor:
         if monitor.active():  # the trained map's final state, at its own step count
             tag = f"train/som/{self.name or 'som'}"
             monitor.record(f"{tag}/quantisation_error_final", self.quantization_error(X).mean(), int(self.steps))
@@ -220,6 +226,38 @@ class SOM(nn.Module):
 
     def extra_repr(self) -> str:
         return f"name={self.name!r}, shape={self.shape}, in={self.n_in}, P={self.participants}, supervised={self.supervised}"
+
+
+@torch.no_grad()
+def fit_together(fits: Sequence[tuple[SOM, dict]]) -> list[torch.Tensor]:
+    """``som.fit(**kwargs)`` for each ``(som, kwargs)`` of ``fits``, with the maps whose chosen
+    implementation can train several maps in one loop (``Trainer.fit_many``, e.g. ``windowed``)
+    trained together: each map's arguments are checked as by its own :meth:`SOM.fit`, and it
+    gets the winners and weights its own fit would give (every participant's arithmetic is its
+    own). Returns what each ``fit`` returns."""
+    out: list = [None] * len(fits)
+    queued: list = []
+    for i, (som, kw) in enumerate(fits):
+        n = len(queued)
+        res = som.fit(**kw, _together=queued)
+        if len(queued) == n:  # nothing to train (eval mode): the order
+            out[i] = res
+        else:
+            queued[-1] = (i, *queued[-1])
+    groups: dict = {}
+    for job in queued:
+        tr = job[2]
+        groups.setdefault(tr.name if tr.fit_many is not None else ("alone", job[0]), []).append(job)
+    for jobs in groups.values():
+        tr = jobs[0][2]
+        if tr.fit_many is not None and len(jobs) > 1:
+            wins = tr.fit_many([(som, X, order, labels, parts) for _, som, _, X, order, labels, parts in jobs])
+        else:
+            wins = [tr.fit(som, X, order, labels, range(order.shape[1]), parts=parts)
+                    for _, som, _, X, order, labels, parts in jobs]
+        for (i, som, _, X, _, _, _), w in zip(jobs, wins):
+            out[i] = som._finish(X, w)
+    return out
 
 
 class BidirectionalSOM(nn.Module):

@@ -41,6 +41,9 @@ class Trainer:
     refuse: Callable = lambda som, X, labels, options: None
     suits: Callable = lambda som, X, labels: False
     options: tuple[str, ...] = ()
+    # several maps in one loop (``nn.som.fit_together``): ``fit_many([(som, X, order, labels, parts)])
+    # -> [winners]``, each map's numbers those of its own ``fit``; None: one map at a time
+    fit_many: Callable | None = None
 
 
 TRAINERS: dict[str, Trainer] = {}
@@ -135,15 +138,25 @@ def _fit_factored(som, X, order, labels, steps, **_):
     return fit_factored(som, X, order, labels, steps)
 
 
+def _shared(X):
+    """One pattern set for all participants (an expanded view): the windowed factors keep one copy."""
+    return X[0] if X.dim() == 3 and X.shape[0] > 0 and X.stride(0) == 0 else X
+
+
 def _fit_windowed(som, X, order, labels, steps, parts=None, **_):
     from .som_windowed import fit_windowed
 
-    shared = X.dim() == 3 and X.shape[0] > 0 and X.stride(0) == 0  # one pattern set for all: its factors keep one copy
-    return fit_windowed(som, X[0] if shared else X, order, parts)
+    return fit_windowed(som, _shared(X), order, parts)
+
+
+def _fit_windowed_many(jobs):
+    from .som_windowed import fit_windowed_many
+
+    return fit_windowed_many([(som, _shared(X), order, parts) for som, X, order, labels, parts in jobs])
 
 
 register(Trainer("online", _fit_online, suits=lambda som, X, labels: True), auto=0)
 register(Trainer("factored", _fit_factored, _refuse_factored,
                  suits=lambda som, X, labels: (X.shape[1] < som.n_in and _rates_below_one(som)
                                                and som.weight.device.type != "meta")), auto=0)
-register(Trainer("windowed", _fit_windowed, _refuse_windowed, options=("parts",)))
+register(Trainer("windowed", _fit_windowed, _refuse_windowed, options=("parts",), fit_many=_fit_windowed_many))
