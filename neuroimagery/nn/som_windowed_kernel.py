@@ -51,28 +51,32 @@ def rates(rule, t0: int, T: int, d2_offs: torch.Tensor, rows: int, cols: int):
 
 
 def _loop(V, nrm, c, f, R, G, gdiag, piece_of, order, winners, ns, a, dr, dq, rows, cols, t_lo):  # pragma: no cover
-    """Steps ``t_lo .. t_lo + len(ns) - 1`` of every participant, in place (see the module docstring)."""
+    """Steps ``t_lo .. t_lo + len(ns) - 1`` of every participant, in place (see the module docstring).
+    Each number gets the torch loop's operations in its order; only the order in which different
+    numbers are visited differs (one piece row of ``V`` at a time, for the cache)."""
     P, K, U1 = V.shape
     U = U1 - 1
     S = piece_of.shape[2]
     Ds = np.empty(U, dtype=np.float64)
+    e = np.empty(U, dtype=np.float64)
+    n_max = a.shape[1]
+    cell = np.empty(n_max, dtype=np.int64)
+    ucell = np.empty(n_max, dtype=np.float64)
     for p in range(P):
         for tt in range(ns.shape[0]):
             t = t_lo + tt
             s = order[p, t]
-            best, win = np.inf, 0
+            Ds[:] = V[p, piece_of[p, s, 0], :U]
+            for b in range(1, S):
+                Ds += V[p, piece_of[p, s, b], :U]
+            Ds *= c[p, :U]
             for k in range(U):
-                d = V[p, piece_of[p, s, 0], k]
-                for b in range(1, S):
-                    d += V[p, piece_of[p, s, b], k]
-                d *= c[p, k]
-                Ds[k] = d
-                e = nrm[p, k] - 2.0 * d
-                if e < best:  # the first smallest, as torch's argmin
-                    best, win = e, k
+                e[k] = nrm[p, k] - 2.0 * Ds[k]
+            win = np.argmin(e)  # the first smallest, as torch's argmin
             winners[p, t] = win
             wr, wq = win // cols, win % cols
             g = gdiag[p, s]
+            m = 0
             for j in range(ns[tt]):
                 r, q = wr + dr[j], wq + dq[j]
                 if r < 0 or r >= rows or q < 0 or q >= cols:
@@ -83,10 +87,17 @@ def _loop(V, nrm, c, f, R, G, gdiag, piece_of, order, winners, ns, a, dr, dq, ro
                 nrm[p, k] = bj * bj * nrm[p, k] + 2.0 * aj * bj * Ds[k] + aj * aj * g
                 cw = bj * c[p, k]
                 c[p, k] = cw
-                u = aj / cw
-                for jj in range(K):
-                    V[p, jj, k] += G[p, s, jj] * u
-                R[p, k, s] += u
+                cell[m] = k
+                ucell[m] = aj / cw
+                m += 1
+            for jj in range(K):
+                gj = G[p, s, jj]
+                for i in range(m):
+                    V[p, jj, cell[i]] += gj * ucell[i]
+            for i in range(m):
+                k = cell[i]
+                R[p, k, s] += ucell[i]
+                cw = c[p, k]
                 if cw < 1e-12:  # fold tiny scales back in before they cost precision
                     for jj in range(K):
                         V[p, jj, k] *= cw
