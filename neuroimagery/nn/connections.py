@@ -39,14 +39,15 @@ class Connection(nn.Module):
     """Base class: a weight buffer ``(P, out, in)``, a transfer function, and learning rules."""
 
     def __init__(self, n_in: int, n_out: int, weight: torch.Tensor, transfer_fn: str = "identity",
-                 rules: Rule | Iterable[Rule] = (), name: str = "") -> None:
+                 rules: Rule | Iterable[Rule] = (), name: str = "", copy: bool = True) -> None:
         super().__init__()
         if n_in < 1 or n_out < 1:
             raise ValueError(f"connection {name!r}: n_in and n_out must be >= 1, got {n_in}, {n_out}")
         self.n_in, self.n_out, self.name = int(n_in), int(n_out), name
         self.transfer_name = transfer_fn
         self.F = transfer(transfer_fn)
-        self.register_buffer("weight", weight.detach().clone())
+        # ``copy=False``: a subclass hands over weights it has just made, kept without a copy
+        self.register_buffer("weight", weight.detach().clone() if copy else weight.detach())
         self.rules = nn.ModuleList([rules] if isinstance(rules, Rule) else list(rules))
         self.learnt_factors: dict | None = None  # what a closed-form sequence formed the weights from
 
@@ -147,7 +148,7 @@ class AllToAll(Connection):
             w = seeding.uniform(generators, (n_out, n_in), lo, hi)
         else:
             raise ValueError(f"init must be 'zeros' or (low, high), got {init!r}")
-        super().__init__(n_in, n_out, w, transfer_fn, rules, name)
+        super().__init__(n_in, n_out, w, transfer_fn, rules, name, copy=False)
 
 
 class HardWired(Connection):

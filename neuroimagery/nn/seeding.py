@@ -50,7 +50,9 @@ def uniform(generators: Sequence[torch.Generator], shape: Sequence[int], low: fl
     out = torch.empty((len(generators), *shape))
     for o, g in zip(out, generators):  # drawn in place: no per-participant copies to stack
         torch.rand(tuple(shape), generator=g, out=o)
-    return out.mul_(high - low).add_(low)
+    if high - low != 1:
+        out.mul_(high - low)
+    return out.add_(low) if low != 0 else out  # adding 0 to U[0, 1) samples changes no bit
 
 
 def randint(generators: Sequence[torch.Generator], high: int, shape: Sequence[int]) -> torch.Tensor:
