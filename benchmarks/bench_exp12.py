@@ -3,13 +3,15 @@ one; and check that the SOM training methods agree on Experiment 2's M1_1.
 
 Usage::
 
-    python benchmarks/bench_exp12.py [exp1|exp2|both] [participants] [extra overrides...]
+    python benchmarks/bench_exp12.py [exp1|exp2|both] [participants] [extra overrides...] [--solo | --batched]
     python benchmarks/bench_exp12.py som [steps]     # M1_1: windowed (by pieces) / factored vs online
 
 Each run is ``evaluate`` (train, then test) in this process; wall and CPU time are printed (the
 machine may be shared: CPU time is the steadier number). One by one = ``participants`` separate
 runs of one participant each, estimated as ``participants`` x one such run (``--solo`` runs them
-all: every participant of a batched run has its own seed streams, so the sum is the real cost).
+all: every participant of a batched run has its own seed streams, so the sum is the real cost;
+``--batched`` skips them). The last line adds up Experiments 1 and 2: wall and CPU time, and how
+much of it went to training and to the tests.
 """
 import os
 import sys
@@ -71,8 +73,8 @@ def som_equivalence(steps: int) -> None:
 
 def main():
     register_configs()
-    args = [a for a in sys.argv[1:] if a != "--solo"]
-    solo = "--solo" in sys.argv
+    args = [a for a in sys.argv[1:] if a not in ("--solo", "--batched")]
+    solo, batched = "--solo" in sys.argv, "--batched" in sys.argv
     exp = args[0] if args else "both"
     if exp == "som":
         som_equivalence(int(args[1]) if len(args) > 1 else 200)
@@ -81,15 +83,19 @@ def main():
     extra = args[2:]
     print(f"torch threads {torch.get_num_threads()} (OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}); "
           "the experiments run on experiment.auto_threads unless threads=N is given")
-    total = [0.0, 0.0]
+    total = [0.0, 0.0, 0.0, 0.0]  # wall, CPU, train, test
     for ex in (["exp1", "exp2"] if exp == "both" else [exp]):
         wall, cpu, parts = run(ex, [f"participants={P}"] + extra)
         total[0] += wall
         total[1] += cpu
+        total[2] += parts.get("train") or 0.0
+        total[3] += parts.get("evaluate") or 0.0
         mem = parts["peak_rss_mb"]
         print(f"{ex}: {P} participants batched: {wall:.1f} s wall, {cpu:.1f} s CPU (train {parts.get('train')} s, "
               f"test {parts.get('evaluate')} s); peak resident memory of this process: train {mem.get('train')} MiB, "
               f"test {mem.get('evaluate')} MiB", flush=True)
+        if batched:
+            continue
         if solo:
             one = [run(ex, ["participants=1", f"seed={s}"] + extra)[:2] for s in range(P)]
             ow, oc = sum(x[0] for x in one), sum(x[1] for x in one)
@@ -100,7 +106,8 @@ def main():
         print(f"{ex}: one by one ({how}): {ow:.1f} s wall, {oc:.1f} s CPU; ratio {ow / wall:.2f} (wall), "
               f"{oc / cpu:.2f} (CPU)", flush=True)
     if exp == "both":
-        print(f"exp1 + exp2 batched: {total[0]:.1f} s wall, {total[1]:.1f} s CPU")
+        print(f"exp1 + exp2 batched: {total[0]:.1f} s wall, {total[1]:.1f} s CPU (train {total[2]:.1f} s, "
+              f"test {total[3]:.1f} s)")
 
 
 if __name__ == "__main__":

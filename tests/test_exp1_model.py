@@ -112,9 +112,9 @@ def test_rotation_makes_up_to_max_cycles_image_updates(centred_at):
     m = AffordanceRotationModel(e, 1, 0)
     calls = []
 
-    def select_posture(pc):  # column 52 is 0 deg (the centre), column 0 is -90 deg
+    def select_posture(pc=None, net=None):  # column 52 is 0 deg (the centre), column 0 is -90 deg
         calls.append(1)
-        col = torch.full(pc.shape[:2], 52 if len(calls) == centred_at else 0, dtype=torch.long)
+        col = torch.full((pc if net is None else net).shape[:2], 52 if len(calls) == centred_at else 0, dtype=torch.long)
         return torch.zeros_like(col), col, torch.full_like(col, 7), None
 
     m.select_posture = select_posture
