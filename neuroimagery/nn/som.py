@@ -189,7 +189,7 @@ class SOM(nn.Module):
 
             it = tqdm(it, desc=f"SOM {self.name}", leave=False)
         if _together is not None:  # fit_together: the map's checked call, trained with the others
-            _together.append((self, trainer, X, order, labels, parts))
+            _together.append((self, trainer, X, order, labels, parts, it))
             return None
         return self._finish(X, trainer.fit(self, X, order, labels, it, parts=parts))
 
@@ -251,11 +251,10 @@ def fit_together(fits: Sequence[tuple[SOM, dict]]) -> list[torch.Tensor]:
     for jobs in groups.values():
         tr = jobs[0][2]
         if tr.fit_many is not None and len(jobs) > 1:
-            wins = tr.fit_many([(som, X, order, labels, parts) for _, som, _, X, order, labels, parts in jobs])
+            wins = tr.fit_many([(som, X, order, labels, parts) for _, som, _, X, order, labels, parts, _ in jobs])
         else:
-            wins = [tr.fit(som, X, order, labels, range(order.shape[1]), parts=parts)
-                    for _, som, _, X, order, labels, parts in jobs]
-        for (i, som, _, X, _, _, _), w in zip(jobs, wins):
+            wins = [tr.fit(som, X, order, labels, it, parts=parts) for _, som, _, X, order, labels, parts, it in jobs]
+        for (i, som, _, X, *_), w in zip(jobs, wins):
             out[i] = som._finish(X, w)
     return out
 
