@@ -185,21 +185,11 @@ class ToolUseBrain(nn.Module):
         a, b = self.flat(outcome).unsqueeze(0), self._c3_b(image, unit).unsqueeze(0)
         if not self.training or times < 1:
             return
-        rule = self.c3.som.rule
-        eta, sigma = rule.schedule(0)
-        theta = rule.neighbourhood(self.c3.som.grid, torch.tensor([label]), sigma)[0]
-        if int((theta > 0).sum()) == 1:
-            # the neighbourhood is below the rule's cutoff: ``times`` online steps of eq. 4.5 with
-            # the forced winner move only the winner's row, w <- x + (1 - eta)^times (w - x)
-            w = self.c3.som.weight[0, label]
-            x = torch.cat([a, b], dim=-1)[0, 0]
-            w.copy_(x + (1.0 - float(eta)) ** times * (w - x))
-            self.c3.som.steps += times
-            self._b_norms = self._s_norms = None
-        else:
-            self.c3.fit(a, b, labels=torch.tensor([[label]]), iterations=times,
-                        order=torch.zeros(1, times, dtype=torch.long))
-            self._b_norms = self._s_norms = None
+        # ``times`` presentations of one pair to its forced winner: SOM.fit picks the closed form
+        # of those online steps (nn.som_repeated) while the neighbourhood is the winner alone
+        self.c3.fit(a, b, labels=torch.tensor([[label]]), iterations=times,
+                    order=torch.zeros(1, times, dtype=torch.long))
+        self._b_norms = self._s_norms = None
         self.c3_trained[label] = True
 
     def q_update(self, x0: torch.Tensor, unit: int, reward: float, x1: torch.Tensor, done: bool) -> None:
