@@ -583,7 +583,7 @@ def test_quick_run_on_the_robot_world(tmp_path):
     assert len(pd.read_csv(tmp_path / "individuals.csv")) == 2 * 2 * 11
 
 
-def test_batched_c1_and_c3_updates_equal_repeated_single_steps():
+def test_batched_c1_and_c3_updates_equal_repeated_single_steps(monkeypatch):
     g = torch.Generator().manual_seed(0)
     x = (torch.rand(2, 6, 8, generator=g) < 0.3).float()
     out = (torch.rand(2, 6, 8, generator=g) < 0.3).float()
@@ -594,14 +594,31 @@ def test_batched_c1_and_c3_updates_equal_repeated_single_steps():
     for _ in range(7):
         b.train_c1(x, unit=2, signal=0.4, times=1)
     assert torch.allclose(a.c1.weight, b.c1.weight, atol=1e-6)
-    # closed-form C3 update == the SOM block's own online training (neighbourhood below cutoff)
+    # C3 learns through BidirectionalSOM.fit, which picks the closed form (neighbourhood below the
+    # cutoff, one pair repeated); it equals the SOM block's step-by-step online rule
+    from neuroimagery.nn import som_trainers
+
     c, d = ToolUseBrain((6, 8), c3_eta=0.2), ToolUseBrain((6, 8), c3_eta=0.2)
     d.c3.som.weight.copy_(c.c3.som.weight)
     c.train(), d.train()
+    chosen = []
+
+    def spy(*a, **k):
+        chosen.append(som_trainers.choose(*a, **k).name)
+        return som_trainers.choose(*a, **k)
+
+    monkeypatch.setattr("neuroimagery.nn.som.choose", spy)
     d.train_c3(x, unit=3, posture=2, outcome=out, times=9, generator=g)
+    d.train_c3(x, unit=3, posture=2, outcome=out, times=9, generator=g)
+    monkeypatch.undo()
+    assert chosen == ["repeated", "repeated"]
     A, B = c.flat(out).unsqueeze(0), c._c3_b(x, 3).unsqueeze(0)
-    c.c3.fit(A, B, labels=torch.tensor([[13]]), iterations=9, order=torch.zeros(1, 9, dtype=torch.long))
-    assert torch.allclose(c.c3.som.weight, d.c3.som.weight, atol=1e-4)
+    for _ in range(2):
+        c.c3.fit(A, B, labels=torch.tensor([[13]]), iterations=9, order=torch.zeros(1, 9, dtype=torch.long),
+                 method="online")
+    # float32 rounding of 18 steps: about one ulp of each weight (the code part is about 100)
+    assert torch.allclose(c.c3.som.weight, d.c3.som.weight, rtol=1e-6, atol=1e-6)
+    assert int(c.c3.som.steps) == int(d.c3.som.steps) == 18
     assert not torch.equal(c.c3.som.weight, ToolUseBrain((6, 8), c3_eta=0.2).c3.som.weight)
 
 
