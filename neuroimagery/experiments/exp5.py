@@ -8,7 +8,7 @@ from toy = posture 4), every individual tested both as a reactive and as a plann
 * HP2: all six detectors, 0, 2, 4, 6, 8, 10 training trials (ages 14, 14, 16, 18, 20, 22 months).
 
 Work unit ("task"): one repetition and one situation (or both, with
-``share_library_across_situations``). The task acquires one skill library with all six
+``engine.share_library_across_situations``). The task acquires one skill library with all six
 detectors (Fig. 7.5); every individual of that task keeps the skills of its own enabled
 detectors, its C1/C2/C3 training is replayed for exactly those skills, and it then runs Fig. 7.6.
 All individuals of a task share the (deterministic) outcomes of skill sequences, so the physics
