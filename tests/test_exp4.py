@@ -249,7 +249,7 @@ def test_config_rejects_bad_proprio_stage():
 def test_principal_axis_flip_reflects_the_map_about_its_own_axis():
     """C10 (flip_axis='image'): a bar is its own flip; a bump on one side of a bar moves to the other
     side, whatever the bar's orientation (the flip reads the image only)."""
-    from neuroimagery.models.rotation_embodied import principal_axis_flip
+    from neuroimagery.vision.reflection import principal_axis_flip
 
     def shape(vertical: bool) -> torch.Tensor:
         img = torch.zeros(32, 32)

@@ -22,6 +22,7 @@ from ..nn import Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..nn.local import LocalConnection, offset_count
 from . import voxels
+from .rotation_embodied import lca_gain  # the same evidence scale as Exp 4
 
 AXES = ("x", "y", "z")
 MOVES = ("still",) + tuple(f"{a}{s}" for a in AXES for s in ("-", "+"))  # PMCm units
@@ -68,14 +69,6 @@ def c20_weights(units: int, axes: int = len(AXES)) -> torch.Tensor:
         W[1 + 2 * a, sl] = upper
         W[2 + 2 * a, sl] = lower
     return W
-
-
-def lca_gain(p) -> float:
-    """As Exp 4: ``lca_input_gain`` or the smallest gain with which a full overlap decides in one step."""
-    if p.lca_input_gain is not None:
-        return float(p.lca_input_gain)
-    k, dt, n = p.lca_k, p.lca_dt, p.lca_cycles
-    return p.lca_threshold / (dt * n) if k == 0 else p.lca_threshold * k / (1.0 - (1.0 - dt * k) ** n)
 
 
 class Rotation3D(nn.Module):

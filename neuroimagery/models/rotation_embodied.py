@@ -22,7 +22,6 @@ the diagonal (current angle larger than the target) drive Mr, a clockwise turn (
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field as dc_field
 from typing import List, Optional, Sequence
 
@@ -31,7 +30,8 @@ from torch import nn
 
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM
 from ..nn.functional import gain_field, softmax_select
-from ..nn.binary import binary_matmul, binary_matmul_rows
+from ..nn.binary import binary_matmul, binary_matmul_rows, pack_bits, popcount, unique_rows, unpack_bits
+from ..vision.reflection import principal_axis_flip, reflection_index
 from .recording import sample_indices
 from .params import ForwardModelParams, PostureMapParams
 
@@ -43,45 +43,6 @@ def triangle_weights(n: int) -> torch.Tensor:
     r = torch.arange(n).view(n, 1).expand(n, n)
     c = torch.arange(n).view(1, n).expand(n, n)
     return torch.stack([(r > c), (r == c), (r < c)]).reshape(3, n * n).float()
-
-
-def reflection_index(size: int, axis_deg: float) -> torch.Tensor:
-    """Source pixel of every destination pixel for a reflection of a ``size x size`` map about the
-    line through its centre at ``axis_deg`` (counter-clockwise from the x axis, as seen on screen).
-    Pixels whose source falls outside get index ``size*size`` (a zero pad)."""
-    c = (size - 1) / 2.0
-    ys, xs = torch.meshgrid(torch.arange(size, dtype=torch.float64), torch.arange(size, dtype=torch.float64), indexing="ij")
-    t = math.radians(axis_deg)
-    dx, dy = xs - c, -(ys - c)  # y up
-    cos2, sin2 = math.cos(2 * t), math.sin(2 * t)
-    sx, sy = cos2 * dx + sin2 * dy, sin2 * dx - cos2 * dy
-    col, row = torch.round(sx + c).long(), torch.round(c - sy).long()
-    ok = (col >= 0) & (col < size) & (row >= 0) & (row < size)
-    return torch.where(ok, row * size + col, torch.full_like(col, size * size)).reshape(-1)
-
-
-def principal_axis_flip(maps: torch.Tensor, size: int) -> torch.Tensor:
-    """C10 as a fixed transformation of the image: each binary map ``(..., size*size)`` reflected about
-    its own principal axis, the line through the centroid of its active units along the eigenvector
-    of the largest eigenvalue of their second-moment matrix. Pixels whose source falls outside the
-    map stay 0; an empty map stays empty."""
-    shape = maps.shape
-    x = maps.reshape(-1, size * size).to(torch.float64)
-    c = (size - 1) / 2.0
-    ys, xs = torch.meshgrid(torch.arange(size, dtype=torch.float64), torch.arange(size, dtype=torch.float64), indexing="ij")
-    px, py = (xs - c).reshape(-1), (c - ys).reshape(-1)  # y up, as seen on screen
-    m = x.sum(-1).clamp_min(1.0)
-    cx, cy = (x * px).sum(-1) / m, (x * py).sum(-1) / m
-    dx, dy = px - cx.unsqueeze(-1), py - cy.unsqueeze(-1)
-    sxx, syy, sxy = (x * dx * dx).sum(-1), (x * dy * dy).sum(-1), (x * dx * dy).sum(-1)
-    t2 = torch.atan2(2.0 * sxy, sxx - syy).unsqueeze(-1)  # twice the axis angle
-    cos2, sin2 = torch.cos(t2), torch.sin(t2)
-    sx, sy = cx.unsqueeze(-1) + cos2 * dx + sin2 * dy, cy.unsqueeze(-1) + sin2 * dx - cos2 * dy  # source of each pixel
-    col, row = torch.round(sx + c).long(), torch.round(c - sy).long()
-    ok = (col >= 0) & (col < size) & (row >= 0) & (row < size)
-    idx = torch.where(ok, row * size + col, torch.full_like(col, size * size))
-    pad = torch.cat([x, torch.zeros(x.shape[0], 1, dtype=x.dtype)], dim=-1)
-    return torch.gather(pad, -1, idx).to(maps.dtype).reshape(shape)
 
 
 def lca_gain(p) -> float:
@@ -381,13 +342,16 @@ class RotationEmbodied(nn.Module):
         fm_table = torch.stack(self._tables, 1).reshape(P * 3, n, n)  # group = participant * 3 + move
         c16_table = self.c16.weight.transpose(1, 2).contiguous()  # (P, n, units)
         part = torch.arange(P).repeat_interleave(B)  # participant of each base row
-        # ---- target side (PFCt, PPCt, PFCft): shared by every condition
+        # ---- target side (PFCt, PPCt, PFCft): shared by every condition. The binary maps of the
+        # step loop are packed rows (nn.binary): overlaps are bit counts, and a forward-model
+        # prediction is computed once per distinct (participant, move, image) of a step.
         pfct = target.reshape(Q, n)
         ppct_unit = self.posture(self.c17, target)
         ppct = self.ppc.encode(ppct_unit.float()).reshape(Q, nu)
         if flipped is None:
             flipped = self.flipped(target, ppct_unit) if p.flip_axis == "ppct" else self.flipped_image(target)
         pfcft = flipped.reshape(Q, n)
+        pfct_w, pfcft_w = pack_bits(pfct), pack_bits(pfcft)
         t_count = pfct.sum(-1).clamp_min(1.0)
         step_deg = torch.tensor(self.step_angles)
         # ---- results, (C, Q)
@@ -401,27 +365,34 @@ class RotationEmbodied(nn.Module):
         rec = list(zip(shown, range(len(shown))))  # (flat row q of participant 0, history slot)
 
         gain = lca_gain(p)
+        unpack = lambda w: unpack_bits(w, n).float()  # noqa: E731  (a recorded map)
 
-        def evidence(rows_q, pocp):
-            tm = (pfct[rows_q] + pocp > 1.5).float()
-            fm = (pfcft[rows_q] + pocp > 1.5).float()
-            ev = gain * torch.stack([tm.sum(-1), fm.sum(-1)], -1) / t_count[rows_q].unsqueeze(-1)
+        def evidence(rows_q, pocp_w):
+            """PFCtm / PFCfm: one-to-one inputs above 1.5, i.e. the units on in both binary maps."""
+            tm, fm = pfct_w[rows_q] & pocp_w, pfcft_w[rows_q] & pocp_w
+            ev = gain * torch.stack([popcount(tm).float(), popcount(fm).float()], -1) / t_count[rows_q].unsqueeze(-1)
             return ev, tm, fm
+
+        def predict(group, poci_w):
+            """POCp (packed) of the forward models ``group`` (participant * 3 + move) and its C16
+            activation potentials PPCpA (eq. 6.14), once per distinct pair."""
+            g, words, inv = unique_rows(group, poci_w)
+            pocp = binary_matmul_rows(fm_table, g, unpack_bits(words, n)) + 1.0 > 1.5
+            return pack_bits(pocp)[inv], binary_matmul_rows(c16_table, g // 3, pocp)[inv]
 
         # ---- step 1: the "still" forward model on every trial, identical in every condition
         still = torch.ones(Q, dtype=torch.long)
-        pocp0 = (binary_matmul_rows(fm_table, part * 3 + 1, rotated.reshape(Q, n)) + 1.0 > 1.5).float()
+        pocp0, score0 = predict(part * 3 + 1, pack_bits(rotated.reshape(Q, n)))
         ev0, tm0, fm0 = evidence(torch.arange(Q), pocp0)
         dec = self.pmcd(ev0, p.lca_cycles, state=self.pmcd.initial_state((Q,)))
-        score0 = binary_matmul_rows(c16_table, part, pocp0)  # C16 activation potentials PPCpA (eq. 6.14)
         steps += 1
         rt += dec.cycles
         winner[:] = torch.where(dec.decided, dec.winner, winner[0])
         if rec:
             for c in range(C):
                 for q, k in rec:
-                    histories[c][k].append(self._snapshot(pfct[q], pfcft[q], rotated.reshape(Q, n)[q], pocp0[q], ppct[q], None,
-                                                          still[q], tm0[q], fm0[q], dec.state[q]))
+                    histories[c][k].append(self._snapshot(pfct[q], pfcft[q], rotated.reshape(Q, n)[q], unpack(pocp0[q]), ppct[q], None,
+                                                          still[q], unpack(tm0[q]), unpack(fm0[q]), dec.state[q]))
         # ---- condition rows of the undecided trials
         live_q = (~dec.decided).nonzero().squeeze(-1)
         cond = torch.arange(C).repeat_interleave(live_q.numel())
@@ -448,7 +419,7 @@ class RotationEmbodied(nn.Module):
                 if rec:
                     self._note_ppc(histories[c], rec, qc, ppcp, ppcc)
             # forward model, overlap, accumulator on the live rows
-            pocp = (binary_matmul_rows(fm_table, part[q] * 3 + move, poci) + 1.0 > 1.5).float()
+            pocp, score = predict(part[q] * 3 + move, poci)
             ev, tm, fm = evidence(q, pocp)
             dec = self.pmcd(ev, p.lca_cycles, state=y)
             angle[cond, q] += step_deg[move]
@@ -462,11 +433,10 @@ class RotationEmbodied(nn.Module):
                         hit = ((cond == c) & (q == qq)).nonzero()
                         if hit.numel():
                             i = int(hit[0])
-                            histories[c][k].append(self._snapshot(pfct[qq], pfcft[qq], poci[i], pocp[i], ppct[qq], None,
-                                                                  move[i], tm[i], fm[i], dec.state[i]))
+                            histories[c][k].append(self._snapshot(pfct[qq], pfcft[qq], unpack(poci[i]), unpack(pocp[i]), ppct[qq], None,
+                                                                  move[i], unpack(tm[i]), unpack(fm[i]), dec.state[i]))
             keep = ~dec.decided
-            score = binary_matmul_rows(c16_table, part[q[keep]], pocp[keep])
-            q, cond, poci, y = q[keep], cond[keep], pocp[keep], dec.state[keep]
+            q, cond, poci, score, y = q[keep], cond[keep], pocp[keep], score[keep], dec.state[keep]
         outs = []
         for c, (_, _, gens) in enumerate(conditions):
             coin = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q)  # time-out: a random answer

@@ -35,9 +35,51 @@ def binary_matmul_rows(table: torch.Tensor, group: torch.Tensor, x: torch.Tensor
     """
     G, I, O = table.shape
     N = x.shape[0]
-    nz = (x > 0.5).nonzero(as_tuple=False)  # sorted by row
+    nz = (x if x.dtype == torch.bool else x > 0.5).nonzero(as_tuple=False)  # sorted by row
     counts = torch.bincount(nz[:, 0], minlength=N)
     offsets = torch.zeros(N, dtype=torch.long)
     offsets[1:] = counts.cumsum(0)[:-1]
     flat_idx = group[nz[:, 0]] * I + nz[:, 1]
     return torch.nn.functional.embedding_bag(flat_idx, table.reshape(G * I, O), offsets, mode="sum")
+
+
+# ------------------------------------------------------------------ packed binary rows
+# A binary map of n units is held as ceil(n / 64) int64 words (8 bits per byte, bytes in the
+# machine's order): 32x32 maps take 16 words instead of 1024 floats, so the rows of a trial batch
+# are copied, compared and counted in a few bytes each. Packing and unpacking are exact.
+_BIT = 2 ** torch.arange(8, dtype=torch.uint8)  # the value of bit k of a byte
+_POPCOUNT = torch.tensor([bin(v).count("1") for v in range(256)], dtype=torch.int64)
+
+
+def pack_bits(x: torch.Tensor) -> torch.Tensor:
+    """Binary rows ``(..., n)`` (bool or 0/1 values, a unit is on when above 0.5) packed into
+    int64 words ``(..., ceil(n / 64))``."""
+    on = x if x.dtype == torch.bool else x > 0.5
+    n = on.shape[-1]
+    pad = -n % 64
+    if pad:
+        on = torch.nn.functional.pad(on, (0, pad))
+    lead = on.shape[:-1]
+    b = (on.reshape(*lead, -1, 8).to(torch.uint8) * _BIT.to(on.device)).sum(-1, dtype=torch.uint8)
+    return b.contiguous().view(torch.int64)
+
+
+def unpack_bits(words: torch.Tensor, n: int) -> torch.Tensor:
+    """The bool rows ``(..., n)`` that :func:`pack_bits` packed into ``words``."""
+    b = words.contiguous().view(torch.uint8)
+    on = (b.unsqueeze(-1) & _BIT.to(b.device)) != 0
+    return on.reshape(*words.shape[:-1], -1)[..., :n]
+
+
+def popcount(words: torch.Tensor) -> torch.Tensor:
+    """Number of units on in each packed row ``(..., words)`` -> int64 ``(...)``."""
+    return _POPCOUNT.to(words.device)[words.contiguous().view(torch.uint8).long()].sum(-1)
+
+
+def unique_rows(group: torch.Tensor, words: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The distinct ``(group, packed row)`` pairs of a batch: ``(groups (U,), words (U, W), inverse (N,))``
+    with ``words[i] == unique_words[inverse[i]]``. A product that depends only on the pair is then
+    computed once per distinct pair and indexed back with ``inverse``."""
+    key = torch.cat([group.reshape(-1, 1).to(torch.int64), words], dim=1)
+    uniq, inverse = torch.unique(key, dim=0, return_inverse=True)
+    return uniq[:, 0], uniq[:, 1:], inverse

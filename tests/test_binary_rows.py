@@ -1,0 +1,42 @@
+"""Packed binary rows (nn.binary): exact packing, bit counts and the distinct-pair grouping that the
+Exp 4 trial loop uses to compute each forward-model prediction once."""
+import pytest
+import torch
+
+from neuroimagery.nn.binary import binary_matmul_rows, pack_bits, popcount, unique_rows, unpack_bits
+
+
+@pytest.mark.parametrize("n", [1, 63, 64, 100, 1024])
+def test_pack_round_trip_and_popcount(n):
+    g = torch.Generator().manual_seed(n)
+    x = torch.rand(3, 5, n, generator=g) < 0.3
+    w = pack_bits(x)
+    assert w.dtype == torch.int64 and w.shape == (3, 5, -(-n // 64))
+    assert torch.equal(unpack_bits(w, n), x)
+    assert torch.equal(popcount(w), x.sum(-1))
+    assert torch.equal(pack_bits(x.float()), w)  # 0/1 floats pack as the bools do
+    a, b = x[0], x[1]
+    assert torch.equal(popcount(pack_bits(a) & pack_bits(b)), (a & b).sum(-1))  # overlap = bits on in both
+
+
+def test_unique_rows_groups_equal_pairs_only():
+    g = torch.Generator().manual_seed(0)
+    base = torch.rand(6, 200, generator=g) < 0.2
+    pick = torch.tensor([0, 1, 0, 2, 1, 0, 3, 5, 4, 0])
+    group = torch.tensor([7, 1, 7, 2, 1, 3, 0, 0, 0, 7])  # row 5: same image as row 0, other group
+    gu, wu, inv = unique_rows(group, pack_bits(base[pick]))
+    assert torch.equal(gu[inv], group) and torch.equal(unpack_bits(wu[inv], 200), base[pick])
+    assert len(gu) == 7  # (7,0) x3, (1,1) x2 and five singles
+    assert inv[0] == inv[2] == inv[9] and inv[1] == inv[4] and inv[0] != inv[5]
+
+
+def test_products_of_distinct_pairs_equal_the_full_batch():
+    g = torch.Generator().manual_seed(1)
+    table = torch.randn(4, 128, 9, generator=g)
+    x = (torch.rand(30, 128, generator=g) < 0.15)[torch.randint(0, 30, (50,), generator=g)]
+    group = torch.randint(0, 4, (50,), generator=g)
+    full = binary_matmul_rows(table, group, x.float())
+    gu, wu, inv = unique_rows(group, pack_bits(x))
+    assert torch.equal(binary_matmul_rows(table, gu, unpack_bits(wu, 128))[inv], full)
+    ref = torch.einsum("ni,nio->no", x.float(), table[group])
+    assert torch.allclose(full, ref, atol=1e-5)
