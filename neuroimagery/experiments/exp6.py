@@ -428,6 +428,14 @@ def run_tests(cfg, model, scene=None, record: int = 0):
     return pd.concat(frames, ignore_index=True), histories, maps
 
 
+def effects(df: pd.DataFrame) -> list[dict]:
+    """Shepard & Metzler's effects and, with wrist conditions, the proprioception effects
+    (``exp6_report.effects``), the participant as the unit; also used when runs are pooled."""
+    from . import exp6_report
+
+    return exp6_report.effects(df)
+
+
 def evaluate(cfg, run, trained) -> dict:
     from . import exp6_report
 
