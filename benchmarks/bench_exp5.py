@@ -30,12 +30,12 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from neuroimagery import memory
-    from neuroimagery.experiments import exp5
+    from neuroimagery.experiments import exp5, exp5_config
 
     kw = {}
     if args.standin:
         sys.path.insert(0, str(ROOT / "tests"))
-        kw["environment"] = "support_tool_env:StandInToolEnv"
+        kw["world"] = exp5_config.WorldParams(environment="support_tool_env:StandInToolEnv")
     e = exp5.Exp5Config(situations=[args.situation], **kw)
     totals: dict[str, float] = {}
     individuals = 0

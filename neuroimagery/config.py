@@ -102,23 +102,29 @@ def register_configs() -> None:
 REMOVED = "removed; "  # a MOVED value that starts so says why the key went, instead of naming its new place
 
 
-def moved_keys() -> dict[str, str]:
-    """``{old key: new key}`` of every experiment (``experiment.field_tau`` -> ``experiment.field.tau``):
-    the keys that moved into a group, declared by each experiment module as ``MOVED``; a key that
-    was removed maps to the reason, ``"removed; ..."``."""
+def moved_keys(experiment: str | None = None) -> dict[str, str]:
+    """``{old key: new key}`` of every experiment, or of ``experiment`` only (``experiment.field_tau``
+    -> ``experiment.field.tau``): the keys that moved into a group, declared by each experiment
+    module as ``MOVED``; a key that was removed maps to the reason, ``"removed; ..."``."""
     out: dict[str, str] = {}
-    for _, mod in experiment_modules():
+    for name, mod in experiment_modules():
+        if experiment is not None and name != experiment:
+            continue
         for old, new in getattr(mod, "MOVED", {}).items():
             out[f"experiment.{old}"] = new if new.startswith(REMOVED) else f"experiment.{new}"
     return out
 
 
-def moved_message(text: str) -> str | None:
-    """The refusal of a key under its old name, if ``text`` (an error message, or a key) names one:
-    ``experiment.field_tau has moved: it is experiment.field.tau now``."""
+def moved_message(text: str, experiment: str | None = None) -> str | None:
+    """The refusal of a key under its old name, if ``text`` (an error message, or a key) names one
+    (of ``experiment``'s keys when given): ``experiment.field_tau has moved: it is
+    experiment.field.tau now``."""
     import re
 
-    moved = moved_keys()
+    if experiment is None:  # Hydra's refusal names the schema: "Key 'c3_eta' not in 'Exp5Config'"
+        experiment = next((name for name, mod in experiment_modules()
+                           if getattr(mod, "CONFIG", None) is not None and f"'{mod.CONFIG.__name__}'" in text), None)
+    moved = moved_keys(experiment)
     for key in re.findall(r"\bexperiment\.\w+", text):
         if key in moved:
             new = moved[key]
@@ -151,8 +157,9 @@ def validate(cfg: DictConfig | Config) -> Config:
     if not isinstance(cfg.get("experiment"), DictConfig):
         raise UserInputError("invalid configuration: choose an experiment, e.g. experiment=exp4")
     unknown = [k for k in _unknown_keys(cfg) if not k.startswith("hydra")]
+    name = cfg.experiment.get("name") if "name" in cfg.experiment else None
     for k in unknown:
-        hint = moved_message(k)
+        hint = moved_message(k, name if name in EXPERIMENTS else None)
         if hint:
             raise UserInputError(f"invalid configuration: {hint}")
     if unknown:

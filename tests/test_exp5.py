@@ -6,6 +6,7 @@ the robot); the pybullet world is exercised only by the slow test at the end.
 from __future__ import annotations
 
 import json
+import subprocess
 import sys
 from pathlib import Path
 
@@ -19,11 +20,12 @@ from support_tool_env import StandInToolEnv  # noqa: E402
 from conftest import make_cfg  # noqa: E402
 from support_runs import reused_run  # noqa: E402
 
-from neuroimagery.experiments import exp5, exp5_summary  # noqa: E402
-from neuroimagery.models.tool_use import (EVENTS, AcquisitionConfig, Library, Outcomes, Result, ToolUseBrain,  # noqa: E402
-                                          acquire_skills, build_brain, sequence_trial)
+from neuroimagery.experiments import exp5, exp5_config, exp5_summary  # noqa: E402
+from neuroimagery.models.tool_use import (EVENTS, AcquisitionParams, Library, Outcomes, Result,  # noqa: E402
+                                          SequencingParams, ToolUseBrain, acquire_skills, build_brain, sequence_trial)
 
 STANDIN = "support_tool_env:StandInToolEnv"
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def compose(*overrides):
@@ -33,7 +35,7 @@ def compose(*overrides):
 def small_acq(**kw):
     base = dict(max_epochs=3, explore_max_rollouts=200, c3_repeats=5, c1_repeats=3, c2_repeats=3)
     base.update(kw)
-    return AcquisitionConfig(**base)
+    return AcquisitionParams(**base)
 
 
 # ---------------------------------------------------------------------------------- config
@@ -42,18 +44,47 @@ def test_config_composes_and_validates():
 
     conf = validate(compose("preset=quick"))
     e = conf.experiment
-    assert e.name == "exp5" and e.q_form == "standard" and e.eta == 1e-4 and e.gamma == 0.8 and e.attempts == 5
-    assert exp5.repetitions(conf) == e.quick_repetitions
+    assert e.name == "exp5" and e.brain.q_form == "standard" and e.brain.eta == 1e-4 and e.brain.gamma == 0.8
+    assert e.sequencing.attempts == 5 and e.acquisition.n_dmps == 10 and e.world.environment == "robot"
+    assert exp5.repetitions(conf) == e.quick.repetitions == 3
     assert len(exp5.groups(e)) == 11
 
 
-@pytest.mark.parametrize("key,value", [("q_form", "sideways"), ("attempts", 0), ("gamma", 1.5),
-                                       ("hp1_ages", [14]), ("situations", ["near"]), ("temperature", 0.0),
-                                       ("c3_recall", "nearest"), ("planning_test", "dream"),
-                                       ("explore_patience", 0), ("pibb_flat", "never")])
+@pytest.mark.parametrize("key,value", [("brain.q_form", "sideways"), ("sequencing.attempts", 0), ("brain.gamma", 1.5),
+                                       ("hp1_ages", [14]), ("situations", ["near"]), ("sequencing.temperature", 0.0),
+                                       ("brain.c3_recall", "nearest"), ("sequencing.planning_test", "dream"),
+                                       ("acquisition.explore_patience", 0), ("acquisition.pibb_flat", "never"),
+                                       ("acquisition.n_dmps", 5), ("world.toy_turn", "sideways"),
+                                       ("world.environment", "pybullet"), ("engine.n_jobs", 0), ("quick.repetitions", 0)])
 def test_config_rejects_bad_values_naming_the_key(key, value):
-    with pytest.raises(ValueError, match=key):
-        exp5.Exp5Config(**{key: value})
+    import re
+
+    group, _, k = key.rpartition(".")
+    with pytest.raises(ValueError, match=re.escape(f"experiment.{key} ")):
+        if group:
+            {"quick": exp5_config.QuickParams, **exp5_config.GROUPS}[group](**{k: value})
+        else:
+            exp5.Exp5Config(**{key: value})
+
+
+def test_every_key_of_the_flat_layout_is_refused_naming_its_group(tmp_path):
+    from dataclasses import asdict
+
+    from neuroimagery.config import moved_message
+
+    now = exp5_config.dotted(asdict(exp5.Exp5Config()))
+    assert len(exp5_config.MOVED_KEYS) == len(now) - 9  # every key but the protocol's moved into a group
+    for old, new in exp5_config.MOVED_KEYS.items():
+        assert new in now and old not in now
+        hint = moved_message(f"Could not override 'experiment.{old}'; Key '{old}' not in 'Exp5Config'")
+        assert hint == f"experiment.{old} has moved: it is experiment.{new} now (see the experiment's docs)"
+    # on the command line: one error line naming the new place, before any work
+    p = subprocess.run([sys.executable, str(ROOT / "evaluate.py"), "experiment=exp5", "experiment.c3_eta=0.2",
+                        f"hydra.run.dir={tmp_path / 'r'}"], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    lines = [ln for ln in (p.stdout + p.stderr).splitlines() if ln.strip() and not ln.startswith("pybullet build")]
+    assert p.returncode == 2 and lines == ["error: experiment.c3_eta has moved: it is experiment.brain.c3_eta now "
+                                           "(see the experiment's docs)"]
+    assert not (tmp_path / "r" / "checkpoints").exists()
 
 
 def test_misspelt_key_is_rejected():
@@ -247,7 +278,7 @@ def test_every_c3_outcome_imagines_where_a_primitive_leads_from_every_practised_
     situations where it missed its event; 'success' imagines no change there. C1 and C2 are the same."""
     env, _, lib = acquired
     only = build_brain(env, lib, small_acq(c3_repeats=50), ToolUseBrain(env.image_shape), torch.Generator().manual_seed(0))
-    every = build_brain(env, lib, small_acq(c3_repeats=50, c3_outcomes="every"), ToolUseBrain(env.image_shape),
+    every = build_brain(env, lib, small_acq(c3_repeats=50), ToolUseBrain(env.image_shape, c3_outcomes="every"),
                         torch.Generator().manual_seed(0))
     assert torch.equal(every.c1.weight, only.c1.weight) and torch.equal(every.c2.weight, only.c2.weight)
     # the situations where a skill never achieved its event in a competence check
@@ -261,11 +292,13 @@ def test_every_c3_outcome_imagines_where_a_primitive_leads_from_every_practised_
         real = env.perceive(env.execute(s.theta.unsqueeze(0), env.start(p), s.event)[0].next_state)
         assert torch.equal(only.imagine(seen, s.unit), seen)  # no change imagined
         assert (every.imagine(seen, s.unit) - real).abs().max() < 0.05  # where it really leads
-    cached = build_brain(env, lib, small_acq(c3_repeats=50, c3_outcomes="every"), ToolUseBrain(env.image_shape),
+    cached = build_brain(env, lib, small_acq(c3_repeats=50), ToolUseBrain(env.image_shape, c3_outcomes="every"),
                          torch.Generator().manual_seed(0), outcomes=Outcomes(env, {s.name: s for s in lib.skills}, env.perceive))
     assert torch.equal(cached.c3.som.weight, every.c3.som.weight)  # the rollout cache gives the same brain
     with pytest.raises(ValueError, match="c3_outcomes"):
-        small_acq(c3_outcomes="some")
+        ToolUseBrain(env.image_shape, c3_outcomes="some")
+    with pytest.raises(ValueError, match="experiment.brain.c3_outcomes"):
+        exp5_config.BrainParams(c3_outcomes="some")
 
 
 def test_planning_child_trains_without_moving_and_reactive_child_moves(acquired):
@@ -332,16 +365,16 @@ def test_active_threshold_lets_only_afforded_units_compete(acquired):
                               active_threshold=float(act.max()))
         assert idle.actions == [] and not idle.success and not idle.imagined_success
     assert torch.equal(c4, brain.c4.weight)  # no move, no reward, no learning
-    with pytest.raises(ValueError, match="active_threshold"):
-        exp5.Exp5Config(active_threshold=1.0)
+    with pytest.raises(ValueError, match="experiment.sequencing.active_threshold"):
+        SequencingParams(active_threshold=1.0)
 
 
 # ---------------------------------------------------------------------------------- the run
 def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
     import neuroimagery.run as R
 
-    cfg = compose("preset=quick", f"experiment.environment={STANDIN}", "experiment.n_jobs=1",
-                  "experiment.quick_repetitions=1", "experiment.max_epochs=2", "experiment.explore_max_rollouts=120",
+    cfg = compose("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
+                  "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2", "experiment.acquisition.explore_max_rollouts=120",
                   "experiment.hp2_trials=[0,2]", "experiment.hp2_ages=[14,16]", "logger=tensorboard", "progress=false")
     summary = R.evaluate(cfg, out_dir=tmp_path)
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
@@ -452,15 +485,15 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
 
     import neuroimagery.run as R
 
-    args = ("preset=quick", f"experiment.environment={STANDIN}", "experiment.n_jobs=1",
-            "experiment.quick_repetitions=1", "experiment.max_epochs=2", "experiment.explore_max_rollouts=120",
+    args = ("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
+            "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2", "experiment.acquisition.explore_max_rollouts=120",
             "experiment.hp1_levels=[2,6]", "experiment.hp1_ages=[14,22]", "experiment.hp2_trials=[0,4]",
             "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
     R.evaluate(compose(*args), out_dir=tmp_path / "a")
-    full = R.evaluate(compose(*args, "experiment.eta=0.01"), out_dir=tmp_path / "b")  # acquires again
+    full = R.evaluate(compose(*args, "experiment.brain.eta=0.01"), out_dir=tmp_path / "b")  # acquires again
     assert full["cost"]["libraries_reused"] == 0
     monkeypatch.setattr(exp5, "acquire_skills", lambda *a, **k: pytest.fail("a stored library was acquired again"))
-    reused = R.evaluate(compose(*args, "experiment.eta=0.01", f"experiment.reuse_libraries={tmp_path / 'a'}"),
+    reused = R.evaluate(compose(*args, "experiment.brain.eta=0.01", f"experiment.engine.reuse_libraries={tmp_path / 'a'}"),
                         out_dir=tmp_path / "c")
     assert reused["cost"]["libraries_reused"] == reused["cost"]["tasks"] == 2
     assert reused["groups"] == full["groups"]
@@ -468,22 +501,30 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
     pd.testing.assert_frame_equal(a, pd.read_csv(tmp_path / "c" / "individuals.csv"))
     # a setting of skill acquisition differs: nothing is reused
     with pytest.raises(pytest.fail.Exception, match="acquired again"):
-        R.evaluate(compose(*args, "experiment.pibb_samples=5", f"experiment.reuse_libraries={tmp_path / 'a'}"),
+        R.evaluate(compose(*args, "experiment.acquisition.pibb_samples=5", f"experiment.engine.reuse_libraries={tmp_path / 'a'}"),
                    out_dir=tmp_path / "d")
     # how the work is spread changes no result: a finished task stays valid
     e = OmegaConf.to_object(compose(*args).experiment)
     path = exp5._task_path(tmp_path / "a", "rep000_far")
-    assert exp5._valid(path, dataclasses.replace(e, n_jobs=3), 0) is not None
-    assert exp5._valid(path, dataclasses.replace(e, eta=0.01), 0) is None
-    d = torch.load(path, weights_only=True)  # a checkpoint written before c3_outcomes existed is still read back
-    del d["config"]["c3_outcomes"]
+    assert exp5._valid(path, dataclasses.replace(e, engine=dataclasses.replace(e.engine, n_jobs=3)), 0) is not None
+    assert exp5._valid(path, dataclasses.replace(e, brain=dataclasses.replace(e.brain, eta=0.01)), 0) is None
+    # a checkpoint of the earlier flat layout (every key at the top) is read back into the groups
+    d = torch.load(path, weights_only=True)
+    groups = d["config"]
+    d["config"] = {k: v for k, v in groups.items() if not isinstance(v, dict)}
+    d["config"].update({k: v for g in exp5_config.GROUPS for k, v in groups[g].items()},
+                       quick_repetitions=groups["quick"]["repetitions"])
+    torch.save(d, path)
+    assert exp5._valid(path, e, 0) is not None
+    del d["config"]["c3_outcomes"]  # one written before c3_outcomes existed is still read back
     torch.save(d, path)
     assert exp5._valid(path, e, 0) is not None
     del d["config"]["toy_turn"]  # one written before toy_turn existed squared the toy between moves
     torch.save(d, path)
-    assert exp5._valid(path, e, 0) is None and exp5._valid(path, dataclasses.replace(e, toy_turn="reset"), 0) is not None
-    with pytest.raises(ValueError, match="reuse_libraries"):
-        dataclasses.replace(e, reuse_libraries=str(tmp_path / "nowhere"))
+    reset = dataclasses.replace(e, world=dataclasses.replace(e.world, toy_turn="reset"))
+    assert exp5._valid(path, e, 0) is None and exp5._valid(path, reset, 0) is not None
+    with pytest.raises(ValueError, match="experiment.engine.reuse_libraries"):
+        dataclasses.replace(e.engine, reuse_libraries=str(tmp_path / "nowhere"))
 
 
 def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
@@ -491,8 +532,8 @@ def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
     from neuroimagery.errors import UserInputError
     from neuroimagery.experiments import exp5_pool
 
-    args = ("preset=quick", f"experiment.environment={STANDIN}", "experiment.n_jobs=1",
-            "experiment.quick_repetitions=1", "experiment.max_epochs=2", "experiment.explore_max_rollouts=120",
+    args = ("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
+            "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2", "experiment.acquisition.explore_max_rollouts=120",
             "experiment.hp1_levels=[2,6]", "experiment.hp1_ages=[14,22]", "experiment.hp2_trials=[0,4]",
             "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
     runs = [tmp_path / "sweep" / str(s) for s in (0, 1)]  # laid out like a Hydra sweep (-m seed=0,1)
@@ -519,7 +560,7 @@ def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
     shutil.copytree(runs[1], other)
     cfg_file = other / ".hydra" / "config.yaml"
     cfg_file.write_text(cfg_file.read_text().replace("eta: 0.0001", "eta: 0.001", 1))
-    with pytest.raises(UserInputError, match="experiment.eta"):
+    with pytest.raises(UserInputError, match="experiment.brain.eta"):
         exp5_pool.pool([runs[0], other])
     with pytest.raises(UserInputError, match="seed 0"):
         exp5_pool.pool([runs[0], runs[0]])
@@ -534,7 +575,7 @@ def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
 def test_quick_run_on_the_robot_world(tmp_path):
     import neuroimagery.run as R
 
-    cfg = compose("preset=quick", "experiment.quick_repetitions=1", "experiment.n_jobs=1", "logger=none",
+    cfg = compose("preset=quick", "experiment.quick.repetitions=1", "experiment.engine.n_jobs=1", "logger=none",
                   "progress=false")
     summary = R.evaluate(cfg, out_dir=tmp_path)
     assert summary["environment"] == "robot"
@@ -542,7 +583,7 @@ def test_quick_run_on_the_robot_world(tmp_path):
     assert len(pd.read_csv(tmp_path / "individuals.csv")) == 2 * 2 * 11
 
 
-def test_batched_c1_and_c3_updates_equal_repeated_single_steps():
+def test_batched_c1_and_c3_updates_equal_repeated_single_steps(monkeypatch):
     g = torch.Generator().manual_seed(0)
     x = (torch.rand(2, 6, 8, generator=g) < 0.3).float()
     out = (torch.rand(2, 6, 8, generator=g) < 0.3).float()
@@ -553,14 +594,31 @@ def test_batched_c1_and_c3_updates_equal_repeated_single_steps():
     for _ in range(7):
         b.train_c1(x, unit=2, signal=0.4, times=1)
     assert torch.allclose(a.c1.weight, b.c1.weight, atol=1e-6)
-    # closed-form C3 update == the SOM block's own online training (neighbourhood below cutoff)
+    # C3 learns through BidirectionalSOM.fit, which picks the closed form (neighbourhood below the
+    # cutoff, one pair repeated); it equals the SOM block's step-by-step online rule
+    from neuroimagery.nn import som_trainers
+
     c, d = ToolUseBrain((6, 8), c3_eta=0.2), ToolUseBrain((6, 8), c3_eta=0.2)
     d.c3.som.weight.copy_(c.c3.som.weight)
     c.train(), d.train()
+    chosen = []
+
+    def spy(*a, **k):
+        chosen.append(som_trainers.choose(*a, **k).name)
+        return som_trainers.choose(*a, **k)
+
+    monkeypatch.setattr("neuroimagery.nn.som.choose", spy)
     d.train_c3(x, unit=3, posture=2, outcome=out, times=9, generator=g)
+    d.train_c3(x, unit=3, posture=2, outcome=out, times=9, generator=g)
+    monkeypatch.undo()
+    assert chosen == ["repeated", "repeated"]
     A, B = c.flat(out).unsqueeze(0), c._c3_b(x, 3).unsqueeze(0)
-    c.c3.fit(A, B, labels=torch.tensor([[13]]), iterations=9, order=torch.zeros(1, 9, dtype=torch.long))
-    assert torch.allclose(c.c3.som.weight, d.c3.som.weight, atol=1e-4)
+    for _ in range(2):
+        c.c3.fit(A, B, labels=torch.tensor([[13]]), iterations=9, order=torch.zeros(1, 9, dtype=torch.long),
+                 method="online")
+    # float32 rounding of 18 steps: about one ulp of each weight (the code part is about 100)
+    assert torch.allclose(c.c3.som.weight, d.c3.som.weight, rtol=1e-6, atol=1e-6)
+    assert int(c.c3.som.steps) == int(d.c3.som.steps) == 18
     assert not torch.equal(c.c3.som.weight, ToolUseBrain((6, 8), c3_eta=0.2).c3.som.weight)
 
 
@@ -718,11 +776,11 @@ def test_each_alternative_config_changes_one_choice_of_the_default():
 
     from neuroimagery.config import validate
 
-    base = asdict(validate(compose()).experiment)
+    base = exp5_config.dotted(asdict(validate(compose()).experiment))
     files = sorted((Path(__file__).resolve().parents[1] / "conf" / "experiment" / "exp5").glob("*.yaml"))
     assert len(files) >= 8
     for f in files:
-        alt = asdict(validate(make_cfg(f"experiment=exp5/{f.stem}")).experiment)
+        alt = exp5_config.dotted(asdict(validate(make_cfg(f"experiment=exp5/{f.stem}")).experiment))
         changed = [k for k in base if alt[k] != base[k]]
         assert len(changed) == 1, (f.name, changed)
 

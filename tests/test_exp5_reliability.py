@@ -27,8 +27,8 @@ from neuroimagery.experiments import exp5, exp5_pool, exp5_tasks  # noqa: E402
 from neuroimagery.files import tmp_path as tmp_name  # noqa: E402
 
 STANDIN = "support_tool_env:StandInToolEnv"
-ARGS = ("preset=quick", f"experiment.environment={STANDIN}", "experiment.n_jobs=1",
-        "experiment.quick_repetitions=1", "experiment.max_epochs=2", "experiment.explore_max_rollouts=120",
+ARGS = ("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
+        "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2", "experiment.acquisition.explore_max_rollouts=120",
         "experiment.hp1_levels=[2,6]", "experiment.hp1_ages=[14,22]", "experiment.hp2_trials=[0,4]",
         "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
 
@@ -87,7 +87,7 @@ def test_a_planted_task_file_is_refused_and_nothing_in_it_runs(tmp_path, capsys,
     marker, run, other = tmp_path / "ran", tmp_path / "run", tmp_path / "other"
     key = "rep000_behind" if where == "checkpoint" else "rep000_far"  # checkpoint= reads in task order
     planted = exp5._task_path(run if where == "resumed run" else other, key)
-    extra = {"resumed run": (), "reuse_libraries": (f"experiment.reuse_libraries={other}",),
+    extra = {"resumed run": (), "reuse_libraries": (f"experiment.engine.reuse_libraries={other}",),
              "checkpoint": (f"checkpoint={other}",)}[where]
     if where == "resumed run":
         as_run_of(run, compose())
@@ -188,7 +188,7 @@ def _loky_workers() -> list[int]:
 def two_rep_reference(tmp_path_factory):
     """individuals.csv of an uninterrupted run of 4 tasks (2 repetitions x 2 situations)."""
     d = tmp_path_factory.mktemp("ref")
-    R.evaluate(compose("experiment.quick_repetitions=2"), out_dir=d)
+    R.evaluate(compose("experiment.quick.repetitions=2"), out_dir=d)
     return pd.read_csv(d / "individuals.csv")
 
 
@@ -197,7 +197,7 @@ def two_rep_reference(tmp_path_factory):
 def test_an_interrupted_run_stops_its_workers_and_the_rerun_gives_the_same_rows(tmp_path, monkeypatch, how,
                                                                                  two_rep_reference):
     ck = tmp_path / "checkpoints"
-    parallel = compose("experiment.quick_repetitions=2", "experiment.n_jobs=2")
+    parallel = compose("experiment.quick.repetitions=2", "experiment.engine.n_jobs=2")
     if how == "sigterm":  # once the first task is on disk, as `kill -TERM <pid>` would
         def terminate():
             deadline = time.monotonic() + 120
@@ -228,7 +228,7 @@ def test_an_interrupted_run_stops_its_workers_and_the_rerun_gives_the_same_rows(
     assert _loky_workers() == [] and ex.value is not None
     kept = sorted(ck.glob("exp5_rep*.pt"))
     assert 1 <= len(kept) < 4 and not list(ck.glob("*.tmp"))
-    again = R.evaluate(compose("experiment.quick_repetitions=2"), out_dir=tmp_path)
+    again = R.evaluate(compose("experiment.quick.repetitions=2"), out_dir=tmp_path)
     assert again["cost"]["tasks_read_back"] == len(kept)
     pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "individuals.csv"), two_rep_reference)
 

@@ -173,7 +173,41 @@ def test_end_to_end_quick_run_writes_results(tmp_path):
     assert set(s["headline"]["goals"]) and "Shepard" in (tmp_path / "report.md").read_text()
 
 
+def test_wrist_signal_joins_the_line_of_sight_posture_map_only():
+    cfg = _cfg("participants=1", *TINY)
+    model = exp6.train_model(cfg, [0])
+    units = torch.tensor([[0, 1, 1], [2, 3, 0]])  # (rows, axes x y z)
+    still = model.ppc_code(units)
+    z = 2  # WRIST_AXIS
+    for cond, j in (("match", units[:, z]), ("mismatch", 3 - units[:, z])):
+        code = model.ppc_code(units, cond)
+        assert torch.equal(code[:, :z], still[:, :z])  # the other axes' maps are untouched
+        want = (still[:, z] + cfg.experiment.proprio_gain * model.ppc.encode(j.float())).clamp(0, 1)
+        assert torch.allclose(code[:, z], want)
+    assert not torch.equal(model.ppc_code(units, "mismatch"), still)
+    with pytest.raises(ValueError, match="proprioception"):
+        model.ppc_code(units, "other")
+
+
+def test_wrist_conditions_leave_the_still_condition_unchanged():
+    cfg = _cfg("participants=1", *TINY)
+    model = exp6.train_model(cfg, [0])
+    alone, _, _ = exp6.run_tests(cfg, model)
+    cfg.experiment.conditions = ["none", "match", "mismatch"]
+    every, _, _ = exp6.run_tests(cfg, model)
+    assert set(every["condition"]) == {"none", "match", "mismatch"} and len(every) == 3 * len(alone)
+    none = every[every["condition"] == "none"].reset_index(drop=True)
+    for k in ("answer", "rt", "rotation_steps", "decided"):
+        assert (none[k].to_numpy() == alone[k].to_numpy()).all(), k
+    from neuroimagery.experiments import exp6_report
+
+    names = [r["effect"] for r in exp6_report.effects(every)]
+    assert any("match minus none" in n for n in names) and any("mismatch minus none" in n for n in names)
+
+
 BAD = [
+    (["experiment.conditions=[match]"], "experiment.conditions"),
+    (["experiment.conditions=[none,none]"], "experiment.conditions"),
     (["experiment.test_cubes=[[[0,0,0],[1,0,0],[2,0,0],[2,1,0]]]"], "experiment.test_cubes[0]"),
     (["experiment.hidden=all"], "experiment.hidden"),
     (["experiment.fm_memory_mb=nan"], "experiment.fm_memory_mb"),

@@ -3,7 +3,7 @@ import pytest
 import torch
 
 from neuroimagery.nn import SOM, BidirectionalSOM, participant_generators
-from neuroimagery.nn import seeding
+from neuroimagery.nn import seeding, som_trainers
 
 
 def test_som_on_1d_input_keeps_topology():
@@ -196,3 +196,43 @@ def test_windowed_weights_rebuild_from_their_factors():
         rebuild_windowed(SOM((9, 9), 400, participants=3), f)
     with pytest.raises(ValueError, match="not trained by fit_windowed"):
         windowed_factors(SOM((9, 9), 400))
+
+
+def _repeated_case(sigma=0.1, iterations=1, eta_final=None, seed=5):
+    """A C3-like bidirectional map: one labelled pair presented 50 times."""
+    kw = dict(seed=seed, eta=0.1, sigma=sigma, iterations=iterations, eta_final=eta_final)
+    g = torch.Generator().manual_seed(seed)
+    a, b = torch.rand(1, 1, 30, generator=g), torch.rand(1, 1, 12, generator=g)
+    return BidirectionalSOM(8, 30, 12, **kw), BidirectionalSOM(8, 30, 12, **kw), a, b
+
+
+def test_repeated_fit_equals_plain_rule():
+    # the closed form w <- x + (1 - eta)^T (w - x) against T plain steps (SOM.step), twice in a row
+    # (the second fit starts at step 50, where the schedule is the same constant rate)
+    fast, plain, a, b = _repeated_case()
+    for label, T in ((3, 50), (3, 7), (6, 50)):
+        order, labels = torch.zeros(1, T, dtype=torch.long), torch.tensor([[label]])
+        assert som_trainers.choose(fast.som, torch.cat([a, b], -1), labels, "auto", {}, order).name == "repeated"
+        wf = fast.fit(a, b, labels=labels, iterations=T, order=order)
+        plain.som.supervised = True
+        wp = som_trainers.fit_plain(plain.som, torch.cat([a, b], -1), order, labels)
+        assert torch.equal(wf, wp)  # identical winners: the label at every step
+        assert torch.allclose(fast.weight, plain.weight, rtol=0, atol=1e-6)  # float32 rounding of 50 steps
+        assert int(fast.som.steps) == int(plain.som.steps)
+
+
+@pytest.mark.parametrize("case", ["wide", "decaying", "changing"])
+def test_repeated_fit_only_where_it_holds(case):
+    # a neighbourhood wider than the winner, a rate that still decays, or patterns that change:
+    # auto falls back on another implementation and an explicit request is refused
+    fast, _, a, b = _repeated_case(sigma=2.0 if case == "wide" else 0.1,
+                                   iterations=100 if case == "decaying" else 1,
+                                   eta_final=0.01 if case == "decaying" else None)
+    X, T = torch.cat([a, b], -1), 10
+    order, labels = torch.zeros(1, T, dtype=torch.long), torch.tensor([[3]])
+    if case == "changing":
+        X, labels = X.expand(1, 2, -1).clone(), torch.tensor([[3, 4]])
+        order[0, 5:] = 1
+    assert som_trainers.choose(fast.som, X, labels, "auto", {}, order).name != "repeated"
+    with pytest.raises(ValueError, match="method='repeated' needs"):
+        som_trainers.choose(fast.som, X, labels, "repeated", {}, order)

@@ -8,7 +8,7 @@ from toy = posture 4), every individual tested both as a reactive and as a plann
 * HP2: all six detectors, 0, 2, 4, 6, 8, 10 training trials (ages 14, 14, 16, 18, 20, 22 months).
 
 Work unit ("task"): one repetition and one situation (or both, with
-``share_library_across_situations``). The task acquires one skill library with all six
+``engine.share_library_across_situations``). The task acquires one skill library with all six
 detectors (Fig. 7.5); every individual of that task keeps the skills of its own enabled
 detectors, its C1/C2/C3 training is replayed for exactly those skills, and it then runs Fig. 7.6.
 All individuals of a task share the (deterministic) outcomes of skill sequences, so the physics
@@ -35,19 +35,20 @@ import pandas as pd
 import torch
 
 from ..errors import UserInputError
-from ..models.tool_use import (EVENTS, AcquisitionConfig, Library, Outcomes, ToolUseBrain, acquire_skills, build_brain,
-                               sequence_trial)
+from ..models.tool_use import EVENTS, Library, Outcomes, ToolUseBrain, acquire_skills, build_brain, run_trial
 from ..nn.seeding import participant_seed
 from ..robot.config import WorldConfig
 from . import exp5_tasks as task_files
-from .exp5_config import SITUATIONS, THESIS, THESIS_TABLE_7_1, Exp5Config  # noqa: F401 (public names)
+from .exp5_config import (MOVED_KEYS, SITUATIONS, THESIS, THESIS_TABLE_7_1, Exp5Config, dotted,  # noqa: F401 (public names)
+                          nest)
 from .exp5_summary import (ROUTES, STRATEGIES, group_rates, library_columns, success_route,  # noqa: F401
                            success_routes, summarise, table_7_1, thesis_claims)
 
 
 CONFIG = Exp5Config
-# keys of earlier versions and where they went (named in the refusal of a run that still sets one)
-MOVED = {  # keys that are gone, with the reason (neuroimagery.config.moved_message)
+# keys of earlier versions and where they went (named in the refusal of a run that still sets one):
+# every key of the flat layout into its group, and the keys that are gone, with the reason
+MOVED = {**MOVED_KEYS,  # neuroimagery.config.moved_message
     "retrieve_x": "removed; the reachable area is the free left hand's reach, from its kinematics (docs/robot.md)",
     "posture_4": "removed; the four postures are fitted to the scene criteria of docs/robot.md",
     "reach_bound": "removed; a movement is bounded by the joint limits only (docs/robot.md)",
@@ -58,14 +59,14 @@ MOVED = {  # keys that are gone, with the reason (neuroimagery.config.moved_mess
 # what validation and the manifests need to know (neuroimagery.validation, neuroimagery.manifest)
 INPUTS = ()  # the robot's eye is part of the world (neuroimagery.robot), not the vision group
 CHECKPOINTS = ("exp5_index",)
-RUNTIME_KEYS = ("n_jobs", "reuse_libraries", "filmstrip_repetition")  # speed, reuse and which robot is filmed
+RUNTIME_KEYS = ("engine.n_jobs", "engine.reuse_libraries", "engine.filmstrip_repetition")  # speed, reuse, who is filmed
 TEST_KEYS = ()
 
 
 def ineffective_keys(cfg) -> dict[str, str]:
     out = {"participants": "exp5 simulates experiment.repetitions robots per group and situation"}
     if cfg.preset == "quick":
-        out["experiment.repetitions"] = "preset=quick runs experiment.quick_repetitions"
+        out["experiment.repetitions"] = "preset=quick runs experiment.quick.repetitions"
     return out
 
 
@@ -76,7 +77,7 @@ def _exp(cfg) -> Exp5Config:
 
 def repetitions(cfg) -> int:
     e = _exp(cfg)
-    return e.quick_repetitions if cfg.preset == "quick" else e.repetitions
+    return e.quick.repetitions if cfg.preset == "quick" else e.repetitions
 
 
 def trained_count(cfg) -> tuple[int, str]:
@@ -86,32 +87,20 @@ def trained_count(cfg) -> tuple[int, str]:
     return repetitions(cfg) * len(e.situations) * len(groups(e)), "robots"
 
 
-def acquisition_config(e: Exp5Config) -> AcquisitionConfig:
-    return AcquisitionConfig(n_dmps=e.n_dmps, pibb_samples=e.pibb_samples, pibb_temperature=e.pibb_temperature,
-                             pibb_decay=e.pibb_decay, pibb_flat=e.pibb_flat, max_epochs=e.max_epochs,
-                             competence_tolerance=e.competence_tolerance, c1_repeats=e.c1_repeats,
-                             c2_repeats=e.c2_repeats, c3_repeats=e.c3_repeats, hip_threshold=e.hip_threshold,
-                             explore_batch=e.explore_batch, explore_max_rollouts=e.explore_max_rollouts,
-                             explore_patience=e.explore_patience,
-                             spare_dmps=e.spare_dmps, c3_outcomes=e.c3_outcomes)
-
-
-_ENV_KEYS = ("environment", "duration_s", "explore_weight_sigma", "search_goal_sigma", "search_weight_sigma",
-             "toy_turn")
-# the settings a task's skill library depends on (Fig. 7.5); the other keys act only in Fig. 7.6
-_LIBRARY_KEYS = _ENV_KEYS + ("n_dmps", "pibb_samples", "pibb_temperature", "pibb_decay", "pibb_flat", "max_epochs",
-                             "competence_tolerance", "c1_repeats", "c2_repeats", "c3_repeats", "hip_threshold",
-                             "explore_batch", "explore_max_rollouts", "explore_patience", "spare_dmps", "c2_eta",
-                             "share_library_across_situations")
+# the settings a task's skill library depends on (Fig. 7.5): the world and acquisition groups
+# whole, and of the others what acts during acquisition (C2 -> HIP makes an event "not new"; one
+# library for both situations); the seed is compared apart. The other keys act only in Fig. 7.6.
+LIBRARY_GROUPS = ("world", "acquisition")
+LIBRARY_KEYS = ("brain.c2_eta", "engine.share_library_across_situations")
 # settings that change no result (how the work is spread, where libraries come from)
-ENGINE_KEYS = ("n_jobs", "reuse_libraries")
+ENGINE_KEYS = ("engine.n_jobs", "engine.reuse_libraries")
 _WORKER_ENV: dict[tuple, object] = {}  # one world per worker process, reused by its tasks
 
 
 def _task_environment(e: Exp5Config):
     """This process's world for ``e`` (built once: loading the robot takes seconds), emptied of
     the previous task's image cache and timings so each task's numbers are its own."""
-    key = tuple(getattr(e, k) for k in _ENV_KEYS)
+    key = tuple(asdict(e.world).items())
     env = _WORKER_ENV.get(key)
     if env is None:
         for old in _WORKER_ENV.values():
@@ -128,17 +117,16 @@ def _task_environment(e: Exp5Config):
 
 def make_environment(e: Exp5Config):
     """The world the robots live in: the pybullet ToolWorld, or ``module:Class`` (tests' stand-ins)."""
-    if e.environment == "robot":
+    w = e.world
+    if w.environment == "robot":
         from ..robot.environment import ToolWorldEnvironment
 
-        return ToolWorldEnvironment(WorldConfig(), duration_s=e.duration_s, explore_weight_sigma=e.explore_weight_sigma,
-                                    search_goal_sigma=e.search_goal_sigma, search_weight_sigma=e.search_weight_sigma,
-                                    toy_turn=e.toy_turn)
-    mod, _, cls = e.environment.partition(":")
+        return ToolWorldEnvironment(WorldConfig(), **w.env_kwargs())
+    mod, _, cls = w.environment.partition(":")
     try:
         return getattr(importlib.import_module(mod), cls)()
     except (ImportError, AttributeError) as err:
-        raise UserInputError(f"experiment.environment: cannot load {e.environment!r} ({err})") from None
+        raise UserInputError(f"experiment.world.environment: cannot load {w.environment!r} ({err})") from None
 
 
 def groups(e: Exp5Config) -> list[dict]:
@@ -155,7 +143,7 @@ def tasks(cfg) -> list[dict]:
     sits = list(e.situations)
     out = []
     for r in range(repetitions(cfg)):
-        if e.share_library_across_situations:
+        if e.engine.share_library_across_situations:
             out.append(dict(repetition=r, situations=sits, key=f"rep{r:03d}"))
         else:
             out += [dict(repetition=r, situations=[s], key=f"rep{r:03d}_{s}") for s in sits]
@@ -224,18 +212,18 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
     torch.set_num_threads(1)
     t0, c0 = time.perf_counter(), time.process_time()
     env = _task_environment(e)
-    acq = acquisition_config(e)
+    acq = e.acquisition
     r = task["repetition"]
     sit_ids = [list(SITUATIONS).index(s) for s in task["situations"]]
     g_lib = _gen(seed, 1, r, *sit_ids)
-    brain_kw = dict(n_dmps=e.n_dmps, c1_eta=e.c1_eta, c2_eta=e.c2_eta, c3_eta=e.c3_eta, c3_sigma=e.c3_sigma,
-                    c3_action_gain=e.c3_action_gain, q_eta=e.eta, q_gamma=e.gamma, q_form=e.q_form,
-                    c3_recall=e.c3_recall)
+
+    def new_brain() -> ToolUseBrain:
+        return ToolUseBrain.from_params(env.image_shape, e.brain, n_dmps=acq.n_dmps, seed=seed)
+
     if library is not None:
         lib = Library.from_state(library)
     else:
-        lib_brain = ToolUseBrain(env.image_shape, seed=seed, **brain_kw)
-        lib = acquire_skills(env, EVENTS, acq, g_lib, brain=lib_brain)
+        lib = acquire_skills(env, EVENTS, acq, g_lib, brain=new_brain())
     t_acq = time.perf_counter() - t0
     rows, film = [], None
     built: dict[tuple, ToolUseBrain] = {}
@@ -251,8 +239,7 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
             sub = lib.subset(enabled)
             key = tuple(enabled)
             if key not in built:
-                built[key] = build_brain(env, sub, acq, ToolUseBrain(env.image_shape, seed=seed, **brain_kw),
-                                         _gen(seed, 3, r), env.perceive, outcomes=outcomes)
+                built[key] = build_brain(env, sub, acq, new_brain(), _gen(seed, 3, r), env.perceive, outcomes=outcomes)
             if (sit, key) not in routes:
                 r1, r2 = routes_available(outcomes, posture, [s.name for s in sub.skills])
                 i1, i2, i_true = imagined_routes(built[key], outcomes, posture, sub.skills)
@@ -269,16 +256,13 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
                 train_ok, train_q = [], []
                 start, units = outcomes.image(posture, ()), [s.unit for s in sub.skills]
                 for _ in range(grp["trials"]):
-                    rec = sequence_trial(brain, outcomes, sub.skills, posture, strategy, True, e.attempts,
-                                         e.temperature, g_ind, planning_test=e.planning_test,
-                                         active_threshold=e.active_threshold)
+                    rec = run_trial(brain, outcomes, sub.skills, posture, strategy, True, e.sequencing, g_ind)
                     train_ok.append(rec.success if strategy == "reactive" else rec.imagined_success)
                     # C4's learning curve: the largest action value of the robot's skills at the start
                     train_q.append(float(brain.q_values(start)[units].max()) if units else 0.0)
-                filming = (film is None and r == e.filmstrip_repetition and strategy == "planning")
-                test = sequence_trial(brain, outcomes, sub.skills, posture, strategy, False, e.attempts,
-                                      e.test_temperature, g_ind, record_frames=filming,
-                                      planning_test=e.planning_test, active_threshold=e.active_threshold)
+                filming = (film is None and r == e.engine.filmstrip_repetition and strategy == "planning")
+                test = run_trial(brain, outcomes, sub.skills, posture, strategy, False, e.sequencing, g_ind,
+                                 record_frames=filming)
                 if filming and test.success and (sit == "far" or gi == len(groups(e)) - 1):
                     film = dict(situation=sit, hypothesis=grp["hypothesis"], level=grp["level"],
                                 strategy=strategy, start=_pack(outcomes.image(posture, ())),
@@ -317,22 +301,28 @@ def _stored(path: Path) -> dict | None:
     d = task_files.read_task(path)
     if d is None:
         return None
-    # written before these keys existed: their values then
-    d["config"] = {"spare_dmps": "none", "c3_outcomes": "success", "pibb_flat": "average", "toy_turn": "reset",
-                   **d["config"]}
+    if "acquisition" not in d["config"]:  # the flat layout of earlier versions: its keys into their groups
+        # written before these keys existed: their values then
+        d["config"] = nest({"spare_dmps": "none", "c3_outcomes": "success", "pibb_flat": "average", "toy_turn": "reset",
+                            **d["config"]})
     return d
 
 
-def _same(stored: dict, e: Exp5Config, keys=None) -> bool:
-    now = asdict(e)
-    keys = [k for k in now if k not in ENGINE_KEYS] if keys is None else keys
-    return all(stored.get(k) == now[k] for k in keys)
+def _same(stored: dict, e: Exp5Config, library: bool = False) -> bool:
+    """Whether the stored settings are this run's: all but the engine's (:data:`ENGINE_KEYS`), or
+    with ``library`` those a skill library depends on (:data:`LIBRARY_GROUPS`, :data:`LIBRARY_KEYS`)."""
+    now, then = dotted(asdict(e)), dotted(stored)
+    if library:
+        keys = [k for k in now if k.split(".")[0] in LIBRARY_GROUPS or k in LIBRARY_KEYS]
+    else:
+        keys = [k for k in now if k not in ENGINE_KEYS]
+    return all(then.get(k) == now[k] for k in keys)
 
 
-def _finished(d: dict | None, e: Exp5Config, seed: int, keys=None) -> bool:
+def _finished(d: dict | None, e: Exp5Config, seed: int, library: bool = False) -> bool:
     """Whether the stored task ``d`` was computed with this seed and this configuration (or, with
-    ``keys``, these settings of it)."""
-    return d is not None and d.get("seed") == seed and _same(d["config"], e, keys)
+    ``library``, its skill library with these acquisition settings)."""
+    return d is not None and d.get("seed") == seed and _same(d["config"], e, library)
 
 
 def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
@@ -344,7 +334,7 @@ def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
 def _library_of(d: dict | None, e: Exp5Config, seed: int) -> dict | None:
     """The skill library of the stored task ``d`` if it was acquired with this task's acquisition
     settings and seed."""
-    return d["library"] if _finished(d, e, seed, _LIBRARY_KEYS) and "library" in d else None
+    return d["library"] if _finished(d, e, seed, library=True) and "library" in d else None
 
 
 def train(cfg, run) -> dict:
@@ -362,14 +352,14 @@ def train(cfg, run) -> dict:
             continue
         todo.append(t)
         lib = _library_of(d, e, cfg.seed)
-        if lib is None and e.reuse_libraries:
-            lib = _library_of(_stored(_task_path(e.reuse_libraries, t["key"])), e, cfg.seed)
+        if lib is None and e.engine.reuse_libraries:
+            lib = _library_of(_stored(_task_path(e.engine.reuse_libraries, t["key"])), e, cfg.seed)
         libraries[t["key"]] = lib
     read_back = len(done)
     bar = tqdm(total=len(todo) + len(done), initial=len(done), desc="exp5 tasks", disable=not cfg.progress)
     if todo:
         jobs = (delayed(run_task)(e, cfg.seed, t, str(_task_path(run, t["key"])), libraries[t["key"]]) for t in todo)
-        results = Parallel(n_jobs=min(e.n_jobs, len(todo)), return_as="generator_unordered")(jobs)
+        results = Parallel(n_jobs=min(e.engine.n_jobs, len(todo)), return_as="generator_unordered")(jobs)
         try:
             for res in results:
                 done.append(res)
@@ -431,7 +421,7 @@ def evaluate(cfg, run, trained) -> dict:
         "repetitions": repetitions(cfg),
         # one individual = one robot of one group (repetition x situation), tested as both strategies
         "individuals": int(len(df) // len(STRATEGIES)),
-        "environment": e.environment,
+        "environment": e.world.environment,
         "cost": {"tasks": len(results), "tasks_read_back": int(trained.get("read_back", 0)),
                  "libraries_reused": int(sum(bool(t.get("library_reused")) for t in timing)), "task_s_total": round(sum(t["task_s"] for t in timing), 2),
                  "task_cpu_s_total": (round(sum(t["cpu_s"] for t in timing), 2)

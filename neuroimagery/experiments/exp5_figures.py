@@ -107,7 +107,7 @@ def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> 
     if film is not None:
         figs["filmstrip"] = filmstrip(film, run.figures / "retrieval_filmstrip.png")
         log_film(run.logger, film)
-    if cfg.experiment.environment == "robot":
+    if cfg.experiment.world.environment == "robot":
         from .exp5 import make_environment
 
         env = make_environment(cfg.experiment)
@@ -212,8 +212,8 @@ def write_report(cfg, run, summary: dict) -> None:
     e = cfg.experiment
     rate = group_rates(summary["groups"])
     rep = Report("Experiment 5: tool-use development in infant robots")
-    env_note = ("the pybullet rake-and-toy world (`robot.world.ToolWorld`)" if e.environment == "robot"
-                else f"`{e.environment}` (a STAND-IN environment, not the thesis's robot: these numbers are not results)")
+    env_note = ("the pybullet rake-and-toy world (`robot.world.ToolWorld`)" if e.world.environment == "robot"
+                else f"`{e.world.environment}` (a STAND-IN environment, not the thesis's robot: these numbers are not results)")
     rep.p(f"{summary['repetitions']} repetitions per group and situation, each individual tested as a reactive and "
           f"as a planning child; world: {env_note}. Preset `{cfg.preset}`.")
     for h, xl in (("hp1", "IM detectors"), ("hp2", "training trials")):
@@ -276,7 +276,7 @@ def write_report(cfg, run, summary: dict) -> None:
                   "brackets those with such an imagined route that also works in the world (`imagined_true`): "
                   "what a planning child can learn in mind.")
         if has_still:
-            rep.p(f"With `active_threshold: {e.active_threshold}` a child moves only a primitive whose PMC activity "
+            rep.p(f"With `sequencing.active_threshold: {e.sequencing.active_threshold}` a child moves only a primitive whose PMC activity "
                   "(C1 + C4) exceeds it (Fig. 7.6 draws among the *active* PMC units); the column \"did not move\" counts "
                   "the tests, reactive / planning, in which nothing was active in the far situation.")
         rows = []
@@ -368,9 +368,9 @@ def write_report(cfg, run, summary: dict) -> None:
         "paired rather than independent samples.",
         "The physics is deterministic, so the outcome of a given skill sequence from a posture is computed once; "
         "the thesis notes run-to-run variation of tool-toy contacts that this world does not have. "
-        + ("A scene between moves keeps the toy where a move left it, turned as it left it (`toy_turn: keep`)."
-           if e.toy_turn == "keep" else
-           "A scene between moves keeps where the toy is but not how a move turned it (`toy_turn: reset`): the "
+        + ("A scene between moves keeps the toy where a move left it, turned as it left it (`world.toy_turn: keep`)."
+           if e.world.toy_turn == "keep" else
+           "A scene between moves keeps where the toy is but not how a move turned it (`world.toy_turn: reset`): the "
            "next move starts from the toy set square at that place (docs/exp5.md)."),
     ])
     cost = summary.get("cost", {})

@@ -12,8 +12,8 @@ with different seeds (``evaluate.py -m experiment=exp5 seed=0,1,2``) are pooled 
 claims (a Hydra sweep directory stands for its numbered runs); ``--out`` also writes
 ``individuals.csv`` (with a ``run`` column), ``summary.json`` and ``report.md`` into DIR. The
 command first checks the runs' manifests (:mod:`neuroimagery.pool`). The runs must agree on every experiment
-setting except the engine's (``n_jobs``, ``reuse_libraries``, ``filmstrip_repetition``) and the
-number of repetitions, and must have distinct seeds. A run whose ``individuals.csv`` does not hold
+setting except the engine's (``engine.n_jobs``, ``engine.reuse_libraries``,
+``engine.filmstrip_repetition``) and the number of repetitions, and must have distinct seeds. A run whose ``individuals.csv`` does not hold
 the rows its ``summary.json`` counts (cut short, header only, not a CSV file) is refused.
 """
 from __future__ import annotations
@@ -30,10 +30,11 @@ from ..analysis.robots import ROBOT_EFFECTS_INTRO
 from ..analysis.tables import read_whole_csv
 from ..errors import UserInputError
 from .exp5 import ENGINE_KEYS, STRATEGIES, Exp5Config, group_rates, summarise
+from .exp5_config import dotted, from_dict, nest
 from .exp5_figures import group_table
 
 # settings that may differ between pooled runs: how the work was spread, and how many robots
-_FREE_KEYS = ENGINE_KEYS + ("filmstrip_repetition", "repetitions", "quick_repetitions")
+_FREE_KEYS = ENGINE_KEYS + ("engine.filmstrip_repetition", "repetitions", "quick.repetitions")
 
 
 def read_config(run_dir: str | Path) -> tuple[Exp5Config, int]:
@@ -46,16 +47,18 @@ def read_config(run_dir: str | Path) -> tuple[Exp5Config, int]:
         if not path.is_file():
             raise UserInputError(f"{d}: no {path.relative_to(d)} (not a finished Exp. 5 run directory)")
     raw = OmegaConf.to_container(OmegaConf.load(cfg_path), resolve=True)
-    exp = dict(raw.get("experiment") or {})
+    exp = nest(dict(raw.get("experiment") or {}))  # a run of the earlier flat layout reads too
     if exp.get("name") != "exp5":
         raise UserInputError(f"{d}: experiment {exp.get('name')!r}, not exp5")
     known = {f.name for f in dataclasses.fields(Exp5Config)}
     unknown = sorted(set(exp) - known)
     if unknown:
         raise UserInputError(f"{cfg_path}: unknown experiment keys {', '.join(unknown)}")
-    exp["reuse_libraries"] = ""  # an engine setting; the directory it named may be gone
+    exp.setdefault("engine", {})["reuse_libraries"] = ""  # an engine setting; the directory it named may be gone
     try:
-        e = Exp5Config(**exp)
+        e = from_dict(exp)
+    except TypeError as err:  # a key unknown inside a group
+        raise UserInputError(f"{cfg_path}: unknown experiment key ({err})") from None
     except ValueError as err:
         raise UserInputError(f"{cfg_path}: {err}") from None
     return e, int(raw.get("seed", 0))
@@ -128,14 +131,14 @@ def pool(run_dirs: list[str | Path]) -> tuple[dict, pd.DataFrame]:
         raise UserInputError("pool: give at least one run directory")
     runs = [(str(d), *read_run(d)) for d in run_dirs]
     d0, e0, _, _ = runs[0]
-    ref = dataclasses.asdict(e0)
+    ref = dotted(dataclasses.asdict(e0))
     seen: dict[int, str] = {}
     for d, e, seed, _ in runs:
-        now = dataclasses.asdict(e)
-        diff = [k for k in ref if k not in _FREE_KEYS and now[k] != ref[k]]
+        now = dotted(dataclasses.asdict(e))
+        diff = [k for k in ref if k not in _FREE_KEYS and now.get(k) != ref[k]]
         if diff:
             k = diff[0]
-            raise UserInputError(f"pool: experiment.{k} is {now[k]!r} in {d} but {ref[k]!r} in {d0}; "
+            raise UserInputError(f"pool: experiment.{k} is {now.get(k)!r} in {d} but {ref[k]!r} in {d0}; "
                                  "pool runs of one configuration only")
         if seed in seen:
             raise UserInputError(f"pool: {d} and {seen[seed]} both have seed {seed} (the same robots twice)")

@@ -23,7 +23,7 @@ from ..nn import seeding
 from ..vision import shepard_metzler as sm
 
 TESTS = sm.KINDS  # picture, depth
-CONDITIONS = ("none",)
+CONDITIONS = ("none", "match", "mismatch")  # proprioception, as Exp 4
 WRIST_JOINTS = {"x": "r_wrist_pitch", "y": "r_wrist_yaw", "z": "r_wrist_prosup"}  # axis -> joint it stands for
 
 
@@ -40,6 +40,10 @@ class Exp6Config:
     test_set: str = "novel"
     test_angles: List[float] = field(default_factory=lambda: [float(a) for a in range(0, 181, 20)])
     tests: List[str] = field(default_factory=lambda: ["picture", "depth"])
+    # proprioception of Exp 4 carried over (docs/exp6.md): the wrist turns about the line of sight
+    # while the pair is compared; 'none' = still, 'match' / 'mismatch' = its signal on the PPCp unit
+    # of the mental image about that axis / on the opposite unit. Each condition runs every test.
+    conditions: List[str] = field(default_factory=lambda: ["none"])
     view_tilt_deg: float = 25.0  # general view: tilted toward the eye about the horizontal ...
     view_turn_deg: float = 35.0  # ... then turned about the vertical
     cube_edge: float = 0.025  # metres
@@ -83,6 +87,7 @@ class Exp6Config:
     lca_cycles: int = 10  # thesis 10
     lca_input_gain: Optional[float] = None  # None = the Exp 4 rule
     max_steps: int = 20  # thesis 20
+    proprio_gain: float = 1.0  # wrist signal strength (as Exp 4; not given)
     # --- protocol size -----------------------------------------------------------------------
     quick_objects: int = 2  # preset=quick: test objects
     quick_fm_images: int = 42000  # preset=quick: dot images (about 10 per voxel and model)
@@ -91,7 +96,11 @@ class Exp6Config:
         for k in ("view_tilt_deg", "view_turn_deg"):
             if not -90 <= getattr(self, k) <= 90:
                 raise ValueError(f"experiment.{k} must lie in [-90, 90], got {getattr(self, k)!r}")
-        for k in ("cube_edge", "object_distance", "fov_deg", "step_deg", "fm_memory_mb", "init_high", "eta_fm", "eta_posture",
+        if not self.conditions or len(set(self.conditions)) != len(self.conditions) or \
+                any(c not in CONDITIONS for c in self.conditions) or "none" not in self.conditions:
+            raise ValueError(f"experiment.conditions must be distinct names of {list(CONDITIONS)}, 'none' among them, "
+                             f"got {self.conditions!r}")
+        for k in ("proprio_gain", "cube_edge", "object_distance", "fov_deg", "step_deg", "fm_memory_mb", "init_high", "eta_fm", "eta_posture",
                   "posture_sigma", "ppc_sigma", "softmax_tau", "lca_threshold", "lca_dt", "red_threshold"):
             if not getattr(self, k) > 0:
                 raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
@@ -139,7 +148,7 @@ class Exp6Config:
 CONFIG = Exp6Config
 INPUTS = ()  # the eye camera of this experiment is set by its own keys (eye, fov_deg, image_*)
 CHECKPOINTS = ("exp6",)
-TEST_KEYS = ("test_objects", "test_cubes", "test_set", "test_angles", "tests", "softmax_tau", "match_radius", "lca_k", "lca_w",
+TEST_KEYS = ("test_objects", "test_cubes", "test_set", "test_angles", "tests", "conditions", "proprio_gain", "softmax_tau", "match_radius", "lca_k", "lca_w",
              "lca_threshold", "lca_dt", "lca_cycles", "lca_input_gain", "max_steps", "quick_objects")
 RUNTIME_KEYS = ("train_threads",)
 
@@ -354,13 +363,13 @@ def stimulus_bank(cfg, scene, side: int):
     return torch.stack(maps), index, names, test
 
 
-def trial_table(index, names, e, test: str) -> pd.DataFrame:
+def trial_table(index, names, e, test: str, condition: str = "none") -> pd.DataFrame:
     """One row per pair of a test: the target in the general view, the comparison turned by each angle."""
     rows = []
     for name in names:
         for app in ("basic", "mirror"):
             for ang in e.test_angles:
-                rows.append({"test": test, "condition": "none", "target_object": name, "target_angle": 0.0,
+                rows.append({"test": test, "condition": condition, "target_object": name, "target_angle": 0.0,
                              "target_appearance": "basic", "rotated_object": name, "rotated_angle": float(ang),
                              "rotated_appearance": app, "same": app == "basic",
                              "target_row": index[(name, test, 0.0, "basic")], "rotated_row": index[(name, test, float(ang), app)]})
@@ -397,23 +406,34 @@ def run_tests(cfg, model, scene=None, record: int = 0):
     P = model.participants
     frames, histories = [], {}
     for k, test in enumerate(e.tests):
-        table = trial_table(index, names, e, test)
-        tgt = maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
-        rot = maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
-        out = model.run(tgt, rot, seeding.participant_generators(cfg.seed, ids, stream=100 + k), record=record)
-        histories[f"{test}/none"] = out.pop("history")
-        for j, pid in enumerate(ids):
-            df = table.drop(columns=["target_row", "rotated_row"]).copy()
-            df.insert(0, "participant", int(pid))
-            df["answer"] = np.where(out["answer"][j].numpy() == 0, "yes", "no")
-            df["correct"] = (df["answer"] == "yes") == df["same"].astype(bool)
-            df["rotation_steps"] = out["rotation_steps"][j].numpy().astype(int)
-            df["rotated_ok"] = rotated_ok(test, df["rotated_angle"].to_numpy(), out["turned"][j].numpy(), e.step_deg)
-            df["rt"] = out["rt"][j].numpy()
-            df["decided"] = out["decided"][j].numpy()
-            frames.append(df[TRIAL_COLUMNS + ["decided"]])
-        progress.advance(len(table) * P, note=f"{test}/none")
+        for cond in e.conditions:
+            table = trial_table(index, names, e, test, cond)
+            tgt = maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+            rot = maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+            stream = 100 + k + 10 * CONDITIONS.index(cond)  # condition none keeps the stream of a run without the others
+            out = model.run(tgt, rot, seeding.participant_generators(cfg.seed, ids, stream=stream), record=record,
+                            proprioception=cond)
+            histories[f"{test}/{cond}"] = out.pop("history")
+            for j, pid in enumerate(ids):
+                df = table.drop(columns=["target_row", "rotated_row"]).copy()
+                df.insert(0, "participant", int(pid))
+                df["answer"] = np.where(out["answer"][j].numpy() == 0, "yes", "no")
+                df["correct"] = (df["answer"] == "yes") == df["same"].astype(bool)
+                df["rotation_steps"] = out["rotation_steps"][j].numpy().astype(int)
+                df["rotated_ok"] = rotated_ok(test, df["rotated_angle"].to_numpy(), out["turned"][j].numpy(), e.step_deg)
+                df["rt"] = out["rt"][j].numpy()
+                df["decided"] = out["decided"][j].numpy()
+                frames.append(df[TRIAL_COLUMNS + ["decided"]])
+            progress.advance(len(table) * P, note=f"{test}/{cond}")
     return pd.concat(frames, ignore_index=True), histories, maps
+
+
+def effects(df: pd.DataFrame) -> list[dict]:
+    """Shepard & Metzler's effects and, with wrist conditions, the proprioception effects
+    (``exp6_report.effects``), the participant as the unit; also used when runs are pooled."""
+    from . import exp6_report
+
+    return exp6_report.effects(df)
 
 
 def evaluate(cfg, run, trained) -> dict:

@@ -9,7 +9,7 @@ from scipy import stats
 
 from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
-from ..analysis.summary import effect, holm, one_sample, slope_by_participant, summarise_trials
+from ..analysis.summary import effect, holm, one_sample, paired_by_participant, slope_by_participant, summarise_trials
 from ..nn import seeding
 from . import exp6
 
@@ -45,7 +45,10 @@ def same_pair_rt(df: pd.DataFrame) -> dict:
 def effects(df: pd.DataFrame) -> list[dict]:
     """Shepard & Metzler's effects, each with the participant as the unit (Holm over the family):
     RT of correct same pairs rises with angle in each kind of rotation, the two slopes alike, and
-    the correct rate above chance."""
+    the correct rate above chance; then the proprioception effects where the trials have other
+    wrist conditions than ``none`` (Shepard & Metzler's own on ``none`` only)."""
+    if set(df["condition"]) - {"none"}:
+        return effects(df[df["condition"] == "none"]) + proprioception_effects(df)
     ok = df[df["same"].astype(bool) & df["correct"].astype(bool)]
     by = {t: ok[ok["test"] == t] for t in ("picture", "depth") if (ok["test"] == t).any()}
     rows = [effect(f"{t}: RT of correct same pairs rises with angle", ">0", slope_by_participant(d), "mean_slope")
@@ -60,6 +63,22 @@ def effects(df: pd.DataFrame) -> list[dict]:
     res = one_sample(df.assign(c=df["correct"].astype(float)).groupby("participant")["c"].mean() - 0.5)
     res["diff"] = res.pop("mean")
     rows.append(effect("correct rate above chance (rate minus 0.5)", ">0", res))
+    return holm(rows)
+
+
+def proprioception_effects(df: pd.DataFrame) -> list[dict]:
+    """The Exp 4 wrist conditions carried over, each against ``none`` with the participant as the
+    unit (Holm over the family): a congruent wrist signal (``match``) shortens the RT of correct
+    same pairs, an incongruent one (``mismatch``) lengthens it, as in Exp 4."""
+    ok = df[df["same"].astype(bool) & df["correct"].astype(bool)]
+    rows = []
+    for test in [t for t in exp6.TESTS if t in set(df["test"])]:
+        base = ok[(ok["test"] == test) & (ok["condition"] == "none")]
+        for cond, sign in (("match", "<0"), ("mismatch", ">0")):
+            d = ok[(ok["test"] == test) & (ok["condition"] == cond)]
+            if len(d) and len(base):
+                rows.append(effect(f"{test}: RT of correct same pairs, {cond} minus none", sign,
+                                   paired_by_participant(d, base, "rt")))
     return holm(rows)
 
 
@@ -117,6 +136,7 @@ def evaluate(cfg, run, trained) -> dict:
         scene.close()
     run.write_csv("trials.csv", df)
     tests = summarise_trials(df)
+    still = df[df["condition"] == "none"]  # Shepard & Metzler's measures: the wrist kept still
     for key, v in tests.items():
         d = df[(df["test"] + "/" + df["condition"]) == key]
         g = d.groupby("disparity")["rt"].mean().sort_index()
@@ -127,7 +147,8 @@ def evaluate(cfg, run, trained) -> dict:
     side = trained.side
     summary = {"experiment": "exp6", "participants": int(df["participant"].nunique()), "tests": tests,
                "targets": {k: {"rt_r": HUMAN["rt_r"]} for k in tests},  # Shepard & Metzler's r, each kind of rotation
-               "headline": headline(tests, df), "effects": effects(df), "human": HUMAN, "goals": GOALS,
+               "headline": headline({k: v for k, v in tests.items() if k.endswith("/none")}, still),
+               "effects": effects(df), "human": HUMAN, "goals": GOALS,
                "forward_model_overlap": forward_model_overlap(trained, cfg.seed),
                "grid": {"side": side, "receptive_radius": trained.radius, "offsets": trained.fm[0].K,
                         "cube_voxels": round(exp6.cube_voxels(e, side), 4),
@@ -139,7 +160,7 @@ def evaluate(cfg, run, trained) -> dict:
         log_history(run.logger, hist, key, side)
     for key, v in tests.items():
         run.logger.scalars({"correct_rate": v["correct_rate"], "rt_mean": v["rt_mean"]}, prefix=f"{key}/")
-    _figures(run, df, histories, side)
+    _figures(run, still, histories, side)
     return summary
 
 
@@ -202,7 +223,8 @@ def _figures(run, df, histories, side) -> None:
             rows = sorted({int(round(i)) for i in np.linspace(0, n - 1, min(n, 8))})  # at most 8 steps, the last one kept
             steps = [{k: v.numpy() for k, v in _projections(hist[0][i], side, ("PFCt", "PFCft", "POCp")).items() if k in keep}
                      for i in rows]
-            figures.map_panels(steps, f / f"exp6_maps_{key.split('/')[0]}.png",
+            test, cond = key.split("/")
+            figures.map_panels(steps, f / f"exp6_maps_{test}{'' if cond == 'none' else '_' + cond}.png",
                                title=f"{key}: sample trial (projections of the 3-D maps)",
                                row_labels=[f"step {i + 1}" for i in rows])
 
@@ -236,6 +258,11 @@ def report(cfg, run, summary) -> None:
              ["trials decided within 20 steps", f"{100 * h['decided_rate']:.1f} %", "-", "-"]])
     r.h("Effects, the participant as the unit")
     r.effects(summary.get("effects", []))
+    if set(e.conditions) - {"none"}:
+        r.p("Wrist conditions (Exp 4's, carried over): the wrist signal joins the line-of-sight posture map of "
+            "the mental image, on its winner (`match`) or on the opposite unit (`mismatch`); as in Exp 4, a "
+            "congruent signal is expected to shorten and an incongruent one to lengthen the RT (rows 'match "
+            "minus none' and 'mismatch minus none' above; the measures beside Shepard & Metzler use `none`).")
     r.h("All tests")
     r.table(["test", "trials", "correct", "rotated to the target", "RT mean", "RT slope/deg (all)", "rt_r (all)", "mirror 'different'"],
             [[k, v["n_trials"], f"{100 * v['correct_rate']:.1f} %", f"{100 * v['rotation_success_rate']:.1f} %",

@@ -25,6 +25,7 @@ from . import voxels
 from .rotation_embodied import lca_gain  # the same evidence scale as Exp 4
 
 AXES = ("x", "y", "z")
+WRIST_AXIS = "z"  # the line of sight: the axis the wrist turns the held object about (as in Exp 4)
 MOVES = ("still",) + tuple(f"{a}{s}" for a in AXES for s in ("-", "+"))  # PMCm units
 
 
@@ -119,9 +120,23 @@ class Rotation3D(nn.Module):
             out.append(score.argmax(-1))
         return torch.stack(out, -1)
 
-    def ppc_code(self, units: torch.Tensor) -> torch.Tensor:
-        """Gaussian bumps ``(R, axes, nu)`` around the winners ``(R, axes)``."""
-        return self.ppc.encode(units.float())
+    def ppc_code(self, units: torch.Tensor, proprioception: str = "none") -> torch.Tensor:
+        """Gaussian bumps ``(R, axes, nu)`` around the winners ``(R, axes)``, plus the wrist signal.
+
+        The wrist turns about the line of sight (:data:`WRIST_AXIS`), as the Exp 4 hand turns in the
+        picture plane: ``match`` adds ``proprio_gain`` times a bump on that axis's winner,
+        ``mismatch`` on the opposite unit ``nu - 1 - j``; summed with the image-derived bump, then
+        cut to [0, 1] (Exp 4's ``proprio_stage='visual'``).
+        """
+        if proprioception not in ("none", "match", "mismatch"):
+            raise ValueError(f"proprioception must be none, match or mismatch, got {proprioception!r}")
+        code = self.ppc.encode(units.float())
+        if proprioception == "none":
+            return code
+        a, nu = AXES.index(WRIST_AXIS), code.shape[-1]
+        j = units[:, a] if proprioception == "match" else nu - 1 - units[:, a]
+        code[:, a] = (code[:, a] + self.p.proprio_gain * self.ppc.encode(j.float())).clamp(0.0, 1.0)
+        return code
 
     def select(self, ppct: torch.Tensor, ppcp: torch.Tensor, uniforms: torch.Tensor) -> torch.Tensor:
         """PMCm move per row from the per-axis gain fields (eq. 6.9-6.11)."""
@@ -132,12 +147,16 @@ class Rotation3D(nn.Module):
 
     # ------------------------------------------------------------------ trials
     @torch.no_grad()
-    def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record: int = 0) -> dict:
+    def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record: int = 0,
+            proprioception: str = "none") -> dict:
         """Trials ``(P, B, n)`` of binary 3-D maps; randomness from ``generators`` (one per participant,
         one ``(B,)`` draw per step in a fixed order, so a result does not depend on the batch).
-        ``record``: leading trials of participant 0 whose maps are returned per step."""
+        ``record``: leading trials of participant 0 whose maps are returned per step;
+        ``proprioception``: the wrist signal on PPCp (:meth:`ppc_code`)."""
         p = self.p
         P, B, n = target.shape
+        if proprioception not in ("none", "match", "mismatch"):
+            raise ValueError(f"proprioception must be none, match or mismatch, got {proprioception!r}")
         if len(generators) != P:
             raise ValueError(f"{len(generators)} generators for {P} participants")
         Q = P * B
@@ -171,7 +190,7 @@ class Rotation3D(nn.Module):
         for s in range(p.max_steps):
             if s > 0:
                 draws = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(Q)
-                ppcp = self.ppc_code(self.postures(self.c16, poci, part[q]))
+                ppcp = self.ppc_code(self.postures(self.c16, poci, part[q]), proprioception)
                 move = self.select(ppct[q], ppcp, draws[q])
                 pocp = self.predict(poci, move, part[q])
                 ev, tm, fm = evidence(q, pocp)

@@ -296,8 +296,12 @@ class RotationEmbodied(nn.Module):
 
     def flipped_image(self, target: torch.Tensor) -> torch.Tensor:
         """PFCft with ``flip_axis='image'``: each target map reflected about its own principal axis
-        (:func:`principal_axis_flip`; C10 a fixed transformation of PFCt)."""
-        return principal_axis_flip(target, self.size)
+        (:func:`principal_axis_flip`; C10 a fixed transformation of PFCt), computed once per
+        distinct map of the batch."""
+        rows = target.reshape(-1, target.shape[-1])
+        _, words, inv = unique_rows(torch.zeros(len(rows), dtype=torch.long), pack_bits(rows))
+        flat = principal_axis_flip(unpack_bits(words, rows.shape[-1]).to(target.dtype), self.size)
+        return flat[inv].reshape(target.shape)
 
     # ------------------------------------------------------------------ trials
     @torch.no_grad()

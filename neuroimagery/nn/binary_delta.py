@@ -29,32 +29,31 @@ def delta_binary(weight: torch.Tensor, X: torch.Tensor, Y: torch.Tensor, eta: fl
     mini-batches' squared error before their change, reported when a reader listens.
     """
     watch = monitor.Curve(curve, -(-X.shape[1] // batch)) if curve and monitor.active() else None
-    W = weight  # (P, out, in)
-    P, O, I = W.shape
-    Wt = torch.cat([W.transpose(1, 2), torch.zeros(P, 1, O, dtype=W.dtype)], dim=1).contiguous()  # row I = padding
-    rows_of = Wt.view(P * (I + 1), O)  # participant p's weight column i is row p (I + 1) + i
-    base = (torch.arange(P) * (I + 1)).view(P, 1, 1)
+    P, O, I = weight.shape
     N = X.shape[1]
+    rows_of = weight.transpose(1, 2).contiguous().view(P * I, O)  # participant p's weight column i is row p I + i
+    # the active inputs of every pattern, once: bags in (pattern, participant) order, so that a
+    # mini-batch is one contiguous run of bags; within a bag the inputs ascend
+    nz = (X > 0.5).transpose(0, 1).nonzero(as_tuple=False)  # (n, p, i), sorted
+    idx = nz[:, 1] * I + nz[:, 2]
+    ends = torch.bincount(nz[:, 0] * P + nz[:, 1], minlength=N * P).cumsum(0)
     starts = range(0, N, batch)
     for b, s in enumerate(progress(starts) if progress is not None else starts):
-        x, y = X[:, s:s + batch], Y[:, s:s + batch]
-        on = x > 0.5
-        K = int(on.sum(-1).max())
-        if K == 0:
+        e = min(s + batch, N)
+        lo, hi = (int(ends[s * P - 1]) if s else 0), int(ends[e * P - 1])
+        if hi == lo:
             continue
-        # rows of each pattern's active inputs (ascending), padded with the participant's zero row I
-        order = torch.argsort((~on).to(torch.int8), dim=-1, stable=True)[..., :K]
-        valid = torch.gather(on, -1, order)
-        rows = base + torch.where(valid, order, torch.full_like(order, I))  # (P, b, K)
-        out = rows_of[rows[..., 0]]
-        for k in range(1, K):
-            out = out + rows_of[rows[..., k]]  # (P, b, O)
+        counts = ends[s * P:e * P] - torch.cat([ends[s * P - 1:s * P] if s else ends.new_zeros(1), ends[s * P:e * P - 1]])
+        offsets = torch.cat([counts.new_zeros(1), counts.cumsum(0)[:-1]])
+        bag_idx = idx[lo:hi]
+        # each prediction adds its active weight columns one after the other, in ascending order
+        out = torch.nn.functional.embedding_bag(bag_idx, rows_of, offsets, mode="sum").view(e - s, P, O).transpose(0, 1)
+        y = Y[:, s:e]
         if watch is not None:
             watch.add(b, (y - out).pow(2).sum(-1).mean())
-        err = eta * (y - out)
-        rows_of.index_add_(0, rows.reshape(-1), err.unsqueeze(2).expand(-1, -1, K, -1).reshape(-1, O))
-        Wt[:, I] = 0
-    weight.copy_(Wt[:, :I].transpose(1, 2))
+        err = (eta * (y - out)).transpose(0, 1).reshape(-1, O)  # (bags, O), bag order
+        rows_of.index_add_(0, bag_idx, err.repeat_interleave(counts, dim=0))
+    weight.copy_(rows_of.view(P, I, O).transpose(1, 2))
 
 
 def _applies(conn, rule, pre, post, batch, kw) -> bool:

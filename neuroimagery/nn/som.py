@@ -11,8 +11,10 @@ never touched while training) or ``'windowed'`` (:mod:`~neuroimagery.nn.som_wind
 factored form per participant neighbourhood window, unsupervised 2-D maps, CPU). They give the
 same winners and the same weights up to float rounding (``tests/test_som.py``).
 
-``method='auto'`` picks ``factored`` when ``N < n_in`` and the initial and final learning rates
-(``eta``, ``eta_final``) are below 1, ``online`` otherwise; ``N`` is the number of rows of the
+``method='auto'`` picks ``repeated`` (:mod:`~neuroimagery.nn.som_repeated`) when one labelled
+pattern is presented at every step with a constant rate and a neighbourhood that is the forced
+winner alone (the closed form of those steps), else ``factored`` when ``N < n_in`` and the
+initial and final learning rates (``eta``, ``eta_final``) are below 1, ``online`` otherwise; ``N`` is the number of rows of the
 ``patterns`` given to :meth:`SOM.fit`, repeated patterns included (not the number of distinct
 patterns). It never picks ``windowed``, and picks ``online`` on the ``meta`` device (the
 factored form chooses its work by the values it computes).
@@ -182,7 +184,7 @@ class SOM(nn.Module):
             raise ValueError(f"order must have shape ({P}, {T}), got {tuple(order.shape)}")
         if not self.training:
             return order
-        trainer = choose(self, X, labels, method, {"parts": parts})
+        trainer = choose(self, X, labels, method, {"parts": parts}, order)
         it = range(T)
         if progress:
             from tqdm.auto import tqdm

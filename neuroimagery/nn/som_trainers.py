@@ -14,11 +14,14 @@ in float rounding only. The tests hold each fast one against the plain step-by-s
   the neighbourhood times the number of patterns, independent of the input size;
 * ``windowed`` (:mod:`.som_windowed`): the factored form per participant, touching only its own
   neighbourhood window of a 2-D map; CPU, unsupervised.
+* ``repeated`` (:mod:`.som_repeated`): one labelled pattern presented ``T`` times with a constant
+  rate and a neighbourhood that is the forced winner alone: the closed form of those ``T`` steps,
+  one update of one row.
 
 A trainer is ``fit(som, X (P, N, in), order (P, T), labels (P, N) | None, steps, **options) ->
 winners (P, T)``, where ``steps`` iterates over the ``T`` step numbers (a progress bar may wrap
 it). :func:`register` adds one; ``method='auto'`` takes the first of :data:`AUTO` whose
-``suits`` accepts the call.
+``suits`` (and ``applies``, given the pattern order) accepts the call.
 """
 from __future__ import annotations
 
@@ -34,13 +37,17 @@ from . import monitor
 class Trainer:
     """An implementation of the online rule: ``fit`` trains; ``refuse(som, X, labels, options)``
     says why it cannot train this call (``None`` if it can); ``suits`` says whether ``auto`` may
-    pick it; ``options`` the keyword arguments of :meth:`SOM.fit` it reads."""
+    pick it (and ``applies``, when given, that it holds for the call's pattern order); ``options``
+    the keyword arguments of :meth:`SOM.fit` it reads."""
 
     name: str
     fit: Callable
     refuse: Callable = lambda som, X, labels, options: None
     suits: Callable = lambda som, X, labels: False
     options: tuple[str, ...] = ()
+    # ``applies(som, X, order, labels)``: why this implementation would not give the plain rule's
+    # steps for this pattern order (``None`` if it does); for a form the order decides (``repeated``)
+    applies: Callable | None = None
     # several maps in one loop (``nn.som.fit_together``): ``fit_many([(som, X, order, labels, parts)])
     # -> [winners]``, each map's numbers those of its own ``fit``; None: one map at a time
     fit_many: Callable | None = None
@@ -60,11 +67,19 @@ def register(trainer: Trainer, auto: int | None = None) -> Trainer:
     return trainer
 
 
-def choose(som, X: torch.Tensor, labels: torch.Tensor | None, method: str, options: dict) -> Trainer:
-    """The trainer for ``method`` (or the first suitable one for ``'auto'``); a ``ValueError``
-    if it cannot train this call or does not read one of ``options``."""
+def _fits(tr: Trainer, som, X, labels, order) -> bool:
+    if tr.applies is not None and order is None:
+        return False
+    return tr.suits(som, X, labels) and (tr.applies is None or tr.applies(som, X, order, labels) is None)
+
+
+def choose(som, X: torch.Tensor, labels: torch.Tensor | None, method: str, options: dict,
+           order: torch.Tensor | None = None) -> Trainer:
+    """The trainer for ``method`` (or the first suitable one for ``'auto'``, given the pattern
+    ``order`` ``(P, T)`` when one is passed); a ``ValueError`` if it cannot train this call or
+    does not read one of ``options``."""
     if method == "auto":
-        method = next(n for n in AUTO if TRAINERS[n].suits(som, X, labels))
+        method = next(n for n in AUTO if _fits(TRAINERS[n], som, X, labels, order))
     if method not in TRAINERS:
         raise ValueError(f"method must be 'auto' or one of {sorted(TRAINERS)}, got {method!r}")
     tr = TRAINERS[method]
@@ -72,6 +87,8 @@ def choose(som, X: torch.Tensor, labels: torch.Tensor | None, method: str, optio
     if extra:
         raise ValueError(f"method={method!r} takes no {', '.join(extra)}")
     why = tr.refuse(som, X, labels, options)
+    if not why and tr.applies is not None:
+        why = "needs the pattern order" if order is None else tr.applies(som, X, order, labels)
     if why:
         raise ValueError(f"method={method!r} {why}")
     return tr
@@ -155,8 +172,22 @@ def _fit_windowed_many(jobs):
     return fit_windowed_many([(som, _shared(X), order, parts) for som, X, order, labels, parts in jobs])
 
 
+def _applies_repeated(som, X, order, labels):
+    from .som_repeated import applies
+
+    return applies(som, X, order, labels)
+
+
+def _fit_repeated(som, X, order, labels, steps, **_):
+    from .som_repeated import fit_repeated
+
+    return fit_repeated(som, X, order, labels, steps)
+
+
 register(Trainer("online", _fit_online, suits=lambda som, X, labels: True), auto=0)
 register(Trainer("factored", _fit_factored, _refuse_factored,
                  suits=lambda som, X, labels: (X.shape[1] < som.n_in and _rates_below_one(som)
                                                and som.weight.device.type != "meta")), auto=0)
 register(Trainer("windowed", _fit_windowed, _refuse_windowed, options=("parts",), fit_many=_fit_windowed_many))
+register(Trainer("repeated", _fit_repeated, suits=lambda som, X, labels: labels is not None,
+                 applies=_applies_repeated), auto=0)

@@ -34,11 +34,11 @@ on cheap stand-ins in the tests.  Weight tensors live in buffers of :class:`Tool
 from __future__ import annotations
 
 from ...robot.environment import ToolWorldEnvironment
-from .acquisition import AcquisitionConfig, Library, Skill, acquire_skills, build_brain
-from .brain import GatedHebbian, ToolUseBrain
-from .common import CHOICES, EVENTS, N_POSTURES, SKILL_LETTERS, Environment, Result, State, check_choice
-from .sequencing import Outcomes, TrialRecord, sequence_trial
+from .acquisition import AcquisitionParams, Library, Skill, acquire_skills, build_brain
+from .brain import BrainParams, GatedHebbian, ToolUseBrain
+from .common import CHOICES, EVENTS, N_POSTURES, SKILL_LETTERS, Environment, Result, State, check_choice, check_params
+from .sequencing import Outcomes, SequencingParams, TrialRecord, run_trial, sequence_trial
 
-__all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "CHOICES", "check_choice", "State", "Result", "Environment",
-           "ToolUseBrain", "GatedHebbian", "AcquisitionConfig", "Skill", "Library", "acquire_skills", "build_brain",
+__all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "CHOICES", "check_choice", "check_params", "State", "Result", "Environment",
+           "ToolUseBrain", "BrainParams", "GatedHebbian", "AcquisitionParams", "SequencingParams", "run_trial", "Skill", "Library", "acquire_skills", "build_brain",
            "Outcomes", "TrialRecord", "sequence_trial", "ToolWorldEnvironment"]

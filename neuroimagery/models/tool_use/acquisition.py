@@ -14,29 +14,34 @@ import torch
 
 from ...motor.pibb import PIBB, event_costs
 from .brain import ToolUseBrain
-from .common import EVENTS, N_POSTURES, Environment, Result, State, check_choice
+from .common import EVENTS, N_POSTURES, Environment, Result, State, check_params
 
 if TYPE_CHECKING:
     from .sequencing import Outcomes
 
 
 @dataclass
-class AcquisitionConfig:
-    """Parameters of Fig. 7.5 (see ``experiments/exp5.Exp5Config`` for their meaning)."""
+class AcquisitionParams:
+    """Parameters of skill acquisition, Fig. 7.5 (``experiment.acquisition`` of Exp 5). The
+    exploration noise the world draws (its DMP goals and weights) is the world's
+    (``experiment.world``)."""
 
-    n_dmps: int = 10
-    pibb_samples: int = 10
-    pibb_temperature: float = 0.1
-    pibb_decay: float = 0.9
+    n_dmps: int = 10  # M1 / PMC units, the free DMPs (thesis: 10)
+    pibb_samples: int = 10  # K samples per posture and update (thesis: 10)
+    pibb_temperature: float = 0.1  # tau of eq. 7.7 on the 0/1 costs (not given)
+    pibb_decay: float = 0.9  # exploration covariance factor per PI^BB update (not given)
+    # a PI^BB update whose K samples all cost the same (none or all achieved the event from that
+    # posture): 'average' = the plain mean of the samples, eq. 7.8 with uniform weights (a random
+    # step) | 'keep' = no information, mean and covariance unchanged. See docs/exp5.md.
     pibb_flat: str = "average"
-    max_epochs: int = 10
-    competence_tolerance: float = 0.05
-    c1_repeats: int = 10
-    c2_repeats: int = 10
-    c3_repeats: int = 50
-    hip_threshold: float = 0.5
-    explore_batch: int = 8
-    explore_max_rollouts: int = 400
+    max_epochs: int = 10  # PI^BB epochs at most (thesis: 10)
+    competence_tolerance: float = 0.05  # stop when the competence changes by less (thesis: 0.05)
+    c1_repeats: int = 10  # C1 updates per PI^BB update (thesis: 10)
+    c2_repeats: int = 10  # C2 updates per successful competence check (thesis: 10)
+    c3_repeats: int = 50  # C3 updates per successful competence check (thesis: 50)
+    hip_threshold: float = 0.5  # a distal goal (C2 -> HIP) this active makes an event "not new"
+    explore_batch: int = 8  # exploration movements rolled out per batch (the first new event wins)
+    explore_max_rollouts: int = 400  # give up looking for further events after this many movements
     # rollouts of one DMP without a new event before it is given back with fresh random
     # parameters (one PI^BB epoch's worth: 4 postures x 10 samples; docs/exp5.md)
     explore_patience: int = 40
@@ -45,14 +50,20 @@ class AcquisitionConfig:
     # not active there is learnt again by a free DMP (thesis: the extra DMPs serve events one DMP
     # cannot achieve from every initial posture)
     spare_dmps: str = "none"
-    # what C3 holds: 'success' = a primitive's outcome from an initial situation only where it achieved
-    # its event (Fig. 7.5) | 'every' = also, from the other initial situations, the outcome of the
-    # learnt primitive performed there (the movement runs to its end); applied by build_brain
-    c3_outcomes: str = "success"
 
     def __post_init__(self) -> None:
-        check_choice("spare_dmps", self.spare_dmps)
-        check_choice("c3_outcomes", self.c3_outcomes)
+        check_params("acquisition", self, positive=("pibb_temperature",),
+                     at_least_one=("n_dmps", "pibb_samples", "max_epochs", "explore_batch", "explore_max_rollouts",
+                                   "explore_patience"),
+                     non_negative=("c1_repeats", "c2_repeats", "c3_repeats"),
+                     unit=("competence_tolerance", "hip_threshold"), choices=("spare_dmps", "pibb_flat"))
+        if self.pibb_samples < 2:
+            raise ValueError(f"experiment.acquisition.pibb_samples must be >= 2, got {self.pibb_samples!r}")
+        if self.n_dmps < len(EVENTS):
+            raise ValueError(f"experiment.acquisition.n_dmps must be >= {len(EVENTS)} (one primitive per event), "
+                             f"got {self.n_dmps!r}")
+        if not 0 < self.pibb_decay <= 1:
+            raise ValueError(f"experiment.acquisition.pibb_decay must be in (0, 1], got {self.pibb_decay!r}")
 
 
 @dataclass
@@ -118,7 +129,7 @@ def _new_event(result: Result, wanted: Sequence[str]) -> str | None:
     return result.fired_first if result.fired_first in fired else fired[0]
 
 
-def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionConfig, generator: torch.Generator,
+def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionParams, generator: torch.Generator,
                    brain: ToolUseBrain | None = None, perceive: Callable[[State], torch.Tensor] | None = None,
                    progress: Callable[[str], None] | None = None) -> Library:
     """Skill acquisition, Fig. 7.5, with the IM detectors ``enabled`` switched on.
@@ -197,7 +208,7 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionCon
     return lib
 
 
-def _explore(env, events: Sequence[str], cfg: AcquisitionConfig, generator, lib: Library,
+def _explore(env, events: Sequence[str], cfg: AcquisitionParams, generator, lib: Library,
              mastered: Callable[[str, int], bool], primitive: torch.Tensor, budget: int
              ) -> tuple[tuple[str, torch.Tensor, int] | None, int]:
     """Part A of Fig. 7.5 for one DMP: ``primitive`` with goal noise, from random postures
@@ -231,7 +242,7 @@ def _explore(env, events: Sequence[str], cfg: AcquisitionConfig, generator, lib:
     return None, tried
 
 
-def _learn_skill(env, skill: Skill, cfg: AcquisitionConfig, generator, brain, perceive, lib: Library) -> None:
+def _learn_skill(env, skill: Skill, cfg: AcquisitionParams, generator, brain, perceive, lib: Library) -> None:
     """Part B of Fig. 7.5 for one primitive (PI^BB + competence stopping rule)."""
     pibb = PIBB.from_sigma(skill.theta, env.search_sigma(), n_samples=cfg.pibb_samples,
                            temperature=cfg.pibb_temperature, decay=cfg.pibb_decay, flat=cfg.pibb_flat)
@@ -281,16 +292,16 @@ def _train_c23(brain: ToolUseBrain, env, perceive, skill: Skill, p: int, outcome
     brain.train_c3(situation, skill.unit, p, perceive(outcome), cfg.c3_repeats, generator)
 
 
-def build_brain(env: Environment, lib: Library, cfg: AcquisitionConfig, brain: ToolUseBrain,
+def build_brain(env: Environment, lib: Library, cfg: AcquisitionParams, brain: ToolUseBrain,
                 generator: torch.Generator, perceive: Callable[[State], torch.Tensor] | None = None,
                 outcomes: Outcomes | None = None) -> ToolUseBrain:
     """Replay the C1/C2/C3 training of Fig. 7.5 for the skills of ``lib`` (in their order).
 
     Used when one acquired library serves several individuals (a HP1 robot keeps only the skills
     of its enabled detectors): the brain ends exactly as if only those skills had been trained.
-    With ``cfg.c3_outcomes == "every"`` the primitives are also performed from the initial
-    situations where they missed their event, through ``outcomes`` (the rollout cache shared with
-    action sequencing) when given.
+    With ``brain.c3_outcomes == "every"`` (:class:`BrainParams`) the primitives are also performed
+    from the initial situations where they missed their event, through ``outcomes`` (the rollout
+    cache shared with action sequencing) when given.
     """
     perceive = perceive or env.perceive
     brain.train()
@@ -303,7 +314,7 @@ def build_brain(env: Environment, lib: Library, cfg: AcquisitionConfig, brain: T
                 brain.train_c1(seen, s.unit, op[2], cfg.c1_repeats)
             else:
                 _train_c23(brain, env, perceive, s, op[1], op[2], cfg, generator)
-        if cfg.c3_outcomes == "every":
+        if brain.c3_outcomes == "every":
             # the learnt movement from the initial situations where it did not achieve its event
             # (the last competence check): C3 learns where it leads there, C2 learns nothing
             for p in range(1, N_POSTURES + 1):

@@ -1,25 +1,62 @@
 """One infant robot's maps and connections C1-C4 (thesis Fig. 7.4), in :class:`ToolUseBrain`."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 from torch import nn
 
 from ...nn.connections import AllToAll
 from ...nn.rules import GatedHebbian, QLearning
 from ...nn.som import BidirectionalSOM
-from .common import EVENTS, N_POSTURES, check_choice
+from .common import EVENTS, N_POSTURES, check_choice, check_params
+
+
+@dataclass
+class BrainParams:
+    """The learning rates and read-outs of C1-C4 (``experiment.brain`` of Exp 5)."""
+
+    c1_eta: float = 0.1  # C1 Hebbian rate (not given)
+    c2_eta: float = 0.1  # C2 Hebbian rate (not given)
+    c3_eta: float = 0.1  # C3 SOM rate (not given); 50 steps make the prototype the last outcome
+    c3_sigma: float = 0.1  # C3 neighbourhood width in units; small: each pair keeps its own unit
+    c3_action_gain: float = 100.0  # weight of the primitive's code against the image in C3's match ('joint')
+    # how C3 finds the unit that imagines "primitive a in this image": 'practised' = recognise the
+    # nearest of the initial situations practised in (Fig. 7.5 B), then that situation's unit for a
+    # (never trained: no change imagined) | 'situation' = the same among the situations stored in C3
+    # only | 'joint' = nearest [image, gain * code] (any situation where a once succeeded answers)
+    c3_recall: str = "practised"
+    # what C3 (the mental images) holds: 'success' = a primitive's outcome from an initial situation
+    # only where it achieved its event (Fig. 7.5) | 'every' = also its outcome from the other initial
+    # situations (the learnt movement performed there; applied by ``build_brain``). docs/exp5.md.
+    c3_outcomes: str = "success"
+    q_form: str = "standard"  # eq. 7.1 sign: 'standard' r + gamma maxQ (default) | 'printed' r - gamma maxQ
+    eta: float = 1e-4  # C4 Q-learning rate (thesis: 0.0001) on the 2 x 240 x 320 binary PC map
+    gamma: float = 0.8  # discount (thesis: 0.8)
+
+    def __post_init__(self) -> None:
+        check_params("brain", self, positive=("c3_sigma", "c3_action_gain"), unit=("gamma",),
+                     choices=("c3_recall", "c3_outcomes"))
+        for k in ("eta", "c1_eta", "c2_eta", "c3_eta"):
+            if not 0 < getattr(self, k) <= 1:
+                raise ValueError(f"experiment.brain.{k} must be in (0, 1], got {getattr(self, k)!r}")
+        if self.q_form not in ("standard", "printed"):
+            raise ValueError(f"experiment.brain.q_form must be 'standard' or 'printed', got {self.q_form!r}")
 
 
 class ToolUseBrain(nn.Module):
-    """One infant robot's maps and connections C1-C4 (Fig. 7.4)."""
+    """One infant robot's maps and connections C1-C4 (Fig. 7.4); :meth:`from_params` builds it
+    from a :class:`BrainParams`."""
 
     def __init__(self, image_shape: tuple[int, int], n_dmps: int = 10, n_goals: int = 6,
                  c1_eta: float = 0.1, c2_eta: float = 0.1, c3_eta: float = 0.1, c3_sigma: float = 0.1,
                  c3_action_gain: float = 100.0, q_eta: float = 1e-4, q_gamma: float = 0.8,
-                 q_form: str = "standard", c3_recall: str = "practised", seed: int = 0) -> None:
+                 q_form: str = "standard", c3_recall: str = "practised", c3_outcomes: str = "success",
+                 seed: int = 0) -> None:
         super().__init__()
         check_choice("c3_recall", c3_recall)
-        self.c3_recall = c3_recall
+        check_choice("c3_outcomes", c3_outcomes)
+        self.c3_recall, self.c3_outcomes = c3_recall, c3_outcomes
         self.image_shape = tuple(image_shape)
         self.n_pc = 2 * image_shape[0] * image_shape[1]
         self.n_dmps, self.n_goals = int(n_dmps), int(n_goals)
@@ -37,6 +74,15 @@ class ToolUseBrain(nn.Module):
         self.register_buffer("practised_seen", torch.zeros(N_POSTURES, dtype=torch.bool))
         self._b_norms: torch.Tensor | None = None  # cache of C3's input-side prototype norms
         self._s_norms: torch.Tensor | None = None  # cache of the norms of their situation parts
+
+    @classmethod
+    def from_params(cls, image_shape: tuple[int, int], params: BrainParams, n_dmps: int = 10,
+                    seed: int = 0) -> "ToolUseBrain":
+        """A brain with ``n_dmps`` PMC / M1 units and the rates and read-outs of ``params``."""
+        p = params
+        return cls(image_shape, n_dmps=n_dmps, c1_eta=p.c1_eta, c2_eta=p.c2_eta, c3_eta=p.c3_eta, c3_sigma=p.c3_sigma,
+                   c3_action_gain=p.c3_action_gain, q_eta=p.eta, q_gamma=p.gamma, q_form=p.q_form,
+                   c3_recall=p.c3_recall, c3_outcomes=p.c3_outcomes, seed=seed)
 
     # --- read-outs
     @staticmethod
@@ -185,21 +231,11 @@ class ToolUseBrain(nn.Module):
         a, b = self.flat(outcome).unsqueeze(0), self._c3_b(image, unit).unsqueeze(0)
         if not self.training or times < 1:
             return
-        rule = self.c3.som.rule
-        eta, sigma = rule.schedule(0)
-        theta = rule.neighbourhood(self.c3.som.grid, torch.tensor([label]), sigma)[0]
-        if int((theta > 0).sum()) == 1:
-            # the neighbourhood is below the rule's cutoff: ``times`` online steps of eq. 4.5 with
-            # the forced winner move only the winner's row, w <- x + (1 - eta)^times (w - x)
-            w = self.c3.som.weight[0, label]
-            x = torch.cat([a, b], dim=-1)[0, 0]
-            w.copy_(x + (1.0 - float(eta)) ** times * (w - x))
-            self.c3.som.steps += times
-            self._b_norms = self._s_norms = None
-        else:
-            self.c3.fit(a, b, labels=torch.tensor([[label]]), iterations=times,
-                        order=torch.zeros(1, times, dtype=torch.long))
-            self._b_norms = self._s_norms = None
+        # ``times`` presentations of one pair to its forced winner: SOM.fit picks the closed form
+        # of those online steps (nn.som_repeated) while the neighbourhood is the winner alone
+        self.c3.fit(a, b, labels=torch.tensor([[label]]), iterations=times,
+                    order=torch.zeros(1, times, dtype=torch.long))
+        self._b_norms = self._s_norms = None
         self.c3_trained[label] = True
 
     def q_update(self, x0: torch.Tensor, unit: int, reward: float, x1: torch.Tensor, done: bool) -> None:
