@@ -40,3 +40,22 @@ def test_products_of_distinct_pairs_equal_the_full_batch():
     assert torch.equal(binary_matmul_rows(table, gu, unpack_bits(wu, 128))[inv], full)
     ref = torch.einsum("ni,nio->no", x.float(), table[group])
     assert torch.allclose(full, ref, atol=1e-5)
+
+
+def test_unique_rows_falls_back_to_exact_grouping_when_hashes_collide(monkeypatch):
+    from neuroimagery.nn import binary
+
+    g = torch.Generator().manual_seed(2)
+    x = (torch.rand(8, 70, generator=g) < 0.3)[torch.tensor([0, 1, 0, 2, 3, 3, 4, 5, 6, 7, 0])]
+    group = torch.zeros(11, dtype=torch.long)
+    monkeypatch.setattr(binary, "_hash_weights", lambda width: torch.zeros(width, dtype=torch.float64))  # every row one hash
+    gu, wu, inv = unique_rows(group, pack_bits(x))
+    assert len(gu) == 8 and torch.equal(unpack_bits(wu[inv], 70), x)
+
+
+def test_unique_rows_come_in_ascending_group_order():
+    g = torch.Generator().manual_seed(3)
+    x = torch.rand(40, 64, generator=g) < 0.5
+    group = torch.randint(0, 5, (40,), generator=g)
+    gu, wu, inv = unique_rows(group, pack_bits(x))
+    assert torch.equal(gu, gu.sort().values) and torch.equal(gu[inv], group) and torch.equal(unpack_bits(wu[inv], 64), x)

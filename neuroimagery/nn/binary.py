@@ -76,10 +76,42 @@ def popcount(words: torch.Tensor) -> torch.Tensor:
     return _POPCOUNT.to(words.device)[words.contiguous().view(torch.uint8).long()].sum(-1)
 
 
+_HASH: dict[int, torch.Tensor] = {}  # random float64 weights per key width (the grouping hash)
+
+
+def _hash_weights(width: int) -> torch.Tensor:
+    if width not in _HASH:
+        _HASH[width] = torch.rand(width, generator=torch.Generator().manual_seed(width), dtype=torch.float64) + 0.5
+    return _HASH[width]
+
+
 def unique_rows(group: torch.Tensor, words: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The distinct ``(group, packed row)`` pairs of a batch: ``(groups (U,), words (U, W), inverse (N,))``
-    with ``words[i] == unique_words[inverse[i]]``. A product that depends only on the pair is then
-    computed once per distinct pair and indexed back with ``inverse``."""
-    key = torch.cat([group.reshape(-1, 1).to(torch.int64), words], dim=1)
+    """Distinct ``(group, packed row)`` pairs of a batch: ``(groups (U,), words (U, W), inverse (N,))``
+    with ``words[i] == unique_words[inverse[i]]`` and ``group[i] == unique_groups[inverse[i]]``. A
+    product that depends only on the pair is then computed once per pair and indexed back with
+    ``inverse``.
+
+    The rows are grouped by a hash (a random projection of their 32-bit halves) and every group is
+    then checked row by row against one of its members; should two different rows ever share a
+    hash, the exact ``torch.unique(dim=0)`` grouping is used instead. Either way a group holds only
+    equal rows, so what is computed per group does not depend on the hash. The distinct pairs come
+    in ascending order of group.
+    """
+    key = torch.cat([group.reshape(-1, 1).to(torch.int64), words.to(torch.int64)], dim=1).contiguous()
+    if len(key):
+        halves = key.view(torch.int32).to(torch.float64)
+        h = halves @ _hash_weights(halves.shape[1]).to(halves.device)
+        _, inverse = torch.unique(h, return_inverse=True)
+        rep = torch.zeros(int(inverse.max()) + 1, dtype=torch.long, device=key.device)
+        rep.scatter_(0, inverse, torch.arange(len(key), device=key.device))  # one member of each group
+        uniq = key[rep]
+        if torch.equal(uniq[inverse], key):
+            # groups in ascending order, as the exact grouping gives them: the rows of one weight
+            # matrix then follow each other (a product over a table of matrices stays in cache)
+            order = torch.sort(uniq[:, 0], stable=True).indices
+            rank = torch.empty_like(order)
+            rank[order] = torch.arange(len(order), device=order.device)
+            uniq = uniq[order]
+            return uniq[:, 0], uniq[:, 1:], rank[inverse]
     uniq, inverse = torch.unique(key, dim=0, return_inverse=True)
     return uniq[:, 0], uniq[:, 1:], inverse
