@@ -16,7 +16,7 @@ import pandas as pd
 import torch
 
 from ..analysis import figures
-from ..models.rotation_embodied import EmbodiedParams, lca_gain
+from ..models.rotation_embodied import PROPRIOCEPTION as CONDITIONS, EmbodiedParams, lca_gain
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, slope_by_participant,
                                 summarise_trials)
@@ -25,7 +25,6 @@ from . import protocol_ch6 as pc
 from ..thesis import EXP4 as THESIS_TARGETS
 
 TESTS = ("recog", "gen1", "gen2")
-CONDITIONS = ("none", "match", "mismatch")
 THESIS = {k.removesuffix(" correct rate"): t.value for k, t in THESIS_TARGETS.items() if k.endswith("correct rate")}
 
 

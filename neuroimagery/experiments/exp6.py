@@ -19,11 +19,12 @@ import torch
 
 from .. import progress
 from ..errors import UserInputError
+from ..models.rotation_embodied import PROPRIOCEPTION
 from ..nn import seeding
 from ..vision import shepard_metzler as sm
 
 TESTS = sm.KINDS  # picture, depth
-CONDITIONS = ("none", "match", "mismatch")  # proprioception, as Exp 4
+CONDITIONS = PROPRIOCEPTION  # the wrist conditions, as Exp 4
 WRIST_JOINTS = {"x": "r_wrist_pitch", "y": "r_wrist_yaw", "z": "r_wrist_prosup"}  # axis -> joint it stands for
 
 

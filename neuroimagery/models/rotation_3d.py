@@ -22,7 +22,7 @@ from ..nn import Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM
 from ..nn.functional import gain_field, softmax_select
 from ..nn.local import LocalConnection, offset_count
 from . import voxels
-from .rotation_embodied import lca_gain  # the same evidence scale as Exp 4
+from .rotation_embodied import check_proprioception, lca_gain  # the same evidence scale and wrist conditions as Exp 4
 
 AXES = ("x", "y", "z")
 WRIST_AXIS = "z"  # the line of sight: the axis the wrist turns the held object about (as in Exp 4)
@@ -128,8 +128,7 @@ class Rotation3D(nn.Module):
         ``mismatch`` on the opposite unit ``nu - 1 - j``; summed with the image-derived bump, then
         cut to [0, 1] (Exp 4's ``proprio_stage='visual'``).
         """
-        if proprioception not in ("none", "match", "mismatch"):
-            raise ValueError(f"proprioception must be none, match or mismatch, got {proprioception!r}")
+        check_proprioception(proprioception)
         code = self.ppc.encode(units.float())
         if proprioception == "none":
             return code
@@ -155,8 +154,7 @@ class Rotation3D(nn.Module):
         ``proprioception``: the wrist signal on PPCp (:meth:`ppc_code`)."""
         p = self.p
         P, B, n = target.shape
-        if proprioception not in ("none", "match", "mismatch"):
-            raise ValueError(f"proprioception must be none, match or mismatch, got {proprioception!r}")
+        check_proprioception(proprioception)  # before any work
         if len(generators) != P:
             raise ValueError(f"{len(generators)} generators for {P} participants")
         Q = P * B

@@ -45,6 +45,15 @@ def triangle_weights(n: int) -> torch.Tensor:
     return torch.stack([(r > c), (r == c), (r < c)]).reshape(3, n * n).float()
 
 
+PROPRIOCEPTION = ("none", "match", "mismatch")  # the wrist conditions
+
+
+def check_proprioception(value: str) -> None:
+    """Refuse a wrist condition other than :data:`PROPRIOCEPTION`."""
+    if value not in PROPRIOCEPTION:
+        raise ValueError(f"proprioception must be none, match or mismatch, got {value!r}")
+
+
 def lca_gain(p) -> float:
     """The evidence scale of PMCd: ``p.lca_input_gain``, or when it is None the smallest gain with
     which a full overlap (fraction 1), alone from rest, crosses the threshold within one step of
@@ -335,8 +344,7 @@ class RotationEmbodied(nn.Module):
         """
         p = self.p
         for prop, _, gens in conditions:
-            if prop not in ("none", "match", "mismatch"):
-                raise ValueError(f"proprioception must be none, match or mismatch, got {prop!r}")
+            check_proprioception(prop)
             if len(gens) != target.shape[0]:
                 raise ValueError(f"{len(gens)} generators for {target.shape[0]} participants")
         if self._tables is None:
