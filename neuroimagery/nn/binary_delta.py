@@ -36,15 +36,17 @@ def delta_binary(weight: torch.Tensor, X: torch.Tensor, Y: torch.Tensor, eta: fl
     # mini-batch is one contiguous run of bags; within a bag the inputs ascend
     nz = (X > 0.5).transpose(0, 1).nonzero(as_tuple=False)  # (n, p, i), sorted
     idx = nz[:, 1] * I + nz[:, 2]
-    ends = torch.bincount(nz[:, 0] * P + nz[:, 1], minlength=N * P).cumsum(0)
+    sizes = torch.bincount(nz[:, 0] * P + nz[:, 1], minlength=N * P)  # active inputs per bag
+    first = sizes.cumsum(0) - sizes  # where each bag starts in idx
     starts = range(0, N, batch)
     for b, s in enumerate(progress(starts) if progress is not None else starts):
         e = min(s + batch, N)
-        lo, hi = (int(ends[s * P - 1]) if s else 0), int(ends[e * P - 1])
+        counts = sizes[s * P:e * P]
+        lo = int(first[s * P])
+        hi = lo + int(counts.sum())
         if hi == lo:
             continue
-        counts = ends[s * P:e * P] - torch.cat([ends[s * P - 1:s * P] if s else ends.new_zeros(1), ends[s * P:e * P - 1]])
-        offsets = torch.cat([counts.new_zeros(1), counts.cumsum(0)[:-1]])
+        offsets = first[s * P:e * P] - lo
         bag_idx = idx[lo:hi]
         # each prediction adds its active weight columns one after the other, in ascending order
         out = torch.nn.functional.embedding_bag(bag_idx, rows_of, offsets, mode="sum").view(e - s, P, O).transpose(0, 1)
