@@ -29,20 +29,33 @@ def reset_peak() -> bool:
 
 
 def peak_rss_mb() -> float | None:
-    """The process's peak resident memory in MiB (since the last :func:`reset_peak` on Linux)."""
+    """The process's peak resident memory in MiB (since the last :func:`reset_peak` on Linux).
+
+    On Linux the high-water mark of the address space (``VmHWM``, the mark :func:`reset_peak`
+    resets) is read: ``getrusage`` also keeps marks a reset cannot lower, such as the resident set
+    of the process image an ``exec`` replaced (a run started from a large parent).
+    """
+    hwm = _status_mb("VmHWM:")
+    if hwm is not None:
+        return hwm
     if resource is None:
         return None
     kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return round(kb / (1024 * 1024 if sys.platform == "darwin" else 1024), 1)  # bytes on macOS, KiB elsewhere
 
 
-def rss_mb() -> float | None:
-    """The process's resident memory now, in MiB (Linux; None elsewhere)."""
+def _status_mb(field: str) -> float | None:
+    """A ``kB`` field of ``/proc/self/status`` in MiB (Linux; None elsewhere)."""
     try:
         with open("/proc/self/status") as f:
             for line in f:
-                if line.startswith("VmRSS:"):
+                if line.startswith(field):
                     return round(int(line.split()[1]) / 1024, 1)
     except (OSError, ValueError, IndexError):
         pass
     return None
+
+
+def rss_mb() -> float | None:
+    """The process's resident memory now, in MiB (Linux; None elsewhere)."""
+    return _status_mb("VmRSS:")
