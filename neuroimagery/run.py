@@ -6,6 +6,7 @@ wrap them with ``@hydra.main``. Tests call them directly with a composed config.
 from __future__ import annotations
 
 import json
+import os
 import pickle
 import tempfile
 import time
@@ -24,6 +25,22 @@ from .errors import UserInputError
 from .files import torch_save, write_atomic
 from .logger import make_logger
 from .validation import check_run
+
+_STARTUP_TAKEN = []  # the first run of a process records its startup; later runs of a sweep have none
+
+
+def process_age_s() -> float | None:
+    """Seconds since this process started (Linux: from ``/proc``; None elsewhere): in a run's
+    ``runtime_s`` the startup, i.e. the interpreter, the imports and composing the configuration."""
+    try:
+        with open("/proc/self/stat") as f:
+            start_ticks = int(f.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as f:
+            uptime = float(f.read().split()[0])
+        return max(0.0, uptime - start_ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
+
 
 # files whose presence means a directory already holds a run
 RUN_FILES = ("manifest.json", "train.json", "summary.json", "trials.csv", "individuals.csv", "report.md")
@@ -262,7 +279,11 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
 
     Writes ``trials.csv`` / ``individuals.csv``, ``summary.json``, ``report.md``, ``figures/``, ``tb/``.
     """
+    started = None if _STARTUP_TAKEN else process_age_s()
+    _STARTUP_TAKEN.append(True)
     conf, module, run = _prepare(cfg, out_dir, checkpoint=True)
+    if started is not None:
+        run.timings["startup"] = round(started, 3)
     with intra_op_threads(conf.threads or auto_threads()):  # restored afterwards
         try:
             if conf.checkpoint:
@@ -281,11 +302,14 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
                     trained = module.train(conf, run)
                 run.timings["train"] = round(time.perf_counter() - t0, 3)
                 peaks = {"train": memory.peak_rss_mb()}
-            t0 = time.perf_counter()
+            from .analysis import figures
+
+            t0, drawn = time.perf_counter(), figures.drawing_time()
             memory.reset_peak()
             with progress.phase(f"{conf.experiment.name} test", conf.progress):
                 summary = module.evaluate(conf, run, trained)
             run.timings["evaluate"] = round(time.perf_counter() - t0, 3)
+            run.timings["figures"] = round(figures.drawing_time() - drawn, 3)  # part of evaluate
             peaks["evaluate"] = memory.peak_rss_mb()
             trials = run.root / "trials.csv"
             if "stimuli" in getattr(module, "INPUTS", ()) and trials.is_file():  # a user's stimuli against chance

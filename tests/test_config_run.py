@@ -65,7 +65,9 @@ def test_run_writes_the_results_layout(tmp_path):
     t = summary["tests"]["rotation/none"]
     assert set(t) >= {"n_trials", "correct_rate", "error_rate", "rotation_success_rate", "rt_mean", "rt_by_disparity",
                       "error_rate_by_disparity", "rt_slope_per_deg", "rt_r"}
-    assert set(summary["runtime_s"]) == {"train", "evaluate"}
+    rt = summary["runtime_s"]
+    assert {"train", "evaluate", "figures"} <= set(rt) <= {"train", "evaluate", "figures", "startup"}
+    assert 0 < rt["figures"] <= rt["evaluate"]  # the demo draws its RT figure within its evaluation
     assert set(summary["peak_rss_mb"]) == {"train", "evaluate"}
     assert all(v is None or v > 10 for v in summary["peak_rss_mb"].values())  # MiB: a Python process with torch
     df = pd.read_csv(tmp_path / "trials.csv")
@@ -121,3 +123,16 @@ def test_summary_splits_errors_into_same_and_mirror_pairs():
     assert t["error_rate"] == round(3 / 6, 4)
     t = summarise_test(pd.DataFrame(rows[:4]))
     assert t["error_rate_same"] == 0.5 and t["error_rate_different"] is None
+
+
+def test_process_age_counts_from_the_process_start():
+    """runtime_s.startup: seconds from the process's start (a pause before the import included)."""
+    import subprocess
+    import sys
+
+    code = ("import time; time.sleep(0.6); from neuroimagery.run import process_age_s; a = process_age_s(); "
+            "print('none' if a is None else a)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    if out == "none":
+        pytest.skip("no /proc on this platform")
+    assert 0.6 <= float(out) < 60

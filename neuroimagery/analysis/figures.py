@@ -5,6 +5,8 @@ one standard error of that mean over participants (``SEM``); the thesis's stated
 dashed in black (``thesis=``), labelled "thesis"."""
 from __future__ import annotations
 
+import functools
+import time
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -17,6 +19,29 @@ import pandas as pd  # noqa: E402
 
 
 THESIS_STYLE = dict(color="black", linestyle="--", linewidth=1.2)
+
+_SPENT = [0.0, 0]  # seconds spent in the drawing functions below, and the nesting depth
+
+
+def drawing_time() -> float:
+    """Seconds this process has spent in this module's drawing and saving functions (a run's
+    ``runtime_s.figures`` is the difference over its evaluation)."""
+    return _SPENT[0]
+
+
+def _timed(draw):
+    """Count ``draw``'s wall time in :func:`drawing_time` (once when drawing functions nest)."""
+    @functools.wraps(draw)
+    def wrapper(*args, **kwargs):
+        _SPENT[1] += 1
+        t0 = time.perf_counter()
+        try:
+            return draw(*args, **kwargs)
+        finally:
+            _SPENT[1] -= 1
+            if _SPENT[1] == 0:
+                _SPENT[0] += time.perf_counter() - t0
+    return wrapper
 
 
 def participant_means(g: pd.DataFrame, by: str, value: str) -> tuple[pd.Series, pd.Series]:
@@ -52,6 +77,7 @@ def _finish(ax, xlabel: str, ylabel: str, title: str) -> None:
     ax.grid(alpha=0.3)
 
 
+@_timed
 def rt_by_disparity(df: pd.DataFrame, path: str | Path, groups: Sequence[str] = ("test", "condition"),
                     title: str = "", ylabel: str = "RT", signed: bool = False, errorbars: bool = True,
                     thesis: Mapping[str, Sequence[tuple[float, float]]] | None = None, x: str | None = None,
@@ -70,6 +96,7 @@ def rt_by_disparity(df: pd.DataFrame, path: str | Path, groups: Sequence[str] = 
     return save(fig, path)
 
 
+@_timed
 def rate_by_disparity(df: pd.DataFrame, path: str | Path, column: str = "correct", error: bool = True,
                       groups: Sequence[str] = ("test", "condition"), title: str = "",
                       thesis: Mapping[str, Sequence[tuple[float, float]]] | None = None) -> Path:
@@ -84,6 +111,7 @@ def rate_by_disparity(df: pd.DataFrame, path: str | Path, column: str = "correct
     return save(fig, path)
 
 
+@_timed
 def rate_bars(df: pd.DataFrame, path: str | Path, title: str = "", by: str = "test", column: str = "correct",
               error: bool = False, thesis: Mapping[str, float] | None = None) -> Path:
     """Correct (or error) rate per level of ``by`` (+- SEM over participants); the thesis's value of a
@@ -131,6 +159,7 @@ def _cell(a: np.ndarray) -> np.ndarray:
     return out
 
 
+@_timed
 def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, title: str = "",
                row_labels: Sequence[str] | None = None) -> Path:
     """A grid of map activities: one row per step, one column per map (as Fig. 5.4, 6.12), drawn
@@ -163,6 +192,7 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
     return path
 
 
+@_timed
 def save(fig, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
