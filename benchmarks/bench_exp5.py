@@ -40,7 +40,9 @@ def main(argv=None) -> int:
     totals: dict[str, float] = {}
     individuals = 0
     t_load, c_load = time.perf_counter(), time.process_time()
-    exp5._task_environment(e)  # the world is built once per worker process and reused by its tasks
+    env = exp5._task_environment(e)  # the world is built once per worker process and reused by its tasks
+    world_timing = getattr(getattr(env, "world", None), "timing", None)  # pybullet's own share, all phases
+    world0 = dict(world_timing or {})
     t_load, c_load = time.perf_counter() - t_load, time.process_time() - c_load
     print(f"loading the world (once per worker): wall {t_load:.1f} s, CPU {c_load:.1f} s")
     memory.reset_peak()
@@ -66,6 +68,12 @@ def main(argv=None) -> int:
         if k in totals:
             n = totals.get(k.replace("_s", "s"), 0)
             print(f"  {k:10s} {totals[k]:8.1f} s  ({100 * totals[k] / wall:.0f} %, {n:.0f} {k.replace('_s', 's')})")
+    if world_timing is not None:
+        phys = world_timing["physics_s"] - world0.get("physics_s", 0.0)
+        rend = world_timing["render_s"] - world0.get("render_s", 0.0)
+        print(f"inside the world, acquisition and sequencing together: simulated rollouts (pybullet steps and "
+              f"contact bookkeeping) {phys:.1f} s ({100 * phys / wall:.0f} %), eye renders (pybullet camera) "
+              f"{rend:.1f} s ({100 * rend / wall:.0f} %), together {phys + rend:.1f} s of {wall:.1f} s")
     full = 30 * 2 * len(exp5.groups(e))
     print(f"full HP1 + HP2 ({full} individuals) estimate on 2 free cores: "
           f"{full / (60 * individuals / cpu) / 2:.1f} min (CPU-bound), {full / (60 * individuals / wall) / 2:.1f} min "
