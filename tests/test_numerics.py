@@ -101,3 +101,33 @@ def test_exp3_forward_model_is_the_same_at_two_threads(threads):
         threads(n)
         w[n] = exp3.train_model(cfg, [0]).c6.weight.clone()
     assert torch.equal(w[1], w[2])
+
+
+def test_large_uniform_draws_side_by_side_equal_one_at_a_time(monkeypatch):
+    """seeding.uniform draws big per-participant tensors on several threads: every participant's
+    numbers are those of its own generator drawn alone, at any thread count."""
+    from neuroimagery.nn import seeding
+
+    shape = (300, 40)
+    solo = [seeding.uniform(seeding.participant_generators(3, [p]), shape, -0.5, 0.5)[0] for p in range(5)]
+    monkeypatch.setattr(seeding, "PARALLEL_DRAW", 1)  # every draw takes the threaded path
+    for threads in (1, 2, 3):
+        prev = torch.get_num_threads()
+        torch.set_num_threads(threads)
+        try:
+            batch = seeding.uniform(seeding.participant_generators(3, 5), shape, -0.5, 0.5)
+        finally:
+            torch.set_num_threads(prev)
+        for p in range(5):
+            assert torch.equal(batch[p], solo[p]), (threads, p)
+
+
+def test_thread_budget_is_the_outermost_setting():
+    from neuroimagery.nn.functional import intra_op_threads, thread_budget
+
+    with intra_op_threads(2):
+        with intra_op_threads(1, cap=True):
+            assert torch.get_num_threads() == 1 and thread_budget() == 2
+    with intra_op_threads(1):
+        assert thread_budget() == 1
+    assert thread_budget() == torch.get_num_threads()

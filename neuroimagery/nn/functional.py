@@ -184,14 +184,28 @@ def user_error(msg: str) -> UserInputError:
     return UserInputError(msg)
 
 
+_SETTINGS: list[int] = []  # thread counts of the intra_op_threads blocks now open, outermost first
+
+
 @contextlib.contextmanager
 def intra_op_threads(n: int, cap: bool = False):
     """Run the block on ``n`` torch intra-op threads (with ``cap``: at most ``n``, never more than
     are set now), restoring the previous setting afterwards. Loops of small products run faster on
     one thread than with several threads handing work to each other."""
     before = torch.get_num_threads()
-    torch.set_num_threads(min(before, n) if cap else n)
+    now = min(before, n) if cap else n
+    torch.set_num_threads(now)
+    _SETTINGS.append(now)
     try:
         yield
     finally:
+        _SETTINGS.pop()
         torch.set_num_threads(before)
+
+
+def thread_budget() -> int:
+    """The threads the outermost :func:`intra_op_threads` block allows (a run's ``threads``, or the
+    free cores measured at its start), else torch's current count: what independent work, such as
+    the draws of several participants' generators, may run side by side even where an inner block
+    keeps each product on one thread."""
+    return _SETTINGS[0] if _SETTINGS else torch.get_num_threads()

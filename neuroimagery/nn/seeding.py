@@ -7,9 +7,14 @@ participant) and stack the per-participant draws.
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, Sequence
 
 import torch
+
+from .functional import thread_budget
+
+PARALLEL_DRAW = 1 << 20  # numbers per participant from which the participants' draws run side by side
 
 _MIX = 0x9E3779B97F4A7C15  # golden-ratio constant, spreads nearby seeds apart
 
@@ -48,8 +53,20 @@ def stacked(generators: Sequence[torch.Generator], draw: Callable[[torch.Generat
 def uniform(generators: Sequence[torch.Generator], shape: Sequence[int], low: float = 0.0, high: float = 1.0) -> torch.Tensor:
     """U[low, high) of shape ``(P, *shape)``, one participant per generator."""
     out = torch.empty((len(generators), *shape))
-    for o, g in zip(out, generators):  # drawn in place: no per-participant copies to stack
-        torch.rand(tuple(shape), generator=g, out=o)
+    shape = tuple(shape)
+
+    def draw(pair) -> None:  # in place: no per-participant copies to stack
+        torch.rand(shape, generator=pair[1], out=pair[0])
+
+    workers = min(thread_budget(), len(generators))
+    if workers > 1 and out[0].numel() >= PARALLEL_DRAW:
+        # each generator is a sequential stream of its own, so large draws of several participants
+        # run side by side on the run's threads (torch releases the GIL); the numbers are the same
+        with ThreadPoolExecutor(workers) as pool:
+            list(pool.map(draw, zip(out, generators)))
+    else:
+        for pair in zip(out, generators):
+            draw(pair)
     if high - low != 1:
         out.mul_(high - low)
     return out.add_(low) if low != 0 else out  # adding 0 to U[0, 1) samples changes no bit
