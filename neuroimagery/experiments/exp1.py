@@ -30,12 +30,12 @@ class Exp1Config(AffordanceParams):
     """The model's parameters (:class:`AffordanceParams`) and the run's."""
 
     name: str = "exp1"
-    auto_threads: int = 1  # intra-op threads for training and testing when the run's `threads` is 0 (see docs)
+    auto_threads: int = 0  # intra-op threads for training and testing when the run's `threads` is 0; 0: the free cores measured at start (see docs)
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.auto_threads < 1:
-            raise ValueError(f"experiment.auto_threads must be >= 1, got {self.auto_threads!r}")
+        if self.auto_threads < 0:
+            raise ValueError(f"experiment.auto_threads must be >= 0, got {self.auto_threads!r}")
 
 
 CONFIG = Exp1Config

@@ -57,8 +57,10 @@ def objects_of(sset) -> list[str]:
 # --------------------------------------------------------------------------------- threads
 def auto_threads(fn):
     """Run ``fn(cfg, ...)`` on ``cfg.experiment.auto_threads`` intra-op threads when the run leaves
-    ``threads`` at 0 (torch's default, one thread per core). These models run long loops of
-    small products; on two shared cores a second thread mostly waits for the other's share.
+    ``threads`` at 0 and that key is above 0; at 0 (the default) on the run's own setting, the
+    cores left free by other work when the run started (:func:`neuroimagery.threads.auto_threads`).
+    ``auto_threads=1`` keeps the loops of small products on one thread for a machine whose other
+    work starts after the run (a second thread then mostly waits for the other's share).
 
     Subnormal floats are flushed to zero meanwhile (:func:`~neuroimagery.nn.numerics.flush_subnormals`):
     the population codes' Gaussian tails fall below 1.2e-38, and the products over them (M1_1's
@@ -68,7 +70,7 @@ def auto_threads(fn):
     @functools.wraps(fn)
     def wrapper(cfg, *args, **kwargs):
         with flush_subnormals():
-            if getattr(cfg, "threads", 0):
+            if getattr(cfg, "threads", 0) or not cfg.experiment.auto_threads:
                 return fn(cfg, *args, **kwargs)
             with intra_op_threads(cfg.experiment.auto_threads):
                 return fn(cfg, *args, **kwargs)
