@@ -104,3 +104,23 @@ def test_goal_offset_bound_limits_the_movement_to_the_start_neighbourhood():
     assert torch.allclose(bounded.rollout(near, y0, 1.5, 0.01), free.rollout(near, y0, 1.5, 0.01))
     with pytest.raises(ValueError, match="max_goal_offset"):
         DMP(max_goal_offset=0.0)
+
+
+def test_compiled_rollout_gives_the_torch_loops_bits():
+    """motor.dmp_kernel integrates float32 rollouts with the torch loop's operations in its order:
+    identical trajectories (both start postures' layouts, several step sizes)."""
+    from neuroimagery.motor import dmp_kernel
+
+    if not dmp_kernel.available(torch.zeros(1)):
+        pytest.skip("numba is not installed")
+    g = torch.Generator().manual_seed(5)
+    d = DMP()
+    for trial in range(30):
+        n = trial % 7 + 1
+        theta = torch.randn(n, 35, generator=g) * torch.tensor([1.0] * 7 + [300.0] * 28)
+        y0 = torch.randn(n, 7, generator=g) * 0.5 if trial % 2 else torch.randn(7, generator=g) * 0.5
+        duration, dt = [(1.5, 0.02), (2.0, 0.01), (1.0, 0.005)][trial % 3]
+        d.compiled = False
+        plain = d.rollout(theta, y0, duration, dt)
+        d.compiled = True
+        assert torch.equal(d.rollout(theta, y0, duration, dt), plain), trial

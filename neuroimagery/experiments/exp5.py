@@ -23,6 +23,8 @@ and reports.
 """
 from __future__ import annotations
 
+import copy
+
 import importlib
 import time
 import warnings
@@ -217,8 +219,14 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
     sit_ids = [list(SITUATIONS).index(s) for s in task["situations"]]
     g_lib = _gen(seed, 1, r, *sit_ids)
 
+    fresh: list[ToolUseBrain] = []
+
     def new_brain() -> ToolUseBrain:
-        return ToolUseBrain.from_params(env.image_shape, e.brain, n_dmps=acq.n_dmps, seed=seed)
+        # every brain of a run starts from the same seed, so a task draws C3's initial weights
+        # (tens of MB) once and hands each new brain a copy of that untouched brain
+        if not fresh:
+            fresh.append(ToolUseBrain.from_params(env.image_shape, e.brain, n_dmps=acq.n_dmps, seed=seed))
+        return copy.deepcopy(fresh[0])
 
     if library is not None:
         lib = Library.from_state(library)

@@ -28,6 +28,7 @@ import math
 import torch
 
 from ..nn.functional import checks_enabled
+from . import dmp_kernel
 
 # Largest joint displacement (rad) of a movement's goal from its start posture: a skill is a
 # movement from where the arm is, not a jump to anywhere in the joint range (docs/robot.md).
@@ -67,6 +68,7 @@ class DMP(torch.nn.Module):
         self.max_goal_offset = None if max_goal_offset is None else float(max_goal_offset)
         self.n_joints, self.n_basis = n_joints, n_basis
         self.alpha_v, self.beta_v, self.alpha_x = float(alpha_v), float(beta_v), float(alpha_x)
+        self.compiled = True  # float32 CPU rollouts integrate in the compiled loop (motor.dmp_kernel): same bits
         t = torch.linspace(0.0, 1.0, n_basis, dtype=torch.float64)
         centres = torch.exp(-alpha_x * t)
         if n_basis > 1:
@@ -148,6 +150,8 @@ class DMP(torch.nn.Module):
         psi = torch.exp(-self.widths.to(theta.dtype) * (xs[:, None] - self.centres.to(theta.dtype)) ** 2)  # (S, B)
         shape = torch.einsum("sb,njb->snj", psi / psi.sum(-1, keepdim=True), w)  # (S, N, J)
         f = shape * (xs[:, None, None] * (g - y0)) / tau**2
+        if self.compiled and dmp_kernel.available(g, y0, f):
+            return dmp_kernel.integrate(g, y0.expand_as(g), f, k, c, dt, out)
         for s in range(steps):
             acc = k * (g - y) - c * v + f[s]
             v = v + dt * acc
