@@ -124,3 +124,13 @@ def test_compiled_rollout_gives_the_torch_loops_bits():
         plain = d.rollout(theta, y0, duration, dt)
         d.compiled = True
         assert torch.equal(d.rollout(theta, y0, duration, dt), plain), trial
+
+
+def test_rollout_keeps_gradients_through_the_parameters():
+    """A rollout whose parameters need a gradient takes the torch loop, so the trajectory is
+    differentiable in the goals and weights (a model that learns through a DMP)."""
+    d = DMP()
+    theta = (torch.randn(3, 35, generator=torch.Generator().manual_seed(2)) * 0.3).requires_grad_()
+    traj = d.rollout(theta, torch.zeros(7), 1.0, 0.02)
+    traj[:, -1].sum().backward()
+    assert theta.grad is not None and theta.grad[:, :7].abs().sum() > 0  # the end posture follows the goals

@@ -17,8 +17,12 @@ except ImportError:  # the torch loop then runs (the same numbers, more slowly)
 
 
 def available(*tensors: torch.Tensor) -> bool:
-    """Whether the compiled loop can integrate these tensors (numba installed, CPU, float32)."""
-    return numba is not None and all(t.device.type == "cpu" and t.dtype == torch.float32 for t in tensors)
+    """Whether the compiled loop can integrate these tensors: numba installed, float32 CPU tensors
+    that no gradient flows through, and not while ``torch.compile`` traces (those take the torch loop)."""
+    if numba is None or torch.compiler.is_compiling():
+        return False
+    grad = torch.is_grad_enabled()
+    return all(t.device.type == "cpu" and t.dtype == torch.float32 and not (grad and t.requires_grad) for t in tensors)
 
 
 def _loop(g, y0, f, k, c, dt, out):
