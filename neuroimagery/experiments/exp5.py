@@ -24,7 +24,6 @@ and reports.
 from __future__ import annotations
 
 import copy
-
 import importlib
 import time
 import warnings
