@@ -20,17 +20,19 @@ import pandas as pd  # noqa: E402
 
 THESIS_STYLE = dict(color="black", linestyle="--", linewidth=1.2)
 
-_SPENT = [0.0, 0]  # seconds spent in the drawing functions below, and the nesting depth
+_SPENT = [0.0, 0]  # seconds spent in timed drawing functions, and the nesting depth
 
 
 def drawing_time() -> float:
-    """Seconds this process has spent in this module's drawing and saving functions (a run's
-    ``runtime_s.figures`` is the difference over its evaluation)."""
+    """Seconds this process has spent in functions marked :func:`timed` (this module's drawing and
+    saving functions, the experiments' figure routines); a run's ``runtime_s.figures`` is the
+    difference over its evaluation."""
     return _SPENT[0]
 
 
-def _timed(draw):
-    """Count ``draw``'s wall time in :func:`drawing_time` (once when drawing functions nest)."""
+def timed(draw):
+    """Count ``draw``'s wall time in :func:`drawing_time` (once when drawing functions nest); an
+    experiment's own figure routine wears it too, so its plotting before :func:`save` counts."""
     @functools.wraps(draw)
     def wrapper(*args, **kwargs):
         _SPENT[1] += 1
@@ -77,7 +79,7 @@ def _finish(ax, xlabel: str, ylabel: str, title: str) -> None:
     ax.grid(alpha=0.3)
 
 
-@_timed
+@timed
 def rt_by_disparity(df: pd.DataFrame, path: str | Path, groups: Sequence[str] = ("test", "condition"),
                     title: str = "", ylabel: str = "RT", signed: bool = False, errorbars: bool = True,
                     thesis: Mapping[str, Sequence[tuple[float, float]]] | None = None, x: str | None = None,
@@ -96,7 +98,7 @@ def rt_by_disparity(df: pd.DataFrame, path: str | Path, groups: Sequence[str] = 
     return save(fig, path)
 
 
-@_timed
+@timed
 def rate_by_disparity(df: pd.DataFrame, path: str | Path, column: str = "correct", error: bool = True,
                       groups: Sequence[str] = ("test", "condition"), title: str = "",
                       thesis: Mapping[str, Sequence[tuple[float, float]]] | None = None) -> Path:
@@ -111,7 +113,7 @@ def rate_by_disparity(df: pd.DataFrame, path: str | Path, column: str = "correct
     return save(fig, path)
 
 
-@_timed
+@timed
 def rate_bars(df: pd.DataFrame, path: str | Path, title: str = "", by: str = "test", column: str = "correct",
               error: bool = False, thesis: Mapping[str, float] | None = None) -> Path:
     """Correct (or error) rate per level of ``by`` (+- SEM over participants); the thesis's value of a
@@ -159,7 +161,7 @@ def _cell(a: np.ndarray) -> np.ndarray:
     return out
 
 
-@_timed
+@timed
 def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, title: str = "",
                row_labels: Sequence[str] | None = None) -> Path:
     """A grid of map activities: one row per step, one column per map (as Fig. 5.4, 6.12), drawn
@@ -192,7 +194,7 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
     return path
 
 
-@_timed
+@timed
 def save(fig, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

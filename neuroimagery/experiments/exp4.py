@@ -267,6 +267,7 @@ def evaluate(cfg, run, trained) -> dict:
     return summary
 
 
+@figures.timed
 def _figures(run, df, histories, step_deg: float) -> None:
     f = run.figures
     base = df[df["condition"] == "none"]

@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..analysis import figures
 from ..analysis.figures import plt, save
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.robots import ROBOT_EFFECTS_INTRO
@@ -96,6 +97,7 @@ def filmstrip(film: dict, path: Path) -> Path:
     return save(fig, path)
 
 
+@figures.timed
 def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> None:
     figs = {}
     figs["fig_7_9"] = success_curves(summary, "hp1", run.figures / "fig_7_9_hp1_skills.png", "age",

@@ -210,6 +210,7 @@ def _fig2(df: pd.DataFrame, path, tests) -> None:
     figures.save(fig, path)
 
 
+@figures.timed
 def _figures(run, df, histories, side) -> None:
     f = run.figures
     tests = [t for t in exp6.TESTS if t in set(df["test"])]
