@@ -82,6 +82,11 @@ class WorldConfig:
     friction: float = 0.5  # lateral friction of toy, rake and table
     # --- simulation ---------------------------------------------------------------------------
     physics_dt: float = 0.01  # pybullet time step (100 Hz; two steps per control step)
+    # kinematic drive: no rake point travels farther than this in one physics step, the radius of
+    # the handle, the thinnest colliding part (docs/robot.md, physics step criterion); a control
+    # step that sweeps farther is cut into more, shorter physics steps.  None: always
+    # control_dt / physics_dt steps of physics_dt
+    max_substep_travel: float | None = 0.008
     control_dt: float = 0.02  # time between trajectory points (DMP integration step, 50 Hz)
     settle_steps: int = 10  # physics steps after placing the scene, before a rollout
     skip_far_steps: bool = True  # kinematic drive: skip control steps where the resting toy is out of the rake's reach
@@ -130,6 +135,8 @@ class WorldConfig:
             raise ValueError(
                 f"WorldConfig.control_dt ({self.control_dt}) must be >= physics_dt ({self.physics_dt})"
             )
+        if self.max_substep_travel is not None and not float(self.max_substep_travel) > 0:
+            raise ValueError(f"WorldConfig.max_substep_travel must be > 0 or None, got {self.max_substep_travel!r}")
         if self.settle_steps < 0:
             raise ValueError(f"WorldConfig.settle_steps must be >= 0, got {self.settle_steps}")
         if len(self.postures) != 4 or any(len(p) != 7 for p in self.postures):
