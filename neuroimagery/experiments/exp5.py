@@ -38,7 +38,6 @@ import torch
 from ..errors import UserInputError
 from ..models.tool_use import EVENTS, Library, Outcomes, ToolUseBrain, acquire_skills, build_brain, run_trial
 from ..nn.seeding import participant_seed
-from ..robot.config import WorldConfig
 from . import exp5_tasks as task_files
 from .exp5_config import (MOVED_KEYS, SITUATIONS, THESIS, THESIS_TABLE_7_1, Exp5Config, dotted,  # noqa: F401 (public names)
                           nest)
@@ -122,7 +121,7 @@ def make_environment(e: Exp5Config):
     if w.environment == "robot":
         from ..robot.environment import ToolWorldEnvironment
 
-        return ToolWorldEnvironment(WorldConfig(), **w.env_kwargs())
+        return ToolWorldEnvironment(w.world_config(), **w.env_kwargs())
     mod, _, cls = w.environment.partition(":")
     try:
         return getattr(importlib.import_module(mod), cls)()

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Optional
 
 from ..models.tool_use import EVENTS, AcquisitionParams, BrainParams, SequencingParams, check_params
 from ..thesis import EXP5, EXP5_TABLE_7_1
@@ -34,16 +35,29 @@ class WorldParams:
     # whether a scene between moves keeps the toy's turn about the vertical: 'keep' = as the last
     # move left it | 'reset' = square again (its place is kept either way). See docs/exp5.md.
     toy_turn: str = "keep"
+    # m; no rake point travels farther in one physics step (robot.config.WorldConfig, docs/robot.md,
+    # physics step criterion); null: two fixed 10 ms steps per control step
+    max_substep_travel: Optional[float] = 0.008
 
     def __post_init__(self) -> None:
         check_params("world", self, positive=("duration_s", "explore_weight_sigma", "search_goal_sigma",
                                               "search_weight_sigma"), choices=("toy_turn",))
         if self.environment != "robot" and ":" not in self.environment:
             raise ValueError(f"experiment.world.environment must be 'robot' or 'module:Class', got {self.environment!r}")
+        if self.max_substep_travel is not None and not float(self.max_substep_travel) > 0:
+            raise ValueError(f"experiment.world.max_substep_travel must be > 0 or null, got {self.max_substep_travel!r}")
 
     def env_kwargs(self) -> dict:
-        """The keyword arguments of ``ToolWorldEnvironment`` (all but ``environment``)."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "environment"}
+        """The keyword arguments of ``ToolWorldEnvironment`` (all but ``environment`` and the
+        physics settings of ``world_config``)."""
+        skip = ("environment", "max_substep_travel")
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name not in skip}
+
+    def world_config(self):
+        """The pybullet world's ``WorldConfig`` with this group's physics settings."""
+        from ..robot.config import WorldConfig
+
+        return WorldConfig(max_substep_travel=self.max_substep_travel)
 
 
 @dataclass

@@ -38,7 +38,7 @@ from neuroimagery.robot.constraint_drive import simulate_constraint
 from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, toy_events, toy_yaw_of
 from neuroimagery.robot.eye import colour_masks
 from neuroimagery.robot.kinematics import ArmKinematics
-from neuroimagery.robot.rake_pose import quat_from_matrix, rotvec_between
+from neuroimagery.robot import rake_plan
 
 class ToolWorld:
     """pybullet scene of rake, toy and table driven by iCub arm trajectories.
@@ -93,6 +93,8 @@ class ToolWorld:
         n_handle = 11  # the first points lie on the handle's axis (radius 8 mm, urdf/rake.urdf)
         self._point_radius = np.where(np.arange(len(pts)) < n_handle, 0.008, 0.0)
         self._point_radius_max = 0.008
+        self._geometry = rake_plan.RakeGeometry(self._rake_points_np[:, :3], self._point_radius,
+                                                self._point_radius_max, self._R_com, self._rake_com)
         if cfg.rake_drive == "constraint":
             self.constraint = c.createConstraint(
                 self.rake, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [0, 0, 2]
@@ -333,49 +335,12 @@ class ToolWorld:
 
     # ---------------------------------------------------------------- kinematic drive (default)
     def _plan(self, poses: np.ndarray) -> dict:
-        """Everything about trajectories that does not depend on the toy, batched in numpy.
+        """Everything about trajectories that does not depend on the toy (:func:`rake_plan.plan`)."""
+        return rake_plan.plan(poses, self._geometry, self.cfg, self.substeps)
 
-        ``poses`` (N, T, 4, 4) grip poses -> lifted poses (the table stops the rake: a pose whose
-        lowest rake point would sink below ``table_top + table_clearance`` is raised vertically),
-        the world points of the rake at each step (N, T, P, 3), the inertial-frame positions and
-        quaternions pybullet needs, the linear/angular velocities that carry the rake from step
-        t-1 to t, and ``sweep``, the farthest any rake point travels in each step.
-        """
-        cfg = self.cfg
-        P = self._rake_points_np[:, :3]
-        pts = poses[..., None, :3, 3] + P @ np.swapaxes(poses[..., :3, :3], -1, -2)  # (N, T, P, 3)
-        low = (pts[..., 2] - self._point_radius).min(axis=-1)  # (N, T)
-        lift = np.maximum(cfg.table_top + cfg.table_clearance - low, 0.0)
-        poses = poses.copy()
-        poses[..., 2, 3] += lift
-        pts[..., 2] += lift[..., None]
-        R = poses[..., :3, :3] @ self._R_com
-        pos = poses[..., :3, 3] + poses[..., :3, :3] @ self._rake_com
-        quat = quat_from_matrix(R)
-        dt = cfg.control_dt
-        lin = np.zeros_like(pos)
-        ang = np.zeros_like(pos)
-        sweep = np.zeros(pts.shape[:2])
-        if pos.shape[1] > 1:
-            lin[:, 1:] = (pos[:, 1:] - pos[:, :-1]) / dt
-            ang[:, 1:] = rotvec_between(quat[:, :-1], quat[:, 1:]) / dt
-            sweep[:, 1:] = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=-1).max(axis=-1)
-        nsub = self._substeps_for(sweep)
-        # the substeps' gravity is added back so the rake lands exactly on pose t: n semi-implicit
-        # Euler steps of h = dt / n lose g h dt (n + 1) / 2 of height
-        lin[:, 1:, 2] += 9.81 * dt * (nsub[:, 1:] + 1) / (2 * nsub[:, 1:])
-        return {"poses": poses, "pts": pts, "pos": pos, "orn": quat, "lin": lin, "ang": ang, "sweep": sweep,
-                "nsub": nsub}
-
-    def _substeps_for(self, sweep: np.ndarray) -> np.ndarray:
-        """Physics steps per control step (docs/robot.md, physics step criterion): at least
-        ``control_dt / physics_dt``, and enough that no rake point moves farther than
-        ``max_substep_travel`` in one of them."""
-        travel = self.cfg.max_substep_travel
-        n = np.full(sweep.shape, self.substeps, dtype=np.int64)
-        if travel is not None:
-            n = np.maximum(n, np.ceil(sweep / float(travel) - 1e-9).astype(np.int64))
-        return n
+    def _gaps(self, pts: np.ndarray, toy_xy, sweep: np.ndarray) -> np.ndarray:
+        """Per control step, the rake's smallest distance to the toy's box (:func:`rake_plan.gaps`)."""
+        return rake_plan.gaps(pts, toy_xy, sweep, self.cfg, self._geometry.point_radius_max)
 
     def _set_physics_step(self, n: int) -> None:
         """``n`` physics steps per control step from now on (the step is ``control_dt / n``)."""
@@ -383,24 +348,6 @@ class ToolWorld:
             h = self.cfg.physics_dt if n == self.substeps else self.cfg.control_dt / n
             self.p.setTimeStep(h, physicsClientId=self._cid)
             self._n_now = n
-
-    def _gaps(self, pts: np.ndarray, toy_xy, sweep: np.ndarray) -> np.ndarray:
-        """Per control step, the smallest distance between the rake and the toy's box while moving.
-
-        ``pts`` (..., T, P, 3), ``sweep`` (..., T) -> (..., T).  The toy is taken as the square
-        around its circumscribed circle (so any yaw is covered); step ``t`` moves the rake from
-        pose ``t-1`` to ``t``, so its distance is the smaller of the two ends minus half the
-        farthest any rake point travels in the step.
-        """
-        cfg = self.cfg
-        h = cfg.toy_size / 2 * math.sqrt(2.0)
-        lo = np.array([toy_xy[0] - h, toy_xy[1] - h, cfg.table_top])
-        hi = np.array([toy_xy[0] + h, toy_xy[1] + h, cfg.table_top + cfg.toy_size])
-        d = np.maximum(np.maximum(lo - pts, pts - hi), 0.0)
-        g = np.sqrt((d * d).sum(axis=-1).min(axis=-1)) - self._point_radius_max  # (..., T)
-        out = g.copy()
-        out[..., 1:] = np.minimum(g[..., 1:], g[..., :-1]) - 0.5 * sweep[..., 1:]
-        return out
 
     def _simulate_kinematic(self, plan: dict, posture: int, watched: str | None) -> Outcome:
         """Rake driven kinematically; physics only while the rake can reach the toy (module doc).
