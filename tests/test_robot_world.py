@@ -93,6 +93,10 @@ def test_direction_events_take_one_direction_per_displacement():
     assert toy_events(far, 0.0, 0.03, 0.0, cfg) == [False, False, False, True, False, False]
     assert toy_events(far, 0.0, -0.015, -0.01, cfg) == [False] * 6  # 1.8 cm: below the threshold
     assert toy_events(0.3, cfg.toy_xy[1], -0.28, 0.0, cfg)[0]  # in reach
+    # retrieve needs the toy on the table: not flying over the area, not falling past its edge
+    assert toy_events(0.3, cfg.toy_xy[1], -0.28, 0.0, cfg, height=0.009)[0]
+    assert not toy_events(0.3, cfg.toy_xy[1], -0.28, 0.0, cfg, height=0.02)[0]
+    assert not toy_events(0.3, cfg.toy_xy[1], -0.28, 0.0, cfg, height=-0.02)[0]
 
 
 def test_thesis_events_fire_from_their_postures(world):
@@ -228,10 +232,13 @@ def test_errors(world):
 
 
 def test_blow_up_is_reported_not_counted():
-    cfg = WorldConfig(max_toy_speed=1e-3)  # any push now counts as an absurd speed
+    cfg = WorldConfig(blowup_speed_factor=1e-6, blowup_speed_margin=1e-4)  # any push is now absurd
     with ToolWorld(cfg) as w:
         out = w.rollout(_line(w, 1, (-0.16, 0.0, 0.0)), 1, None)[0]
     assert out.blew_up and not any(out.events) and out.fired_first is None
+    with ToolWorld() as w:  # the same pull under the default rule is a plain retrieval
+        out = w.rollout(_line(w, 1, (-0.16, 0.0, 0.0)), 1, None)[0]
+    assert not out.blew_up and out.fired("retrieve") and out.fired("south")
 
 
 def test_observe_masks(world):

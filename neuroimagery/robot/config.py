@@ -42,6 +42,11 @@ DEFAULT_GRASP: tuple[tuple[float, ...], ...] = (
 )
 
 
+# where a toy thrown off the table is kept in later scenes: behind the robot, out of the eye's
+# view and the rake's reach (docs/robot.md, a toy thrown off the table)
+OFF_TABLE_XY = (-3.0, 0.0)
+
+
 @dataclass
 class WorldConfig:
     """Everything physical about the rake / toy / table scene.
@@ -102,8 +107,13 @@ class WorldConfig:
     filter_margin: float = 0.05  # rake farther than this from the toy's box for the whole rollout:
     #                              the toy cannot have moved, skip the physics
     # --- blow-up detection --------------------------------------------------------------------
-    max_toy_speed: float = 5.0  # m/s; faster than this is a physics blow-up, not an event
-    max_toy_height: float = 0.30  # m above the table top; higher is a blow-up
+    # a blow-up is a toy faster than blowup_speed_factor x the fastest any rake point has moved so
+    # far in the rollout, plus blowup_speed_margin (m/s): a speed no contact can give (docs/robot.md)
+    blowup_speed_factor: float = 2.0
+    blowup_speed_margin: float = 1.0
+    # retrieve needs the toy on the table: its centre at most this far (m) above its resting
+    # height, the band in which the reachable area was computed (robot.reach)
+    reach_height_band: float = 0.01
     # --- camera -------------------------------------------------------------------------------
     image_width: int = 320
     image_height: int = 240
@@ -116,7 +126,7 @@ class WorldConfig:
         positive = (
             "root_height", "rake_length", "table_top", "toy_size", "toy_mass", "rake_mass",
             "rake_max_force", "physics_dt", "control_dt", "move_threshold", "touch_tolerance",
-            "filter_margin", "max_toy_speed", "max_toy_height", "camera_fov", "goal_noise_share",
+            "filter_margin", "blowup_speed_factor", "blowup_speed_margin", "reach_height_band", "camera_fov", "goal_noise_share",
         )
         for key in positive:
             if not float(getattr(self, key)) > 0:

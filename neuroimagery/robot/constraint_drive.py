@@ -5,12 +5,10 @@ kept to test the fast drive against (docs/robot.md).
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import torch
 
-from neuroimagery.robot.events import EVENTS, Outcome, latch_events, toy_events
+from neuroimagery.robot.events import EVENTS, Outcome, latch_events, toy_events, toy_fate
 
 
 def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor, watched: str | None) -> Outcome:
@@ -26,21 +24,28 @@ def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor
     step = 0
     targets_pos, targets_orn = world._rake_targets(poses)
     targets_pos, targets_orn = targets_pos.tolist(), targets_orn.tolist()
+    # the fastest any point of the target poses has moved up to each step (blow-up rule, toy_fate)
+    pts = poses[:, None, :3, 3] + world._rake_points_np[:, :3] @ np.swapaxes(poses[:, :3, :3], -1, -2)
+    sweep = np.zeros(len(poses))
+    sweep[1:] = np.linalg.norm(pts[1:] - pts[:-1], axis=-1).max(axis=-1)
+    rake_speed = (np.maximum.accumulate(sweep) / cfg.control_dt).tolist()
+    rest_z = cfg.table_top + cfg.toy_size / 2
+    off_table = False
     for step in range(len(poses)):
         world._set_rake(poses[step], teleport=False, target=(targets_pos[step], targets_orn[step]))
         for _ in range(world.substeps):
             c.stepSimulation()
         pos, _ = c.getBasePositionAndOrientation(world.toy)
         vel, _ = c.getBaseVelocity(world.toy)
-        if (
-            not all(map(math.isfinite, pos))
-            or math.sqrt(sum(v * v for v in vel)) > cfg.max_toy_speed
-            or abs(pos[2] - (cfg.table_top + cfg.toy_size / 2)) > cfg.max_toy_height
-        ):
+        fate = toy_fate(pos, vel, rake_speed[step], cfg)
+        if fate == "blew_up":
             blew_up = True
             break
-        now = toy_events(pos[0], pos[1], pos[0] - start[0], pos[1] - start[1], cfg)
+        now = toy_events(pos[0], pos[1], pos[0] - start[0], pos[1] - start[1], cfg, height=pos[2] - rest_z)
         first = latch_events(now, fired, first, top, cfg, lambda: c.getContactPoints(world.rake, world.toy))
+        if fate == "off_table":
+            off_table = True
+            break
         if watched_i is not None and fired[watched_i]:
             break
     final = world.toy_xy()
@@ -48,4 +53,4 @@ def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor
         return Outcome((False,) * 6, None, (0.0, 0.0), step, tuple(float(v) for v in start), True,
                        final_toy_yaw=start_yaw)
     disp = (final[0] - float(start[0]), final[1] - float(start[1]))
-    return Outcome(tuple(fired), first, disp, step, final, False, final_toy_yaw=world.toy_yaw())
+    return Outcome(tuple(fired), first, disp, step, final, False, final_toy_yaw=world.toy_yaw(), off_table=off_table)

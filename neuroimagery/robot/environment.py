@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from .config import OFF_TABLE_XY
 from .eye import ToyReader
 
 # the values each choice of the environment accepts (Exp5Config checks the same table)
@@ -48,6 +49,7 @@ class Result:
     next_state: State
     fired_first: str | None = None
     blew_up: bool = False  # the physics blew up (all events are then False)
+    off_table: bool = False  # the toy fell off the table: the next state keeps it out of play
 
     def fired(self, name: str) -> bool:
         from .events import event_index
@@ -148,8 +150,10 @@ class ToolWorldEnvironment:
             q_end = tuple(round(float(v), 6) for v in traj[n, o.stop_step])
             toy = tuple(round(float(v), 6) for v in o.final_toy_xy)
             yaw = round(float(o.final_toy_yaw), 6) if self.toy_turn == "keep" else 0.0
+            if o.off_table:  # out of play from now on (docs/robot.md, a toy thrown off the table)
+                toy, yaw = OFF_TABLE_XY, 0.0
             res.append(Result(tuple(bool(e) for e in o.events), State(state.posture, q_end, toy, yaw or None),
-                              o.fired_first, bool(o.blew_up)))
+                              o.fired_first, bool(o.blew_up), bool(o.off_table)))
         self.timing["rollout_s"] += time.perf_counter() - t0
         self.timing["rollouts"] += len(outs)
         return res

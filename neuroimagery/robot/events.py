@@ -42,8 +42,10 @@ class Outcome:
     final_toy_xy: the toy's centre at the stop.
     final_toy_yaw: the toy's turn about the vertical at the stop (rad in [-pi/4, pi/4): the cube
         looks the same every quarter turn).
-    blew_up: the physics produced an absurd toy state (too fast or flying); events are then all
-        False, so a blow-up is never counted as an event.
+    blew_up: the physics produced a toy state no contact can give (not finite, or faster than
+        :func:`toy_fate` allows); events are then all False, so a blow-up is never counted.
+    off_table: the toy fell off the table (the rollout stopped there; the events fired before
+        stand).
     simulated: False when the FK filter showed the rake never came near the toy and the
         physics was skipped.
     """
@@ -57,10 +59,25 @@ class Outcome:
     simulated: bool = True
     min_gap: float = float("nan")  # closest the rake came to the toy's start box (m, FK; NaN if unknown)
     final_toy_yaw: float = 0.0  # the toy's turn about the vertical at the stop (rad, folded by toy_yaw_of)
+    off_table: bool = False  # the toy fell off the table (the rollout stopped when it did)
 
     def fired(self, name: str) -> bool:
         return self.events[event_index(name)]
 
+
+
+def toy_fate(pos, vel, rake_speed: float, cfg) -> str:
+    """Whether the toy is still in play after a control step (docs/robot.md, a toy thrown off
+    the table): ``"blew_up"`` for a state no contact can give (a position or velocity that is not
+    finite, or faster than ``blowup_speed_factor`` times ``rake_speed``, the fastest any rake point
+    has moved so far in the rollout, plus ``blowup_speed_margin``), ``"off_table"`` once its
+    centre is lower than the table's top, else ``"on_table"``."""
+    if not all(map(math.isfinite, (*pos, *vel))):
+        return "blew_up"
+    speed = math.sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2])
+    if speed > cfg.blowup_speed_factor * rake_speed + cfg.blowup_speed_margin:
+        return "blew_up"
+    return "off_table" if pos[2] < cfg.table_top else "on_table"
 
 
 def toy_yaw_of(quaternion) -> float:
@@ -92,16 +109,17 @@ def latch_events(now: list, fired: list, first: str | None, top: float, cfg,
 
 
 
-def toy_events(x: float, y: float, dx: float, dy: float, cfg) -> list[bool]:
+def toy_events(x: float, y: float, dx: float, dy: float, cfg, height: float = 0.0) -> list[bool]:
     """This step's events from the toy's place ``(x, y)`` and its displacement ``(dx, dy)`` from
     the rollout's start (touch, read from the contacts, is left False; ``EVENTS`` order).
 
-    retrieve: ``(x, y)`` in the reachable area. A direction event: the displacement longer than
-    ``cfg.move_threshold`` and pointing within 45 degrees of that direction (south -x, north +x,
-    west +y, east -y), so one displacement fires one direction.
+    retrieve: ``(x, y)`` in the reachable area with the toy on the table (``height``, its centre's
+    height less its resting height, within ``cfg.reach_height_band``). A direction event: the
+    displacement longer than ``cfg.move_threshold`` and pointing within 45 degrees of that
+    direction (south -x, north +x, west +y, east -y), so one displacement fires one direction.
     """
     moved = dx * dx + dy * dy > cfg.move_threshold * cfg.move_threshold
     along_x = abs(dx) >= abs(dy)
-    return [cfg.in_reach(x, y), False,
+    return [abs(height) <= cfg.reach_height_band and cfg.in_reach(x, y), False,
             moved and along_x and dx < 0, moved and along_x and dx > 0,
             moved and not along_x and dy > 0, moved and not along_x and dy < 0]

@@ -33,9 +33,9 @@ import torch
 
 from neuroimagery.errors import UserInputError
 from neuroimagery.native import quiet_native_output
-from neuroimagery.robot.config import WorldConfig
+from neuroimagery.robot.config import OFF_TABLE_XY, WorldConfig  # noqa: F401 (OFF_TABLE_XY re-exported)
 from neuroimagery.robot.constraint_drive import simulate_constraint
-from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, toy_events, toy_yaw_of
+from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, toy_events, toy_fate, toy_yaw_of
 from neuroimagery.robot.eye import colour_masks
 from neuroimagery.robot.kinematics import ArmKinematics
 from neuroimagery.robot import rake_plan
@@ -365,7 +365,9 @@ class ToolWorld:
         rest_z = cfg.table_top + cfg.toy_size / 2
         fired = [False] * 6
         first: str | None = None
-        blew_up = False
+        blew_up = off_table = False
+        # the fastest any rake point has moved up to each control step (blow-up rule, toy_fate)
+        rake_speed = (np.maximum.accumulate(plan["sweep"]) / cfg.control_dt).tolist()
         watched_i = None if watched is None else EVENTS.index(watched)
         if start == tuple(self.cfg.toy_xy) and "gaps0" in plan:
             gaps = plan["gaps0"].copy()
@@ -401,15 +403,17 @@ class ToolWorld:
             last = t
             pos = get_pose(toy, physicsClientId=cid)[0]
             vel, avel = get_vel(toy, physicsClientId=cid)
-            speed = math.sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2])
-            if not (math.isfinite(pos[0]) and math.isfinite(pos[1]) and math.isfinite(pos[2])) or (
-                speed > cfg.max_toy_speed or abs(pos[2] - rest_z) > cfg.max_toy_height
-            ):
+            fate = toy_fate(pos, vel, rake_speed[t], cfg)
+            if fate == "blew_up":
                 blew_up = True
                 break
-            now = toy_events(pos[0], pos[1], pos[0] - start[0], pos[1] - start[1], cfg)
+            speed = math.sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2])
+            now = toy_events(pos[0], pos[1], pos[0] - start[0], pos[1] - start[1], cfg, height=pos[2] - rest_z)
             first = latch_events(now, fired, first, top, cfg,
                                   lambda: contacts(rake, toy, physicsClientId=cid))
+            if fate == "off_table":
+                off_table = True
+                break
             if watched_i is not None and fired[watched_i]:
                 break
             was_resting = resting
@@ -427,7 +431,7 @@ class ToolWorld:
                            final_toy_yaw=start_yaw)
         disp = (final[0] - float(start[0]), final[1] - float(start[1]))
         return Outcome(tuple(fired), first, disp, last, (float(final[0]), float(final[1])), False,
-                       final_toy_yaw=toy_yaw_of(final_orn))
+                       final_toy_yaw=toy_yaw_of(final_orn), off_table=off_table)
 
     # ------------------------------------------------------------------ camera
     def camera(self) -> tuple[list[float], list[float], list[float]]:
