@@ -3,7 +3,7 @@ reactive child performs them, a planning child imagines their outcome through C3
 by Q-learning (eq. 7.1)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
 import torch
@@ -71,7 +71,7 @@ class Outcomes:
             s = self.skills[events[-1]]
             r = self.env.execute(s.theta.unsqueeze(0), state, s.event)[0]
             if prev is not None and prev.retrieved:  # once in reach, the toy stays retrieved
-                r = Result((True,) + r.events[1:], r.next_state, r.fired_first)
+                r = replace(r, events=(True,) + r.events[1:])
             self.table[key] = r
             self.rollouts += 1
         return self.table[key]
