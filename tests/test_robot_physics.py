@@ -67,6 +67,17 @@ def test_a_lone_rake_lands_on_its_next_pose_with_any_number_of_physics_steps(wor
     assert np.abs(landed - plan["pos"][0, 1]).max() < 1e-6
 
 
+def test_fast_control_steps_take_more_physics_steps_in_the_simulation(world):
+    traj = _line(world, 1, (-0.16, 0.0, 0.0), T=6)
+    counts = {}
+    for travel in (0.008, None):
+        with ToolWorld(WorldConfig(max_substep_travel=travel)) as w:
+            w.rollout(traj, 1, None)
+            counts[travel] = (w.steps_simulated, w.physics_steps)
+    assert counts[None][1] == 2 * counts[None][0]
+    assert counts[0.008][1] > 2 * counts[0.008][0]
+
+
 def test_a_fast_pull_throws_the_toy_off_the_table_and_its_events_stand(world):
     fast = _line(world, 1, (-0.16, 0.0, 0.0), T=3)
     traj = torch.cat([fast, fast[:, -1:].repeat(1, 60, 1)], 1)  # then the arm holds still

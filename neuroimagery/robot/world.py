@@ -113,6 +113,7 @@ class ToolWorld:
         self._settled: dict[tuple[float, float], tuple] = {}
         self.steps_simulated = 0  # control steps that went through the physics (kinematic drive)
         self.steps_total = 0  # control steps of all simulated rollouts
+        self.physics_steps = 0  # pybullet steps those control steps took (kinematic drive)
         self.reset(1)
 
     # ------------------------------------------------------------------ lifecycle
@@ -384,7 +385,7 @@ class ToolWorld:
         resting = True  # the toy is still (so steps far from it cannot change anything)
         last = 0
         t = 1
-        n_sim = 0
+        n_sim = n_phys = 0
         while t < T:
             if resting and cfg.skip_far_steps:
                 ahead = np.flatnonzero(gaps[t:] < margin)
@@ -400,6 +401,7 @@ class ToolWorld:
             for _ in range(n):
                 step_sim(physicsClientId=cid)
             n_sim += 1
+            n_phys += n
             last = t
             pos = get_pose(toy, physicsClientId=cid)[0]
             vel, avel = get_vel(toy, physicsClientId=cid)
@@ -424,6 +426,7 @@ class ToolWorld:
         else:
             last = T - 1
         self.steps_simulated += n_sim
+        self.physics_steps += n_phys
         self.steps_total += T
         final, final_orn = get_pose(toy, physicsClientId=cid)
         if blew_up:
