@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from neuroimagery.robot import rake_plan
 from neuroimagery.robot.events import EVENTS, Outcome, latch_events, toy_events, toy_fate
 
 
@@ -26,9 +27,7 @@ def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor
     targets_pos, targets_orn = targets_pos.tolist(), targets_orn.tolist()
     # the fastest any point of the target poses has moved up to each step (blow-up rule, toy_fate)
     pts = poses[:, None, :3, 3] + world._rake_points_np[:, :3] @ np.swapaxes(poses[:, :3, :3], -1, -2)
-    sweep = np.zeros(len(poses))
-    sweep[1:] = np.linalg.norm(pts[1:] - pts[:-1], axis=-1).max(axis=-1)
-    rake_speed = (np.maximum.accumulate(sweep) / cfg.control_dt).tolist()
+    rake_speed = rake_plan.fastest_so_far(rake_plan.sweep_of(pts), cfg)
     rest_z = cfg.table_top + cfg.toy_size / 2
     off_table = False
     for step in range(len(poses)):

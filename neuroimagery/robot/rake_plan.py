@@ -32,6 +32,21 @@ class RakeGeometry:
     com: np.ndarray
 
 
+def sweep_of(pts: np.ndarray) -> np.ndarray:
+    """``pts`` (..., T, P, 3) rake points -> (..., T): the farthest any point travels from step
+    ``t-1`` to ``t`` (0 at ``t = 0``)."""
+    sweep = np.zeros(pts.shape[:-2])
+    if pts.shape[-3] > 1:
+        sweep[..., 1:] = np.linalg.norm(pts[..., 1:, :, :] - pts[..., :-1, :, :], axis=-1).max(axis=-1)
+    return sweep
+
+
+def fastest_so_far(sweep: np.ndarray, cfg: WorldConfig) -> list[float]:
+    """The fastest any rake point has moved (m/s) up to each control step of one trajectory's
+    ``sweep`` (T,): the speed a blow-up is measured against (``robot.events.toy_fate``)."""
+    return (np.maximum.accumulate(sweep) / cfg.control_dt).tolist()
+
+
 def substeps_for(sweep: np.ndarray, cfg: WorldConfig, substeps: int) -> np.ndarray:
     """Physics steps per control step: at least ``substeps`` (``control_dt / physics_dt``), and
     enough that no rake point moves farther than ``cfg.max_substep_travel`` in one of them."""
@@ -61,11 +76,10 @@ def plan(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig, substeps: int) 
     dt = cfg.control_dt
     lin = np.zeros_like(pos)
     ang = np.zeros_like(pos)
-    sweep = np.zeros(pts.shape[:2])
     if pos.shape[1] > 1:
         lin[:, 1:] = (pos[:, 1:] - pos[:, :-1]) / dt
         ang[:, 1:] = rotvec_between(quat[:, :-1], quat[:, 1:]) / dt
-        sweep[:, 1:] = np.linalg.norm(pts[:, 1:] - pts[:, :-1], axis=-1).max(axis=-1)
+    sweep = sweep_of(pts)
     nsub = substeps_for(sweep, cfg, substeps)
     lin[:, 1:, 2] += GRAVITY * dt * (nsub[:, 1:] + 1) / (2 * nsub[:, 1:])
     return {"poses": poses, "pts": pts, "pos": pos, "orn": quat, "lin": lin, "ang": ang, "sweep": sweep,

@@ -33,7 +33,7 @@ import torch
 
 from neuroimagery.errors import UserInputError
 from neuroimagery.native import quiet_native_output
-from neuroimagery.robot.config import OFF_TABLE_XY, WorldConfig  # noqa: F401 (OFF_TABLE_XY re-exported)
+from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.constraint_drive import simulate_constraint
 from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, toy_events, toy_fate, toy_yaw_of
 from neuroimagery.robot.eye import colour_masks
@@ -368,7 +368,7 @@ class ToolWorld:
         first: str | None = None
         blew_up = off_table = False
         # the fastest any rake point has moved up to each control step (blow-up rule, toy_fate)
-        rake_speed = (np.maximum.accumulate(plan["sweep"]) / cfg.control_dt).tolist()
+        rake_speed = rake_plan.fastest_so_far(plan["sweep"], cfg)
         watched_i = None if watched is None else EVENTS.index(watched)
         if start == tuple(self.cfg.toy_xy) and "gaps0" in plan:
             gaps = plan["gaps0"].copy()
@@ -396,8 +396,7 @@ class ToolWorld:
             reset_pose(rake, pos_l[t - 1], orn_l[t - 1], physicsClientId=cid)
             reset_vel(rake, lin_l[t], ang_l[t], physicsClientId=cid)
             n = nsub_l[t]
-            if n != self._n_now:
-                self._set_physics_step(n)
+            self._set_physics_step(n)
             for _ in range(n):
                 step_sim(physicsClientId=cid)
             n_sim += 1
