@@ -23,3 +23,29 @@ def make_cfg(*overrides: str):
 @pytest.fixture
 def cfg_factory():
     return make_cfg
+
+
+_CHECKED: dict[str, int] = {}  # report.md files already checked: path -> mtime (ns)
+
+
+@pytest.fixture(autouse=True)
+def reports_render(request):
+    """Every ``report.md`` a test writes under pytest's temporary directories (a run's, a user
+    folder's, a pool's) passes the Markdown check of ``support_markdown`` when the test ends."""
+    yield
+    if not {"tmp_path", "tmp_path_factory", "tmpdir"} & set(request.fixturenames):
+        return
+    import os
+
+    from support_markdown import check_report
+
+    for root, _, files in os.walk(request.getfixturevalue("tmp_path_factory").getbasetemp()):
+        if "report.md" in files:
+            path = os.path.join(root, "report.md")
+            try:
+                mtime = os.stat(path).st_mtime_ns
+            except OSError:
+                continue
+            if _CHECKED.get(path) != mtime:
+                _CHECKED[path] = mtime
+                check_report(Path(path))

@@ -158,7 +158,8 @@ def test_robot_effects_find_a_rise_with_age_and_alike_strategies():
     flat = effects(_robots(0.0, 0.3), [2, 3, 4, 5, 6], [])
     assert not any(e["holds"] for e in flat if e["effect"].startswith("HP1"))
     gap = next(e for e in flat if e["effect"].startswith("reactive and planning"))
-    assert gap["value"] > 0.05 and gap["p"] < 1e-3 and not gap["holds"]  # reactive 10 %, planning 0 %
+    assert gap["value"] > 0.05 and gap["p_difference"] < 1e-3 and not gap["holds"]  # reactive 10 %, planning 0 %
+    assert gap["p"] > 0.05 and gap["bound"] == 0.05  # not equivalent within 5 points
 
 
 def test_exp5_training_curves_average_each_event_over_its_skills():
@@ -188,3 +189,53 @@ def test_exp5_sequencing_curves_follow_the_training_trials():
     c = sequencing_curves(df)
     assert c["sequencing/far/reactive/success"] == pytest.approx([0.5, 1.0, 0.0, 1.0])
     assert c["sequencing/far/reactive/q_max"] == pytest.approx([0.25, 0.6, 0.6, 0.9])
+
+
+def test_tost_matches_statsmodels_and_decides_equivalence_by_the_bound():
+    from statsmodels.stats.weightstats import DescrStatsW
+
+    from neuroimagery.analysis.summary import effect, tost
+
+    rng = np.random.default_rng(3)
+    v = rng.normal(0.3, 2.0, 12)
+    for bound in (0.5, 2.0, 5.0):
+        want = DescrStatsW(v).ttost_mean(-bound, bound)[0]
+        assert tost(float(v.mean()), float(v.std(ddof=1)), v.size, bound) == pytest.approx(want, rel=1e-9)
+    small, wide = one_sample(rng.normal(0.0, 0.2, 20)), one_sample(rng.normal(0.0, 20.0, 20))
+    small["diff"], wide["diff"] = small.pop("mean"), wide.pop("mean")
+    tight = effect("flat", "~0", small, bound=1.0)
+    assert tight["holds"] and tight["p"] < 0.05 and tight["bound"] == 1.0
+    loose = effect("flat", "~0", wide, bound=1.0)  # a large p of the difference test is not "no effect"
+    assert loose["p_difference"] > 0.05 and loose["p"] > 0.05 and not loose["holds"]
+    assert effect("flat", "~0", small)["holds"] is None  # no bound: not tested
+    rows = holm([tight, loose])
+    assert rows[0]["holds"] and not rows[1]["holds"]
+
+
+def test_degenerate_spread_is_flagged_and_said_in_the_report():
+    from neuroimagery.analysis.report import Report
+    from neuroimagery.analysis.summary import effect
+
+    near_copies = one_sample(np.array([2.0, 2.01, 1.99, 2.0, 2.005]))
+    near_copies["diff"] = near_copies.pop("mean")
+    row = holm([effect("RT rises", ">0", near_copies)])[0]
+    assert row["d_z"] > 10 and row["d_z_degenerate"] and row["holds"]
+    text = Report("t").effects([row]).text()
+    assert "(degenerate)" in text and "initial weights" in text
+    spread = one_sample(np.array([2.0, 1.0, 3.0, 2.5, 1.5]))
+    spread["diff"] = spread.pop("mean")
+    assert not effect("RT rises", ">0", spread)["d_z_degenerate"]
+
+
+def test_markdown_check_finds_what_breaks_a_report():
+    from support_markdown import markdown_problems
+
+    from neuroimagery.analysis.report import Report
+
+    bad = ("# x\n\n| a | b |\n|---|---|\n| RT rises with |disparity| | 1 |\n\n- recognition/none: \n\n"
+           "| c | p |\n|---|---|\n| y | 0 |\n\np = 0 here\n")
+    found = markdown_problems(bad)
+    assert len(found) == 4, found
+    good = (Report("x").table(["effect", "p"], [["RT rises with |disparity|", "< 1e-16"]])
+            .bullets(["", "recognition/none: none"]).text())
+    assert markdown_problems(good) == [] and "\\|disparity\\|" in good

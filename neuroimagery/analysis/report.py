@@ -1,6 +1,8 @@
 """``report.md``: a run's results beside the thesis's targets, with the figures embedded."""
 from __future__ import annotations
 
+import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +15,35 @@ def fmt(v: Any, pct: bool = False) -> str:
     if isinstance(v, (int, float)):
         return f"{100 * v:.1f} %" if pct else (f"{v:.3g}" if isinstance(v, float) else str(v))
     return str(v)
+
+
+def fmt_p(v: float | None) -> str:
+    """A p value for a report: two significant digits, ``< 1e-16`` below double precision's
+    resolution of 1 - p (never a bare 0), ``-`` when there is none."""
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "-"
+    return "< 1e-16" if v < 1e-16 else f"{v:.2g}"
+
+
+def cell(x: Any) -> str:
+    """One table cell: formatted (:func:`fmt`), its pipes escaped so that Markdown keeps the
+    columns (``RT rises with \\|disparity\\|``), line breaks made spaces."""
+    text = x if isinstance(x, str) else fmt(x)
+    return re.sub(r"(?<!\\)\|", r"\\|", text.replace("\n", " "))
+
+
+EQUIVALENCE_NOTE = (
+    "A claim of no effect ('~0') is tested by equivalence: two one-sided t-tests (TOST) against -B and +B, "
+    "the bound B in the 'expected' column, fixed by a rule before measuring (docs/choices.md: one rotation step "
+    "of RT, 5 points of a rate); its p is the larger one-sided p, Holm-corrected with the rest. It reads "
+    "'equivalent within ±B' when p (Holm) < 0.05 and 'not shown' otherwise: a large p of a difference test "
+    "is never read as no effect.")
+
+DEGENERATE_NOTE = (
+    "d_z marked '(degenerate)': the participants' values vary by less than a tenth of their mean (|d_z| > 10). "
+    "The simulated participants differ only in their initial weights and the order of their training samples, "
+    "so they are near copies; d_z then measures how alike they are, not how large the effect is. Read the "
+    "mean difference and its interval instead.")
 
 
 class Report:
@@ -30,14 +61,21 @@ class Report:
         return self
 
     def bullets(self, items) -> "Report":
-        self.lines += [f"- {x}" for x in items] + [""]
+        """A list; empty items are left out (a list with none is not written)."""
+        items = [str(x).strip() for x in items if x is not None and str(x).strip()]
+        if items:
+            self.lines += [f"- {x}" for x in items] + [""]
         return self
 
     def table(self, header: list[str], rows: list[list[Any]]) -> "Report":
-        self.lines.append("| " + " | ".join(header) + " |")
+        """A table; every row is given ``len(header)`` cells (pipes escaped, :func:`cell`)."""
+        self.lines.append("| " + " | ".join(cell(h) for h in header) + " |")
         self.lines.append("|" + "|".join("---" for _ in header) + "|")
         for r in rows:
-            self.lines.append("| " + " | ".join(fmt(x) if not isinstance(x, str) else x for x in r) + " |")
+            r = list(r)
+            if len(r) != len(header):
+                raise ValueError(f"table row of {len(r)} cells under a header of {len(header)}: {r!r}")
+            self.lines.append("| " + " | ".join(cell(x) for x in r) + " |")
         self.lines.append("")
         return self
 
@@ -57,7 +95,7 @@ class Report:
         on them are not above chance (``summary["custom_vs_chance"]``)."""
         c = summary.get("custom_vs_chance")
         if c and not c["above_chance"]:
-            p = "-" if c["p_greater"] is None else f"{c['p_greater']:.2g}"
+            p = fmt_p(c["p_greater"])
             self.p(f"**Warning: on your stimuli (test `custom`) the model answers at chance.** Mean correct rate "
                    f"{100 * c['mean_correct']:.1f} % over {c['n']} participants; one-sided t-test of their rates "
                    f"against 50 %: p = {p}. Its other numbers on these stimuli say little.")
@@ -65,24 +103,40 @@ class Report:
 
     def effects(self, rows: list[dict], intro: str | None = None) -> "Report":
         """The effects table of :func:`neuroimagery.analysis.summary.effect` rows: the participant is
-        the unit (paired t-tests over participants, or one-sample t-tests of their slopes), Holm's
-        correction over the table's family; ``intro`` replaces the paragraph that says so."""
+        the unit (paired t-tests over participants, or one-sample t-tests of their slopes), a claim
+        of no effect an equivalence test (TOST) within a bound fixed by a rule (docs/choices.md),
+        Holm's correction over the table's family; ``intro`` replaces the paragraph that says so."""
         self.p(intro or "Each effect is tested with the simulated participant as the unit (statsmodels): a paired t-test "
                "over the participants' mean RT or correct rate (value = mean difference, first condition minus "
                "the second, with its 95 % interval), or a one-sample t-test of their RT-disparity slopes (value = "
                "mean slope per degree). d_z is the standardised effect (mean over the standard deviation of the "
                "participants' differences or slopes) with its 95 % interval from the noncentral t distribution. "
                "p is two-sided; p (Holm) applies Holm's correction over the rows of this table, the report's "
-               "family of effects. 'holds': the expected sign with p (Holm) < 0.05; for '~0', uncorrected "
-               "p >= 0.05.")
+               "family of effects. 'yes': the expected sign with p (Holm) < 0.05.")
+        self.p(EQUIVALENCE_NOTE)
         ci = lambda c: "-" if not c else f"[{c[0]:.3g}, {c[1]:.3g}]"  # noqa: E731
-        pv = lambda v: "-" if v is None else f"{v:.2g}"  # noqa: E731
-        return self.table(["effect", "expected", "value", "95 % CI", "d_z", "d_z 95 % CI", "n", "p", "p (Holm)",
-                           "holds"],
-                          [[e["effect"], e["expected"], fmt(e["value"]), ci(e["ci95"]), fmt(e.get("d_z")),
-                            ci(e.get("d_z_ci95")), e["n"], pv(e["p"]), pv(e.get("p_holm")),
-                            "-" if e["holds"] is None else ("yes" if e["holds"] else "**no**")]
-                           for e in rows])
+
+        def expected(e):
+            b = e.get("bound")
+            return e["expected"] if e["expected"] != "~0" or b is None else f"~0 (±{b:.3g})"
+
+        def verdict(e):
+            if e["expected"] == "~0":
+                b = e.get("bound")
+                if b is None:
+                    return "not shown (no bound set)"
+                return f"equivalent within ±{b:.3g}" if e["holds"] else "not shown"
+            return "-" if e["holds"] is None else ("yes" if e["holds"] else "**no**")
+
+        def dz(e):
+            return fmt(e.get("d_z")) + (" (degenerate)" if e.get("d_z_degenerate") else "")
+
+        self.table(["effect", "expected", "value", "95 % CI", "d_z", "d_z 95 % CI", "n", "p", "p (Holm)", "holds"],
+                   [[e["effect"], expected(e), fmt(e["value"]), ci(e["ci95"]), dz(e), ci(e.get("d_z_ci95")), e["n"],
+                     fmt_p(e["p"]), fmt_p(e.get("p_holm")), verdict(e)] for e in rows])
+        if any(e.get("d_z_degenerate") for e in rows):
+            self.p(DEGENERATE_NOTE)
+        return self
 
     def figures(self, run_root: str | Path, paths, errorbars: str = "Error bars: SEM over participants") -> "Report":
         """The run's figures in the thesis's order, each with a numbered caption that says what it

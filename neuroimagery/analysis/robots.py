@@ -32,7 +32,7 @@ ROBOT_EFFECTS_INTRO = ("Each effect is tested with the simulated robot as the un
                        "standard errors cluster-robust over the skill libraries the groups share; reactive against "
                        "planning pairs each robot's two tests (value: the difference of success rates, McNemar's "
                        "exact p). 95 % intervals; p (Holm) corrects over the rows of this table. 'holds': the "
-                       "expected sign with p (Holm) < 0.05; for '~0', uncorrected p >= 0.05. A group at 0 % or "
+                       "expected sign with p (Holm) < 0.05. A group at 0 % or "
                        "100 % leaves a regression without a finite estimate ('-').")
 
 
@@ -66,6 +66,19 @@ def logistic_trend(df: pd.DataFrame, x: str) -> dict:
     return out
 
 
+EQUIVALENCE_BOUND = 0.05  # "alike": within 5 points of a rate (docs/choices.md)
+
+
+def _tost_wald(diff: float, se: float, bound: float) -> float:
+    """Two one-sided z-tests of a paired difference of rates (its Wald standard error ``se``)
+    against ``-bound`` and ``+bound``: the larger one-sided p."""
+    from scipy import stats
+
+    if se == 0:
+        return 0.0 if abs(diff) < bound else 1.0
+    return float(max(stats.norm.sf((diff + bound) / se), stats.norm.cdf((diff - bound) / se)))
+
+
 def paired_strategies(df: pd.DataFrame) -> dict:
     """Reactive minus planning success over the robots tested both ways in the same group:
     ``value`` the difference of rates, its Wald 95 % interval, McNemar's exact p, ``n`` pairs."""
@@ -87,7 +100,8 @@ def paired_strategies(df: pd.DataFrame) -> dict:
     diff = (b - c) / n
     se = math.sqrt(max(b + c - (b - c) ** 2 / n, 0.0)) / n
     out.update(diff=rounded(diff, 4), ci95=[rounded(diff - 1.96 * se, 4), rounded(diff + 1.96 * se, 4)],
-               p=float(mcnemar([[0, b], [c, 0]], exact=True).pvalue) if b + c else 1.0)
+               p=float(mcnemar([[0, b], [c, 0]], exact=True).pvalue) if b + c else 1.0,
+               p_tost=_tost_wald(diff, se, EQUIVALENCE_BOUND))
     return out
 
 
@@ -108,5 +122,5 @@ def effects(df: pd.DataFrame, hp1_levels, hp2_trials, strategies=("reactive", "p
     both = df[df["strategy"].isin(strategies)]
     if both["strategy"].nunique() == 2:
         rows.append(effect("reactive and planning alike (paired by robot and group; difference of rates)", "~0",
-                           paired_strategies(both)))
+                           paired_strategies(both), bound=EQUIVALENCE_BOUND))
     return holm(rows)

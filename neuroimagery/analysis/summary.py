@@ -131,7 +131,7 @@ def one_sample(values, test_value: float = 0.0) -> dict:
     95 % interval, t, two-sided p, d_z and its 95 % interval."""
     v = np.asarray(values, float)
     out = {"n": int(v.size), "mean": rounded(v.mean(), 5) if v.size else None, "t": None, "p": None, "ci95": None,
-           "d_z": None, "d_z_ci95": None}
+           "d_z": None, "d_z_ci95": None, "sd": float(v.std(ddof=1)) if v.size >= 2 else None}
     if v.size >= 2 and v.std(ddof=1) > 0:
         ds = DescrStatsW(v)
         t, p, _ = ds.ttest_mean(test_value)
@@ -190,31 +190,90 @@ def repeated_anova(df: pd.DataFrame, factor: str, value: str = "rt") -> dict:
     return out
 
 
-def effect(name: str, expected: str, res: dict, key: str = "diff") -> dict:
+DEGENERATE_DZ = 10.0  # |d_z| above this: the participants' SD is below a tenth of the mean (docs/choices.md)
+
+
+def tost(mean: float | None, sd: float | None, n: int | None, bound: float) -> float | None:
+    """Two one-sided t-tests of a mean (participants' values: ``mean``, ``sd``, ``n``) against the
+    equivalence bounds ``-bound`` and ``+bound``: the larger one-sided p (statsmodels'
+    ``DescrStatsW.ttost_mean`` from the summary figures). Equivalence at level alpha when it is
+    below alpha. With no spread, 0 inside the bounds and 1 outside; None when nothing to test."""
+    if mean is None or n is None or n < 2 or sd is None or not bound > 0:
+        return None
+    if sd == 0:
+        return 0.0 if abs(mean) < bound else 1.0
+    se = sd / math.sqrt(n)
+    p_low = stats.t.sf((mean + bound) / se, n - 1)  # H0: mean <= -bound
+    p_upp = stats.t.cdf((mean - bound) / se, n - 1)  # H0: mean >= +bound
+    return float(max(p_low, p_upp))
+
+
+def effect(name: str, expected: str, res: dict, key: str = "diff", bound: float | None = None) -> dict:
     """One row of a report's effects table: ``expected`` is ``'>0'``, ``'<0'`` or ``'~0'`` for the
-    value ``res[key]`` (a paired difference or a mean slope); ``holds`` says whether the measured
-    value has the expected sign and, for a signed effect, p < 0.05 (``'~0'``: p >= 0.05)."""
+    value ``res[key]`` (a paired difference or a mean slope). A signed effect holds with the
+    expected sign and p < 0.05 (two-sided t-test; Holm's correction in :func:`holm`). A ``'~0'``
+    claim is an equivalence test (:func:`tost`) within ``+-bound`` (a rule of docs/choices.md):
+    ``p`` is the TOST p (``p_difference`` keeps the two-sided difference test's), and it holds
+    ("equivalent within +-bound") when that p is below 0.05; without a bound it is not tested
+    (``p`` None, ``holds`` None: "not shown"). ``d_z_degenerate``: |d_z| > ``DEGENERATE_DZ``."""
     v, p = res.get(key), res.get("p")
-    if v is None or p is None:
+    row = {"effect": name, "expected": expected, "value": v, "ci95": res.get("ci95"), "p": p, "n": res.get("n"),
+           "d_z": res.get("d_z"), "d_z_ci95": res.get("d_z_ci95"),
+           "d_z_degenerate": res.get("d_z") is not None and abs(res["d_z"]) > DEGENERATE_DZ}
+    if expected == "~0":
+        row.update(bound=bound, p_difference=p, test="TOST")
+        if bound is None:
+            p = None
+        else:
+            p = res["p_tost"] if "p_tost" in res else tost(v, res.get("sd"), res.get("n"), bound)
+        row["p"] = p
+        holds = None if p is None or bound is None else p < 0.05
+    elif v is None or p is None:
         holds = None
-    elif expected == "~0":
-        holds = p >= 0.05
     else:
         holds = (v > 0 if expected == ">0" else v < 0) and p < 0.05
-    return {"effect": name, "expected": expected, "value": v, "ci95": res.get("ci95"), "p": p, "n": res.get("n"),
-            "d_z": res.get("d_z"), "d_z_ci95": res.get("d_z_ci95"), "holds": holds}
+    row["holds"] = holds
+    return row
+
+
+def equivalent_levels(df: pd.DataFrame, factor: str, value: str, bound: float) -> dict:
+    """No effect of ``factor`` on ``value`` as an intersection-union test: every pair of its levels
+    compared on the participants' means (paired), each by :func:`tost` within ``+-bound``; the
+    claim's p is the largest pairwise TOST p. ``diff`` is the largest absolute pairwise mean
+    difference, ``ci95`` that pair's interval, ``p`` the smallest two-sided pairwise p."""
+    levels = list(dict.fromkeys(df[factor]))
+    worst = {"n": int(df["participant"].nunique()), "diff": None, "ci95": None, "p": None, "p_tost": None, "sd": None}
+    if len(levels) < 2:
+        return worst
+    p_tost, p_diff = [], []
+    for i, a in enumerate(levels):
+        for b in levels[i + 1:]:
+            r = paired_by_participant(df[df[factor] == a], df[df[factor] == b], value)
+            pt = tost(r["diff"], r["sd"], r["n"], bound)
+            p_tost.append(1.0 if pt is None else pt)
+            if r["p"] is not None:
+                p_diff.append(r["p"])
+            if r["diff"] is not None and (worst["diff"] is None or abs(r["diff"]) > abs(worst["diff"])):
+                worst.update(diff=r["diff"], ci95=r["ci95"], n=r["n"], sd=r["sd"])
+    worst.update(p_tost=max(p_tost), p=min(p_diff) if p_diff else None)
+    return worst
 
 
 def holm(rows: list[dict]) -> list[dict]:
     """Add ``p_holm``: Holm's step-down correction (statsmodels ``multipletests``) over the family
-    ``rows`` (their ``p``); a signed effect then holds on the corrected p."""
+    ``rows`` (their ``p``: the two-sided p of a signed effect, the TOST p of a ``'~0'`` claim);
+    every claim then holds on the corrected p."""
     idx = [i for i, r in enumerate(rows) if r.get("p") is not None]
     if idx:
         adj = multipletests([rows[i]["p"] for i in idx], method="holm")[1]
         for i, q in zip(idx, adj):
             rows[i]["p_holm"] = float(q)
-    for r in rows:  # '~0' keeps the uncorrected (stricter) p
-        if r.get("holds") is not None and r["expected"] != "~0":
+    for r in rows:
+        if r.get("holds") is None:
+            continue
+        if r["expected"] == "~0":
+            r["holds"] = bool(r["p_holm"] < 0.05)
+        else:
             r["holds"] = bool((r["value"] > 0 if r["expected"] == ">0" else r["value"] < 0) and r["p_holm"] < 0.05)
     return rows
 

@@ -237,7 +237,8 @@ def report(cfg, run, summary) -> None:
     r.h("Effects, the participant as the unit")
     r.effects(summary.get("effects", []))
     r.h("Orientations that failed to rotate")
-    r.bullets([f"{k}: " + ", ".join(f"{o}: {v}" for o, v in T[k]["rotation_failures"].items()) or f"{k}: none"
+    r.bullets([f"{k}: " + ("; ".join(f"object {o} at {', '.join(map(str, v))} deg"
+                                     for o, v in T[k]["rotation_failures"].items()) or "none")
                for k in T])
     r.p("Thesis: A at -90 (recognition); A at -85 and 70, B at 55 and 70 (generalisation).")
     r.h("Why the numbers differ")

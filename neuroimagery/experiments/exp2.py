@@ -14,8 +14,8 @@ import numpy as np
 import torch
 
 from ..analysis import figures
-from ..analysis.report import Report
-from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, repeated_anova,
+from ..analysis.report import Report, fmt_p
+from ..analysis.summary import (compare_rates, compare_rt, effect, equivalent_levels, holm, paired_by_participant, repeated_anova,
                                 slope_by_participant, summarise_trials)
 from ..thesis import EXP2 as THESIS
 from ..models.params import FieldParams, SomParams, moved_keys
@@ -185,16 +185,33 @@ def effects(df) -> list[dict]:
     test ``all``, each with the participant as the unit; Holm's correction over the family."""
     a = df[df["test"] == "all"]
     base, mis = a[a["condition"] == "none"], a[a["condition"] == "mismatch"]
+    rt_bound = step_rt(base)
     rows = [effect("RT rises with disparity (none)", ">0", slope_by_participant(base), "mean_slope"),
             effect("RT: mismatch slower than none", ">0", paired_by_participant(mis, base, "rt")),
             effect("correct rate: mismatch = none", "~0",
                    paired_by_participant(mis.assign(c=mis["correct"].astype(float)),
-                                         base.assign(c=base["correct"].astype(float)), "c"))]
-    a = repeated_anova(base, "pair_type")
-    rows.append({"effect": "RT: no effect of the object types (AA, AB, BA, BB; repeated-measures ANOVA F)",
-                 "expected": "~0", "value": a["F"], "ci95": None, "p": a["p"], "n": a["n"], "d_z": None,
-                 "d_z_ci95": None, "holds": None if a["p"] is None else a["p"] >= 0.05})
+                                         base.assign(c=base["correct"].astype(float)), "c"), bound=RATE_BOUND)]
+    rows.append(effect("RT: no effect of the object types (AA, AB, BA, BB; largest pairwise difference)", "~0",
+                       equivalent_levels(base, "pair_type", "rt", rt_bound) if rt_bound else {}, bound=rt_bound))
     return holm(rows)
+
+
+RATE_BOUND = 0.05  # equivalence bound of a difference of rates: 5 points (docs/choices.md)
+
+
+def step_rt(base) -> float | None:
+    """The RT of one rotation step, the equivalence bound of an RT difference (docs/choices.md):
+    the participants' mean least-squares slope of RT on the rotation steps a trial made, in
+    condition ``none`` (``base``); None when no participant's steps vary."""
+    res = slope_by_participant(base, x="rotation_steps", y="rt")
+    m = res["mean_slope"]
+    return round(float(m), 3) if m is not None and m > 0 else None
+
+
+def _pv(p) -> str:
+    """``= 0.012`` or ``< 1e-16``: a p value after its symbol."""
+    t = fmt_p(p)
+    return t if t.startswith("<") else f"= {t}"
 
 
 def report(cfg, run, summary) -> None:
@@ -217,11 +234,11 @@ def report(cfg, run, summary) -> None:
     m, w = pr["rt_mismatch_vs_none_paired"], pr["rt_mismatch_vs_none"]
     mp = pr["rt_match_vs_none_paired"]
     r.p(f"Mismatched proprioception: mean RT {m['mean_a']} vs {m['mean_b']} with none "
-        f"(paired t over the {m['n_pairs']} same trials: t = {m['t']}, p = {m['p']:.3g}; Welch t = {w['t']}, "
-        f"p = {w['p']:.3g}). Matched: mean RT {mp['mean_a']} (paired t = {mp['t']}, p = {mp['p']:.3g}). Correct answers {pr['correct_mismatch_vs_none']['rate_a']} vs "
-        f"{pr['correct_mismatch_vs_none']['rate_b']} (p = {pr['correct_mismatch_vs_none']['p']:.3g}).")
+        f"(paired t over the {m['n_pairs']} same trials: t = {m['t']}, p {_pv(m['p'])}; Welch t = {w['t']}, "
+        f"p {_pv(w['p'])}). Matched: mean RT {mp['mean_a']} (paired t = {mp['t']}, p {_pv(mp['p'])}). Correct answers {pr['correct_mismatch_vs_none']['rate_a']} vs "
+        f"{pr['correct_mismatch_vs_none']['rate_b']} (p {_pv(pr['correct_mismatch_vs_none']['p'])}).")
     a = summary["object_type_anova"]
-    r.p(f"Object type (AA, AB, BA, BB) mean RT: {n['rt_by_pair_type']}; one-way ANOVA F = {a['F']}, p = {a['p']}.")
+    r.p(f"Object type (AA, AB, BA, BB) mean RT: {n['rt_by_pair_type']}; one-way ANOVA F = {a['F']}, p {_pv(a['p'])}.")
     r.h("Why the numbers differ")
     r.bullets([
         "The thesis's errors come from overlapping M1_1 clusters and PFC_2; here they depend on this project's "

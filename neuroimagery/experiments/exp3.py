@@ -161,7 +161,8 @@ def effects(df) -> list[dict]:
     if "gen2" in by:
         g = by["gen2"]
         rows.append(effect("Gen-II: RT flat past 90 deg (135 vs 90)", "~0",
-                           paired_by_participant(g[g["disparity"] == 135], g[g["disparity"] == 90], "rt")))
+                           paired_by_participant(g[g["disparity"] == 135], g[g["disparity"] == 90], "rt"),
+                           bound=1.0))  # one rotation step of RT (docs/choices.md)
     return holm(rows)
 
 

@@ -17,7 +17,7 @@ import torch
 
 from ..analysis import figures
 from ..models.rotation_embodied import PROPRIOCEPTION as CONDITIONS, EmbodiedParams, lca_gain
-from ..analysis.report import Report, reproducibility_note
+from ..analysis.report import Report, fmt_p, reproducibility_note
 from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, slope_by_participant,
                                 summarise_trials)
 from ..nn import seeding
@@ -25,6 +25,7 @@ from . import protocol_ch6 as pc
 from ..thesis import EXP4 as THESIS_TARGETS
 
 TESTS = ("recog", "gen1", "gen2")
+RT_BOUND = 10.0  # equivalence bound of an RT difference: one rotation step, 10 accumulator cycles (docs/choices.md)
 THESIS = {k.removesuffix(" correct rate"): t.value for k, t in THESIS_TARGETS.items() if k.endswith("correct rate")}
 
 
@@ -183,7 +184,8 @@ def effects(df: pd.DataFrame) -> list[dict]:
                                paired_by_participant(a.assign(correct=a["correct"].astype(float)),
                                                      b.assign(correct=b["correct"].astype(float)), "correct")))
             m = cond(t, "match")
-            rows.append(effect(f"{t}: congruent movement, no gain in RT (ceiling)", "~0", paired_by_participant(m, b, "rt")))
+            rows.append(effect(f"{t}: congruent movement, no gain in RT (ceiling)", "~0", paired_by_participant(m, b, "rt"),
+                               bound=RT_BOUND))
         if {"noise-none", "noise-match"} <= set(df[df["test"] == t]["condition"]):
             far = lambda d: d[d["disparity"] >= 120]  # noqa: E731
             a, b = far(cond(t, "noise-match")), far(cond(t, "noise-none"))
@@ -331,13 +333,12 @@ def report(cfg, run, summary) -> None:
     r.effects(summary.get("effects", []))
     r.h("Embodiment statistics (trials as samples)")
     r.table(["comparison", "RT a", "RT b", "RT p (Welch)", "correct a", "correct b", "correct p"],
-            [[k, v["rt"]["mean_a"], v["rt"]["mean_b"], f"{v['rt']['p']:.3g}" if v["rt"]["p"] is not None else "-",
-              v["correct"]["rate_a"], v["correct"]["rate_b"], f"{v['correct']['p']:.3g}"]
+            [[k, v["rt"]["mean_a"], v["rt"]["mean_b"], fmt_p(v["rt"]["p"]),
+              v["correct"]["rate_a"], v["correct"]["rate_b"], fmt_p(v["correct"]["p"])]
              for k, v in summary["statistics"].items()])
     r.h("Proprioception by disparity (RT: Welch t-test; correct: chi-square)")
-    fmt = lambda v: "-" if v is None else f"{v:.3g}"
     r.table(["comparison", "disparity", "RT a", "RT b", "RT p", "correct a", "correct b", "correct p"],
-            [[k, dsp, v["rt_a"], v["rt_b"], fmt(v["rt_p"]), v["correct_a"], v["correct_b"], fmt(v["correct_p"])]
+            [[k, dsp, v["rt_a"], v["rt_b"], fmt_p(v["rt_p"]), v["correct_a"], v["correct_b"], fmt_p(v["correct_p"])]
              for k, rows in summary.get("statistics_by_disparity", {}).items() if "noise" in k or "mismatch" in k
              for dsp, v in rows.items()])
     r.h("Forward models trained on three dots, applied to the test shapes")
