@@ -9,7 +9,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BENCH_STAMP := $(VENV)/.installed-bench
 
-.PHONY: install run test test-slow bench clean
+.PHONY: install run test test-slow bench clean tb
 
 $(PY):
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (Python 3.11 is required)"; exit 1; }
@@ -41,6 +41,12 @@ test-slow: $(STAMP)
 
 bench: $(BENCH_STAMP)
 	$(PY) benchmarks/bench_blocks.py
+
+# TensorBoard on every run under outputs/ (LOGDIR=... for another folder), keeping every image of a
+# tag (its default keeps 10 at random, so a sample trial of 20 rotation steps would lose some)
+LOGDIR ?= outputs/
+tb: $(STAMP)
+	$(VENV)/bin/tensorboard --logdir $(LOGDIR) --samples_per_plugin images=1000
 
 clean:
 	rm -rf $(VENV) outputs multirun .pytest_cache

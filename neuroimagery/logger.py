@@ -1,7 +1,14 @@
-"""TensorBoard logging of scalars and of map activity as images (or nothing, ``logger=none``)."""
+"""TensorBoard logging of scalars and of map activity as images (or nothing, ``logger=none``).
+
+The Scalars tab holds curves only: a tag's first point is held back until a second one comes, and
+the tags that never get a second (a block's final state, a test's figure) go into one text
+summary, ``summary/single_values``, when the run closes. The headline figures of a run are
+HParams metrics (the scalars TensorBoard's HParams view needs, under ``hparams/``) and the text
+summary ``summary/headline``."""
 from __future__ import annotations
 
 import math
+import time
 from contextlib import nullcontext
 from pathlib import Path
 
@@ -39,6 +46,12 @@ def _hparam_value(v):
     if isinstance(v, (bool, int, float, str)):
         return v
     return "none" if v is None else str(v)
+
+
+def _markdown_table(header: list[str], rows: list[list[str]]) -> str:
+    esc = lambda x: str(x).replace("|", "\\|")  # noqa: E731
+    lines = ["| " + " | ".join(map(esc, header)) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    return "\n".join(lines + ["| " + " | ".join(map(esc, r)) + " |" for r in rows])
 
 
 class NullLogger:
@@ -89,12 +102,25 @@ class TensorBoardLogger(NullLogger):
             old.unlink()
         self.writer = SummaryWriter(log_dir=str(root))
         self.map_images = map_images
+        self._first: dict[str, tuple[float, int, float]] = {}  # tag -> its one point so far (value, step, time)
+        self._curves: set[str] = set()  # tags with two points or more, written as they come
 
     def training_curves(self):
         return monitor.to(self.scalar)
 
     def scalar(self, tag: str, value: float, step: int = 0) -> None:
-        self.writer.add_scalar(tag, float(value), step)
+        """A point of the curve ``tag``; a tag's first point is written once a second one comes
+        (a tag with one point ends in the text summary ``summary/single_values``)."""
+        now = time.time()
+        if tag in self._curves:
+            self.writer.add_scalar(tag, float(value), step, walltime=now)
+        elif tag in self._first:
+            v0, s0, t0 = self._first.pop(tag)
+            self.writer.add_scalar(tag, v0, s0, walltime=t0)
+            self.writer.add_scalar(tag, float(value), step, walltime=now)
+            self._curves.add(tag)
+        else:
+            self._first[tag] = (float(value), int(step), now)
 
     def scalars(self, values: dict, step: int = 0, prefix: str = "") -> None:
         for k, v in values.items():
@@ -129,11 +155,19 @@ class TensorBoardLogger(NullLogger):
             fw.add_summary(summary)
         for k, v in metrics.items():
             self.writer.add_scalar(k, v, 0)
+        if metrics:
+            self.writer.add_text("summary/headline", _markdown_table(
+                ["figure", "value"], [[k.removeprefix("hparams/"), f"{v:.4g}"] for k, v in metrics.items()]), 0)
 
     def flush(self) -> None:
         self.writer.flush()
 
     def close(self) -> None:
+        if self._first:
+            rows = [[tag, f"{v:.4g}", str(step)] for tag, (v, step, _) in sorted(self._first.items())]
+            self.writer.add_text("summary/single_values", "Figures logged once (a block's final state, a "
+                                 "test's result): values, not curves.\n\n" + _markdown_table(["tag", "value", "step"], rows), 0)
+            self._first.clear()
         self.writer.close()
 
 

@@ -15,13 +15,20 @@ from neuroimagery.logger import STRIP, TensorBoardLogger
 from neuroimagery.thesis import EXP3, EXP4, FIGURES, figure_caption, figure_order, is_map_panel
 
 
-def test_sample_rows_are_a_same_and_a_mirror_pair_at_the_largest_disparity():
-    t = pd.DataFrame({"disparity": [0, 90, 180, 180, 180, 90], "same": [True, True, False, False, True, False]})
-    rows = pc.sample_rows(t, 2)
-    assert rows == [4, 2]
-    assert pc.sample_names(t, rows) == ["same_180deg", "mirror_180deg"]
-    assert pc.sample_rows(t, 3) == [4, 2, 3]
-    assert pc.sample_rows(t, 0) == []
+def test_sample_trials_are_chosen_among_the_rotated_and_decided_at_the_largest_disparity():
+    t = pd.DataFrame({"disparity": [0, 90, 180, 180, 180, 90, 90], "same": [True, True, False, False, True, False, True]})
+    cand = pc.candidate_rows(t, 2)
+    assert cand == [4, 2, 1, 5, 0]  # per disparity, largest first: the first same and the first mirror pair
+    assert pc.candidate_rows(t, 0) == []
+    # participant 0: the 180-deg trials never rotated; the 90-deg ones rotated and decided
+    rotations = torch.tensor([[0, 2, 0, 0, 0, 3, 1]])
+    decided = torch.tensor([[True, True, False, True, False, True, True]])
+    chosen, why = pc.choose_samples(t, {"rotations": rotations, "decided": decided}, cand, 2)
+    assert [cand[k] for k in chosen] == [1, 5] and why.startswith("participant 0's trials that rotated and decided")
+    assert pc.sample_names(t, [cand[k] for k in chosen]) == ["same_90deg", "mirror_90deg"]
+    # nothing rotated and decided: the most informative remaining, and the sentence says so
+    chosen, why = pc.choose_samples(t, {"rotations": torch.zeros(1, 7, dtype=torch.long), "decided": decided}, cand, 2)
+    assert len(chosen) == 2 and "never rotated" in why
 
 
 def test_figures_come_in_the_thesis_order_with_numbered_captions():
@@ -92,6 +99,24 @@ def test_tensorboard_one_event_file_readable_strips_and_hparams(tmp_path):
     assert img[0].width % 3 == 0 and img[0].width // 3 >= STRIP and img[0].height == STRIP  # one cell per unit
     assert {"_hparams_/experiment", "_hparams_/session_start_info"} <= set(ea.PluginTagToContent("hparams"))
     assert [e.value for e in ea.Scalars("hparams/recog/correct_rate")] == pytest.approx([0.7])
+    assert "summary/headline/text_summary" in ea.Tags()["tensors"]
+
+
+def test_tensorboard_scalars_are_curves_and_single_values_go_to_text(tmp_path):
+    lg = TensorBoardLogger(tmp_path)
+    for s in range(4):
+        lg.scalar("train/C1/squared_error", 1.0 / (s + 1), s)
+    lg.scalar("train/C1/weight_norm_final", 2.5, 4)
+    lg.scalar("recog/none/correct_rate", 0.8)
+    lg.hparams({"seed": 0}, {"recog/none/correct_rate": 0.8})
+    lg.close()
+    ea = _accumulate(tmp_path)
+    scalars = ea.Tags()["scalars"]
+    assert [e.step for e in ea.Scalars("train/C1/squared_error")] == [0, 1, 2, 3]  # the held first point too
+    assert all(len(ea.Scalars(t)) > 1 for t in scalars if not t.startswith("hparams/")), scalars
+    assert "train/C1/weight_norm_final" not in scalars and "recog/none/correct_rate" not in scalars
+    text = ea.Tensors("summary/single_values/text_summary")[0].tensor_proto.string_val[0].decode()
+    assert "train/C1/weight_norm_final" in text and "2.5" in text and "recog/none/correct_rate" in text
 
 
 @pytest.mark.parametrize("method", ["online", "factored"])

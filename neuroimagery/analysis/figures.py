@@ -163,11 +163,14 @@ def _cell(a: np.ndarray) -> np.ndarray:
 
 @timed
 def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, title: str = "",
-               row_labels: Sequence[str] | None = None) -> Path:
+               row_labels: Sequence[str] | None = None, units: Mapping[str, Sequence[str]] | None = None) -> Path:
     """A grid of map activities: one row per step, one column per map (as Fig. 5.4, 6.12), drawn
     as one mosaic at its own pixel size (each map scaled by its own range, viridis, blank around
-    it), with the map names above and the row labels on the left; cheap however long the trial."""
+    it), with the map names above, the row labels on the left, a colour bar on the right and, for
+    the 1-D maps named in ``units``, each unit's label under its column (e.g. PMCm: l, s, r);
+    cheap however long the trial."""
     names = list(steps[0].keys())
+    units = {n: list(u) for n, u in (units or {}).items() if n in names}
     R, C = len(steps), len(names)
     pitch = CELL + GAP
     mosaic = np.full((R * pitch - GAP, C * pitch - GAP), np.nan)
@@ -176,17 +179,30 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
             mosaic[r * pitch:r * pitch + CELL, c * pitch:c * pitch + CELL] = _cell(st[n])
     rgba = plt.get_cmap("viridis")(np.nan_to_num(mosaic))
     rgba[np.isnan(mosaic)] = 1.0
-    dpi, left, top, pad = 100, 170, 70, 10
+    dpi, left, top, right = 100, 170, 70 + 14 * title.count("\n"), 120
+    bottom = 40 if units else 10
     H, W = mosaic.shape
-    fw, fh = W + left + pad, H + top + pad
+    fw, fh = W + left + right, H + top + bottom
     fig = plt.figure(figsize=(fw / dpi, fh / dpi), dpi=dpi)
-    fig.figimage(rgba, xo=left, yo=pad, origin="upper")
+    fig.figimage(rgba, xo=left, yo=bottom, origin="upper")
     fig.text(0.5, 1 - 8 / fh, title, ha="center", va="top", fontsize=9)
     for c, n in enumerate(names):
-        fig.text((left + c * pitch + CELL / 2) / fw, (pad + H + 6) / fh, n, ha="left", va="bottom", fontsize=7,
+        fig.text((left + c * pitch + CELL / 2) / fw, (bottom + H + 6) / fh, n, ha="left", va="bottom", fontsize=7,
                  rotation=45)
     for r, lab in enumerate(row_labels if row_labels is not None else []):
-        fig.text((left - 6) / fw, (pad + H - r * pitch - CELL / 2) / fh, lab, ha="right", va="center", fontsize=7)
+        fig.text((left - 6) / fw, (bottom + H - r * pitch - CELL / 2) / fh, lab, ha="right", va="center", fontsize=7)
+    for c, n in enumerate(names):
+        labs = units.get(n)
+        if labs:
+            w = len(labs)
+            for k, lab in enumerate(labs):
+                fig.text((left + c * pitch + (k + 0.5) * CELL / w) / fw, (bottom - 4) / fh, lab, ha="center",
+                         va="top", fontsize=6, rotation=90 if w > 3 or max(map(len, labs)) > 3 else 0)
+    cax = fig.add_axes([(left + W + 14) / fw, bottom / fh, 12 / fw, min(H, 240) / fh])
+    bar = fig.colorbar(plt.cm.ScalarMappable(cmap="viridis", norm=matplotlib.colors.Normalize(0, 1)), cax=cax)
+    bar.set_ticks([0, 0.5, 1], labels=["min", "", "max"])
+    bar.ax.tick_params(labelsize=6)
+    bar.set_label("activity, each map\nscaled to its own range", fontsize=6)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=dpi, metadata={"Software": None})
@@ -194,10 +210,39 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
     return path
 
 
+def _overlap(a, b, pad: float = 0.5) -> bool:
+    return a.x0 < b.x1 - pad and b.x0 < a.x1 - pad and a.y0 < b.y1 - pad and b.y0 < a.y1 - pad
+
+
+def _crowded(ax, renderer) -> list:
+    labels = [t for t in ax.get_xticklabels() if t.get_visible() and t.get_text()]
+    boxes = [t.get_window_extent(renderer) for t in labels]
+    return labels if any(_overlap(a, b) for i, a in enumerate(boxes) for b in boxes[i + 1:]) else []
+
+
+def _unclutter(fig) -> None:
+    """Where two x tick labels of an axis would overlap (long condition names under narrow bars),
+    break each label after its hyphens and at its spaces; where they still overlap, turn them
+    upright."""
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        labels = _crowded(ax, renderer)
+        if not labels:
+            continue
+        for t in labels:
+            t.set_text(t.get_text().replace("-", "-\n").replace(" ", "\n"))
+        fig.tight_layout()
+        for t in _crowded(ax, renderer):
+            t.set_text(t.get_text().replace("\n", " ").replace("- ", "-"))
+            t.set_rotation(90)
+
+
 @timed
 def save(fig, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    _unclutter(fig)
     fig.tight_layout()
     fig.savefig(path, dpi=110, metadata={"Software": None})
     plt.close(fig)

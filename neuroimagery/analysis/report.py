@@ -46,6 +46,11 @@ DEGENERATE_NOTE = (
     "mean difference and its interval instead.")
 
 
+def _p_after(p) -> str:
+    t = fmt_p(p)
+    return "not computable (every participant alike)" if t == "-" else t if t.startswith("<") else f"= {t}"
+
+
 class Report:
     """Builds a markdown report section by section; ``write(path)`` saves it."""
 
@@ -99,6 +104,21 @@ class Report:
             self.p(f"**Warning: on your stimuli (test `custom`) the model answers at chance.** Mean correct rate "
                    f"{100 * c['mean_correct']:.1f} % over {c['n']} participants; one-sided t-test of their rates "
                    f"against 50 %: p = {p}. Its other numbers on these stimuli say little.")
+        return self
+
+    def user_stimuli(self, summary: dict, folder: str, replaced: str, trained_on: str) -> "Report":
+        """The section on a user's stimulus folder (test ``custom``): where it came from, which
+        built-in set it replaced, what the model was trained on, and the one-sided test of the
+        participants' correct rates against chance (``summary["custom_vs_chance"]``)."""
+        self.h("Your stimuli")
+        self.p(f"The shapes of the folder `{folder}` replace {replaced} as test `custom`; {trained_on}")
+        c = summary.get("custom_vs_chance")
+        if c:
+            verdict = "above chance" if c["above_chance"] else "**not above chance**"
+            t = "-" if c.get("t") is None else f"{c['t']:.3g}"
+            self.p(f"Above chance? Mean correct rate {100 * c['mean_correct']:.1f} % over {c['n']} participants; "
+                   f"one-sided one-sample t-test of their rates against 50 %: t = {t}, p {_p_after(c['p_greater'])}: "
+                   f"{verdict} (alpha 0.05).")
         return self
 
     def effects(self, rows: list[dict], intro: str | None = None) -> "Report":

@@ -146,8 +146,6 @@ def evaluate(cfg, run, model) -> dict:
     run.write_csv("trials.csv", df)
     rt_by_disparity(df, run.figures / "rt_by_disparity.png", title="Demo: RT against disparity", ylabel="RT (cycles)")
     tests = summarise_trials(df)
-    for k, v in tests.items():
-        run.logger.scalars({"rt_r": v["rt_r"] or 0.0, "correct_rate": v["correct_rate"]}, prefix=f"{k}/")
     return {"experiment": "demo", "participants": P, "tests": tests, "targets": {}}
 
 

@@ -109,9 +109,9 @@ def run_tests(cfg, model, eye=None, record: int = 0):
         tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         gens = seeding.participant_generators(cfg.seed, ids, stream=100 + k)
-        shown = pc.sample_rows(table, record)
+        shown = pc.candidate_rows(table, record)  # the sample trials are chosen among these after the run
         out = model.run(tgt, rot, gens, record=shown)
-        histories[f"{test}/none"] = {"names": pc.sample_names(table, shown), "trials": out.pop("history")}
+        histories[f"{test}/none"] = pc.sample_history(table, out, shown, record)
         frames.append(pc.trial_rows(table, out, ids))
     return pd.concat(frames, ignore_index=True), histories, banks
 
@@ -133,13 +133,21 @@ def evaluate(cfg, run, trained) -> dict:
         pc.log_history(run.logger, hist["trials"], key, hist["names"])
     f = run.figures
     gen2_zero = {"Gen-II at 0 deg": [(0.0, THESIS_TARGETS["gen2/none steps at 0 deg"].value)]}
-    figures.rt_by_disparity(df, f / "fig6_5a_rt.png", groups=("test",), title="Fig. 6.5a RT (rotation steps)",
-                            ylabel="RT (rotation steps)", thesis=gen2_zero if "gen2" in set(df["test"]) else None)
-    figures.rate_bars(df, f / "fig6_5b_error.png", "Fig. 6.5b error rates", error=True,
-                      thesis={k.split("/")[0]: v for k, v in THESIS.items()})
-    figures.rate_by_disparity(df, f / "fig6_5c_error.png", groups=("test",), title="Fig. 6.5c error rate by disparity")
+    if cfg.stimuli.kind == "folder":  # a user's folder: no thesis values to draw, so not the thesis's figures
+        figures.rt_by_disparity(df, f / "custom_rt_by_disparity.png", groups=("test",), ylabel="RT (rotation steps)",
+                                title="Your stimuli: RT (rotation steps) by disparity")
+        figures.rate_by_disparity(df, f / "custom_error_rate_by_disparity.png", groups=("test",),
+                                  title="Your stimuli: error rate by disparity")
+    else:
+        figures.rt_by_disparity(df, f / "fig6_5a_rt.png", groups=("test",), title="Fig. 6.5a RT (rotation steps)",
+                                ylabel="RT (rotation steps)", thesis=gen2_zero if "gen2" in set(df["test"]) else None)
+        figures.rate_bars(df, f / "fig6_5b_error.png", "Fig. 6.5b error rates", error=True,
+                          thesis={k.split("/")[0]: v for k, v in THESIS.items()})
+        figures.rate_by_disparity(df, f / "fig6_5c_error.png", groups=("test",), title="Fig. 6.5c error rate by disparity")
     for key, hist in histories.items():
-        pc.sample_panels(f / f"maps_{key.replace('/', '_')}.png", key, hist["trials"], hist["names"])
+        pc.sample_panels(f / f"maps_{key.replace('/', '_')}.png", key, hist["trials"], hist["names"],
+                         {"M1_2": ["n1 cw", "n2 stop", "n3 ccw"], "SS": [f"{a:g}" for a in e.angles],
+                          "PMC_1": [f"{a:g}" for a in e.angles]}, hist["why"])
     return summary
 
 
@@ -147,7 +155,7 @@ def effects(df) -> list[dict]:
     """The effects the thesis states (section 6.1.2), each judged with the participant as the unit;
     Holm's correction over the family."""
     d = df.assign(error=(~df["correct"].astype(bool)).astype(float))
-    by = {t: d[d["test"] == t] for t in TESTS if t in set(d["test"])}
+    by = {t: d[d["test"] == t] for t in (*TESTS, "custom") if t in set(d["test"])}  # custom: a user's folder
     rows = []
     if {"recog", "gen1"} <= set(by):
         rows.append(effect("error rate: Recog < Gen-I", "<0", paired_by_participant(by["recog"], by["gen1"], "error")))
@@ -155,7 +163,7 @@ def effects(df) -> list[dict]:
         rows.append(effect("error rate: Gen-I < Gen-II", "<0", paired_by_participant(by["gen1"], by["gen2"], "error")))
     if {"recog", "gen2"} <= set(by):
         rows.append(effect("RT: Gen-II below Recog", "<0", paired_by_participant(by["gen2"], by["recog"], "rt")))
-    for t in ("recog", "gen1"):
+    for t in ("recog", "gen1", "custom"):
         if t in by:
             rows.append(effect(f"{t}: RT rises with disparity", ">0", slope_by_participant(by[t]), "mean_slope"))
     if "gen2" in by:
@@ -174,6 +182,9 @@ def report(cfg, run, summary) -> None:
         "RT in rotation steps. Gen-I and Gen-II are keyed `gen1` and `gen2`. " + reproducibility_note(cfg.seed))
     r.h("Headline figures")
     rows = [(f"{k} error rate", t[k]["error_rate"], v, True) for k, v in THESIS.items() if k in t]
+    if "custom/none" in t:
+        r.p("The thesis has no figures for a user's stimuli: the rows below are this run's alone.")
+        rows.insert(0, ("custom/none error rate", t["custom/none"]["error_rate"], None, True))
     rows += [(f"{k} RT-disparity r", v["rt_r"], None, False) for k, v in t.items()]
     r.targets(rows)
     r.h("Effects, the participant as the unit")
@@ -184,12 +195,19 @@ def report(cfg, run, summary) -> None:
               ", ".join(f"{a}: {b}" for a, b in v["rt_by_disparity"].items())] for k, v in t.items()])
     r.h("Forward model trained on three dots, applied to the test shapes (IoU with the true rotation)")
     r.table(["set", "1 step", "2 steps", "3 steps"], [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
+    e = cfg.experiment
+    folder = cfg.stimuli.kind == "folder"
+    if folder:
+        r.user_stimuli(summary, cfg.stimuli.path, f"the Recog set (`recog_set` = {e.recog_set}); the Gen-I and "
+                       "Gen-II tests are not run", "the forward model and the posture maps are trained on the built-in "
+                       "training images, as in every run.")
     r.h("Why the numbers differ")
     r.p("Where this run's errors are: " + pc.error_split(t) + ".")
-    e = cfg.experiment
     r.bullets([
         "The shapes of sets a, b and c are drawn to the design rules of docs/stimuli.md (the thesis's figures "
-        "are not in its text); `python -m neuroimagery.stimuli --measure` prints how each set meets them.",
+        "are not in its text); `python -m neuroimagery.stimuli --measure` prints how each set meets them."
+        if not folder else "`python -m neuroimagery.stimuli --measure` prints how your shapes meet the design rules "
+        "of the built-in sets (docs/stimuli.md).",
         f"C8 reaches {'only the same unit (one-to-one, as the thesis has it)' if e.match_tolerance == 0 else f'the units within {e.match_tolerance} map unit(s)'}"
         f" (`match_tolerance` = {e.match_tolerance}). An edge map turned by 45 deg and resampled on the 32x32 grid "
         "seldom lands on the same units as the target's, so with the one-to-one C8 most same pairs shown at a "

@@ -25,6 +25,7 @@ from . import protocol_ch6 as pc
 from ..thesis import EXP4 as THESIS_TARGETS
 
 TESTS = ("recog", "gen1", "gen2")
+UNITS = {"PMCm": ["l", "s", "r"], "PMCd": ["YES", "NO"]}  # what each unit of the 1-D maps stands for
 RT_BOUND = 10.0  # equivalence bound of an RT difference: one rotation step, 10 accumulator cycles (docs/choices.md)
 THESIS = {k.removesuffix(" correct rate"): t.value for k, t in THESIS_TARGETS.items() if k.endswith("correct rate")}
 
@@ -142,9 +143,9 @@ def run_tests(cfg, model, eye=None, record: int = 0):
                 conds.append((cond, noise, seeding.participant_generators(cfg.seed, ids, stream=100 + k)))
                 k += 1
         # all conditions of a test in one batch: they share the targets and the first step
-        shown = pc.sample_rows(table, record)
+        shown = pc.candidate_rows(table, record)  # the sample trials are chosen among these after the run
         for name, out in zip(names, model.run_conditions(tgt, rot, conds, record=shown)):
-            histories[f"{test}/{name}"] = {"names": pc.sample_names(table, shown), "trials": out.pop("history")}
+            histories[f"{test}/{name}"] = pc.sample_history(table, out, shown, record)
             frames.append(pc.trial_rows(table.assign(condition=name), out, ids))
     return pd.concat(frames, ignore_index=True), histories, banks
 
@@ -173,7 +174,7 @@ def effects(df: pd.DataFrame) -> list[dict]:
     RT-disparity slopes; Holm's correction over the family."""
     rows = []
     cond = lambda t, c: df[(df["test"] == t) & (df["condition"] == c)]  # noqa: E731
-    tests = [t for t in TESTS if t in set(df["test"])]
+    tests = [t for t in TESTS + ("custom",) if t in set(df["test"])]  # custom: a user's folder
     for t in tests:
         rows.append(effect(f"{t}: RT rises with disparity", ">0", slope_by_participant(cond(t, "none")), "mean_slope"))
     for t in tests:
@@ -263,8 +264,6 @@ def evaluate(cfg, run, trained) -> dict:
     summary["forward_model_iou"] = iou
     for key, hist in histories.items():
         pc.log_history(run.logger, hist["trials"], key, hist["names"])
-    for key, v in tests.items():
-        run.logger.scalars({"correct_rate": v["correct_rate"], "rt_mean": v["rt_mean"]}, prefix=f"{key}/")
     _figures(run, df, histories, e.step_deg)
     return summary
 
@@ -274,10 +273,11 @@ def _figures(run, df, histories, step_deg: float) -> None:
     f = run.figures
     base = df[df["condition"] == "none"]
     thesis = {k.split("/")[0]: v for k, v in THESIS.items()}
-    figures.rt_by_disparity(base, f / "fig6_9a_rt.png", groups=("test",), title="Fig. 6.9a RT (cycles)",
-                            ylabel="RT (accumulator cycles)")
-    figures.rate_by_disparity(base, f / "fig6_9b_error.png", groups=("test",), title="Fig. 6.9b error rate")
-    figures.rate_bars(base, f / "fig6_9c_correct.png", "Fig. 6.9c correct responses", thesis=thesis)
+    if set(base["test"]) - {"custom"}:  # a user's folder alone: its own figures below say the same
+        figures.rt_by_disparity(base, f / "fig6_9a_rt.png", groups=("test",), title="Fig. 6.9a RT (cycles)",
+                                ylabel="RT (accumulator cycles)")
+        figures.rate_by_disparity(base, f / "fig6_9b_error.png", groups=("test",), title="Fig. 6.9b error rate")
+        figures.rate_bars(base, f / "fig6_9c_correct.png", "Fig. 6.9c correct responses", thesis=thesis)
     dec = base[base["decided"].astype(bool)] if "decided" in base else base
     req = dec.assign(required=(dec["disparity"] / step_deg).round().astype(int))
     per_step = THESIS_TARGETS["cycles per rotation step"].value
@@ -300,7 +300,7 @@ def _figures(run, df, histories, step_deg: float) -> None:
     for key, name in panels:
         hist = histories.get(key)
         if hist:
-            pc.sample_panels(f / f"{name}.png", key, hist["trials"], hist["names"])
+            pc.sample_panels(f / f"{name}.png", key, hist["trials"], hist["names"], UNITS, hist["why"])
 
 
 def report(cfg, run, summary) -> None:
@@ -312,6 +312,9 @@ def report(cfg, run, summary) -> None:
     rows = [(f"{k} correct rate", t.get(k, {}).get("correct_rate"), v, True) for k, v in THESIS.items() if k in t]
     rows += [(f"{k} RT-disparity r", t[k]["rt_r"], None, False) for k in ("recog/none", "gen1/none", "gen2/none", "custom/none") if k in t]
     r.h("Headline figures")
+    if "custom/none" in t:
+        r.p("The thesis has no figures for a user's stimuli: the rows below are this run's alone.")
+        rows.insert(0, ("custom/none correct rate", t["custom/none"]["correct_rate"], None, True))
     r.targets(rows)
     r.h("All tests")
     r.table(["test", "trials", "correct", "rotated ok", "RT mean", "RT slope/deg", "rt_r"],
@@ -344,13 +347,23 @@ def report(cfg, run, summary) -> None:
     r.h("Forward models trained on three dots, applied to the test shapes")
     r.table(["set", "IoU after 1 step", "2 steps", "3 steps"],
             [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
+    e = cfg.experiment
+    if cfg.stimuli.kind == "folder":
+        r.user_stimuli(summary, cfg.stimuli.path, f"the Recog set (`recog_set` = {e.recog_set}); the Gen1 "
+                       "and Gen2 tests are not run",
+                       f"the forward models are trained on three-dot images and the posture maps C16/C17 on "
+                       f"`train_set` = {e.train_set}, as in every run. All conditions (none, match, mismatch, each "
+                       "with and without noise) run on your shapes.")
     r.h("Why the numbers differ")
     r.p("Where this run's errors are: " + pc.error_split(t) + ".")
-    e = cfg.experiment
+    first = ("The shapes of sets A, B and C are drawn to the design rules of docs/stimuli.md (the thesis's figures "
+             "are not in its text); how well the posture maps (C16/C17, trained on set A) read sets B and C, and how "
+             "much detail each shape loses under the forward models (IoU table above), set the Gen1 and Gen2 rates."
+             if cfg.stimuli.kind != "folder" else
+             "How well the posture maps (C16/C17, trained on the built-in training set) read your shapes, and how much "
+             "detail each shape loses under the forward models (IoU table above), set the rates on them.")
     r.bullets([
-        "The shapes of sets A, B and C are drawn to the design rules of docs/stimuli.md (the thesis's figures "
-        "are not in its text); how well the posture maps (C16/C17, trained on set A) read sets B and C, and how "
-        "much detail each shape loses under the forward models (IoU table above), set the Gen1 and Gen2 rates.",
+        first,
         f"The flipped target (C10, `flip_axis` = {e.flip_axis}) is made from the target image alone "
         "('image': a reflection about the map's principal axis; 'ppct': about the axis of the orientation "
         "PPCt reads); no trial label reaches the model.",

@@ -163,11 +163,10 @@ def to_np(t: torch.Tensor) -> np.ndarray:
 
 
 def record_figures_and_scalars(run, summary: dict, shown: dict, tests: dict, prefix: str) -> dict:
-    """Store the figure paths ``shown`` (relative to the run) in ``summary["figures"]`` and log every
-    numeric figure of ``tests`` as a TensorBoard scalar under ``<prefix>/<test>/``; returns ``summary``."""
+    """Store the figure paths ``shown`` (relative to the run) in ``summary["figures"]``; returns
+    ``summary``. The tests' figures reach TensorBoard as HParams metrics and its text summary (the
+    run's headline, :func:`neuroimagery.analysis.summary.headline`), not as one-point scalars."""
     summary["figures"] = {k: str(v.relative_to(run.root)) for k, v in shown.items()}
-    for key, t in tests.items():
-        run.logger.scalars({k: v for k, v in t.items() if isinstance(v, (int, float))}, prefix=f"{prefix}/{key}/")
     return summary
 
 
@@ -179,8 +178,11 @@ def finish_report(r, cfg, run, summary: dict, custom_limit: str) -> None:
 
     c = summary["tests"].get("custom/none")
     if c is not None:
+        r.user_stimuli(summary, cfg.stimuli.path, "no set: the built-in L set (objects A and B) is tested as usual, and "
+                       "your folder's first two shapes (a shape and its mirror) beside it", "the model is trained on the L set, as in every run.")
         r.h("User stimuli")
-        r.p(f"Rotation success {c['rotation_success_rate']}, correct answers {c['correct_rate']}. " + custom_limit)
+        r.p(f"Rotation success {100 * c['rotation_success_rate']:.1f} %, correct answers "
+            f"{100 * c['correct_rate']:.1f} %. " + custom_limit)
     r.h("Figures")
     r.figures(run.root, [run.root / v for v in summary.get("figures", {}).values()])
     r.p(reproducibility_note(cfg.seed))

@@ -211,27 +211,69 @@ def sample_generators(seed: int, participants: Sequence[int], stream: int):
     return seeding.participant_generators(seed, list(participants), stream=stream)
 
 
-def sample_rows(table: pd.DataFrame, n: int) -> list[int]:
-    """The rows of a test's trial table shown step by step (figures, TensorBoard): ``n`` pairs at
-    the test's largest disparity, a same pair first, then a mirror pair, alternating, each the
-    first of its kind in the table's order. The labels only choose what is displayed; the model
-    runs every trial alike."""
-    if n <= 0 or table.empty:
-        return []
-    big = table[table["disparity"] == table["disparity"].max()]
-    kinds = [list(big.index[big["same"].astype(bool)]), list(big.index[~big["same"].astype(bool)])]
-    out: list[int] = []
-    while len(out) < n and any(kinds):
-        for rows in kinds:
-            if rows and len(out) < n:
-                out.append(int(table.index.get_loc(rows.pop(0))))
-    return out
-
-
 def sample_names(table: pd.DataFrame, rows: Sequence[int]) -> list[str]:
     """``same_135deg`` / ``mirror_135deg`` names of the sample trials ``rows``."""
     t = table.iloc[list(rows)]
     return [f"{'same' if s else 'mirror'}_{int(d)}deg" for s, d in zip(t["same"].astype(bool), t["disparity"])]
+
+
+CANDIDATES_PER_SAMPLE = 8  # trials recorded per sample trial shown, among which the shown ones are chosen
+
+
+def candidate_rows(table: pd.DataFrame, n: int) -> list[int]:
+    """The rows recorded step by step so that ``n`` sample trials can be chosen after the test
+    (:func:`choose_samples`): from the largest disparity down, the first same and the first
+    mirror pair of each disparity, ``CANDIDATES_PER_SAMPLE * n`` rows at most. The labels only
+    choose what is recorded; the model runs every trial alike."""
+    if n <= 0 or table.empty:
+        return []
+    out: list[int] = []
+    for d in sorted(set(table["disparity"]), reverse=True):
+        at = table[table["disparity"] == d]
+        for same in (True, False):
+            rows = at.index[at["same"].astype(bool) == same]
+            if len(rows) and len(out) < CANDIDATES_PER_SAMPLE * n:
+                out.append(int(table.index.get_loc(rows[0])))
+    return out
+
+
+def choose_samples(table: pd.DataFrame, out: dict, candidates: Sequence[int], n: int) -> tuple[list[int], str]:
+    """The ``n`` most informative of the recorded ``candidates`` (rows of ``table``) for
+    participant 0, whose maps are recorded: trials that rotated (at least one move that was not
+    "still") and decided before the step limit, at the largest disparity first, a same pair then a
+    mirror pair, alternating. Where too few did both, trials that rotated, then the rest, fill up.
+    Returns the positions in ``candidates`` and a sentence saying how they were chosen."""
+    if n <= 0 or not len(candidates):
+        return [], ""
+    rot = out["rotations"][0].reshape(-1)
+    dec = out["decided"][0].reshape(-1)
+    t = table.iloc[list(candidates)]
+    info = [(2 if int(rot[r]) > 0 and bool(dec[r]) else 1 if int(rot[r]) > 0 else 0) for r in candidates]
+    order = sorted(range(len(candidates)), key=lambda k: (-info[k], -float(t["disparity"].iloc[k]), k))
+    same = [bool(v) for v in t["same"]]
+    chosen: list[int] = []
+    while len(chosen) < n and order:
+        best = order[0]  # after a same pair a mirror pair, and back, where one is as informative
+        alt = next((k for k in order if not chosen or same[k] != same[chosen[-1]]), best)
+        pick = alt if info[alt] == info[best] else best
+        chosen.append(pick)
+        order.remove(pick)
+    got = [info[k] for k in chosen]
+    why = "participant 0's trials that rotated and decided, largest disparity first"
+    if got and min(got) < 2:
+        why += (f"; of the {len(candidates)} recorded (the first same and mirror pair of each disparity) "
+                f"{got.count(2)} shown did, {got.count(1)} rotated without deciding, {got.count(0)} never rotated")
+    return chosen, why
+
+
+def sample_history(table: pd.DataFrame, out: dict, candidates: Sequence[int], n: int) -> dict:
+    """The sample trials of one test and condition from a run that recorded ``candidates``
+    (:func:`candidate_rows`): ``{"names", "trials", "why"}`` of the ``n`` chosen by
+    :func:`choose_samples`; pops ``out["history"]``."""
+    history = out.pop("history")
+    chosen, why = choose_samples(table, out, candidates, n)
+    return {"names": sample_names(table, [candidates[k] for k in chosen]), "trials": [history[k] for k in chosen],
+            "why": why}
 
 
 def log_history(logger, history: list, prefix: str, names: Sequence[str] | None = None) -> None:
@@ -243,8 +285,10 @@ def log_history(logger, history: list, prefix: str, names: Sequence[str] | None 
             logger.maps({k: torch.as_tensor(v) for k, v in maps.items()}, step=s + 1, prefix=f"{prefix}/{name}/")
 
 
-def sample_panels(path, key: str, history: list, names: Sequence[str]):
-    """One figure of the sample trials of ``key``: one row per rotation step of each trial."""
+def sample_panels(path, key: str, history: list, names: Sequence[str], units=None, why: str = ""):
+    """One figure of the sample trials of ``key``: one row per rotation step of each trial, the
+    labels of the units of ``units`` (``{map: [label, ...]}``) under their columns, and ``why``
+    (how the trials were chosen) under the title."""
     steps, labels = [], []
     for name, trial in zip(names, history):
         for i, st in enumerate(trial):
@@ -252,7 +296,8 @@ def sample_panels(path, key: str, history: list, names: Sequence[str]):
             labels.append(f"{name.replace('_', ' ')}, step {i + 1}")
     if not steps:
         return None
-    return figures.map_panels(steps, path, title=f"{key}: sample trials, one row per rotation step", row_labels=labels)
+    title = f"{key}: sample trials, one row per rotation step" + (f"\nchosen: {why}" if why else "")
+    return figures.map_panels(steps, path, title=title, row_labels=labels, units=units)
 
 
 def train_posture_maps(cfg, eye, model, angles: Sequence[float], generators):
