@@ -1,5 +1,6 @@
 """The overlap check of figures: every pair of visible texts of a saved figure (titles, axis and
-tick labels, legends, annotations) measured with matplotlib's renderer must not overlap."""
+tick labels, legends, annotations) measured with matplotlib's renderer must not overlap, and no
+text may run off the figure."""
 from __future__ import annotations
 
 from contextlib import contextmanager
@@ -23,7 +24,9 @@ def text_overlaps(fig, pad: float = 0.5) -> list[str]:
                     hidden.update({id(tick.label1), id(tick.label2)})
     texts = [t for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip() and id(t) not in hidden]
     boxes = [(t, t.get_window_extent(renderer)) for t in texts]
-    out = []
+    W, H = fig.canvas.get_width_height()
+    out = [f"{t.get_text()!r} runs off the figure" for t, b in boxes
+           if b.x0 < -pad or b.y0 < -pad or b.x1 > W + pad or b.y1 > H + pad]
     for i, (ta, a) in enumerate(boxes):
         for tb, b in boxes[i + 1:]:
             if a.x0 < b.x1 - pad and b.x0 < a.x1 - pad and a.y0 < b.y1 - pad and b.y0 < a.y1 - pad:

@@ -45,7 +45,7 @@ def test_mosaic_has_a_colour_bar_and_unit_labels_without_overlaps(tmp_path):
     steps = [{"POCi": np.eye(32), "PPCt": np.arange(13.0), "PMCm": np.eye(3)[s % 3], "PMCd": np.array([0.2, 0.1 * s])}
              for s in range(4)]
     with checking_overlaps() as found:
-        fig_path = figures.map_panels(steps, tmp_path / "m.png", "recog/none: sample trials\nchosen: a rule",
+        fig_path = figures.map_panels(steps, tmp_path / "m.png", "recog/none: sample trials\nchosen: " + "a rule " * 40,
                                       [f"same 150deg, step {s + 1}" for s in range(4)],
                                       units={"PMCm": ["l", "s", "r"], "PMCd": ["YES", "NO"]})
     assert found == {} and fig_path.is_file()

@@ -6,6 +6,7 @@ dashed in black (``thesis=``), labelled "thesis"."""
 from __future__ import annotations
 
 import functools
+import textwrap
 import time
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -179,10 +180,14 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
             mosaic[r * pitch:r * pitch + CELL, c * pitch:c * pitch + CELL] = _cell(st[n])
     rgba = plt.get_cmap("viridis")(np.nan_to_num(mosaic))
     rgba[np.isnan(mosaic)] = 1.0
-    dpi, left, top, right = 100, 170, 70 + 14 * title.count("\n"), 120
+    dpi, left, right = 100, 170, 120
     bottom = 40 if units else 10
     H, W = mosaic.shape
-    fw, fh = W + left + right, H + top + bottom
+    fw = W + left + right
+    width = max(20, int(fw / 6.5))  # characters of a 9-pt line that fit the figure's width
+    title = "\n".join(textwrap.fill(line, width) for line in title.split("\n"))
+    top = 56 + 14 * (title.count("\n") + 1)
+    fh = H + top + bottom
     fig = plt.figure(figsize=(fw / dpi, fh / dpi), dpi=dpi)
     fig.figimage(rgba, xo=left, yo=bottom, origin="upper")
     fig.text(0.5, 1 - 8 / fh, title, ha="center", va="top", fontsize=9)
@@ -198,7 +203,7 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
             for k, lab in enumerate(labs):
                 fig.text((left + c * pitch + (k + 0.5) * CELL / w) / fw, (bottom - 4) / fh, lab, ha="center",
                          va="top", fontsize=6, rotation=90 if w > 3 or max(map(len, labs)) > 3 else 0)
-    cax = fig.add_axes([(left + W + 14) / fw, bottom / fh, 12 / fw, min(H, 240) / fh])
+    cax = fig.add_axes([(left + W + 14) / fw, (bottom + H - min(H, 240)) / fh, 12 / fw, min(H, 240) / fh])
     bar = fig.colorbar(plt.cm.ScalarMappable(cmap="viridis", norm=matplotlib.colors.Normalize(0, 1)), cax=cax)
     bar.set_ticks([0, 0.5, 1], labels=["min", "", "max"])
     bar.ax.tick_params(labelsize=6)

@@ -146,8 +146,8 @@ def evaluate(cfg, run, trained) -> dict:
         figures.rate_by_disparity(df, f / "fig6_5c_error.png", groups=("test",), title="Fig. 6.5c error rate by disparity")
     for key, hist in histories.items():
         pc.sample_panels(f / f"maps_{key.replace('/', '_')}.png", key, hist["trials"], hist["names"],
-                         {"M1_2": ["n1 cw", "n2 stop", "n3 ccw"], "SS": [f"{a:g}" for a in e.angles],
-                          "PMC_1": [f"{a:g}" for a in e.angles]}, hist["why"])
+                         {"M1_2": ["n1 cw", "n2 stop", "n3 ccw"], "SS": [f"{a:g}" for a in e.posture.angles],
+                          "PMC_1": [f"{a:g}" for a in e.posture.angles]}, hist["why"])
     return summary
 
 
