@@ -18,7 +18,7 @@ from neuroimagery.thesis import EXP3, EXP4, FIGURES, figure_caption, figure_orde
 def test_sample_trials_are_chosen_among_the_rotated_and_decided_at_the_largest_disparity():
     t = pd.DataFrame({"disparity": [0, 90, 180, 180, 180, 90, 90], "same": [True, True, False, False, True, False, True]})
     cand = pc.candidate_rows(t, 2)
-    assert cand == [4, 2, 3, 1, 6, 5, 0]  # per disparity, largest first: the first two same and mirror pairs
+    assert cand == [4, 2, 3, 1, 6, 5, 0]  # per disparity, largest first: two same and two mirror pairs
     assert pc.candidate_rows(t, 0) == []
     # participant 0: the 180-deg trials never rotated; the 90-deg ones rotated and decided
     rotations = torch.tensor([[0, 2, 0, 0, 0, 3, 1]])

@@ -223,8 +223,8 @@ PER_DISPARITY = 2  # same pairs and mirror pairs recorded per disparity
 
 def candidate_rows(table: pd.DataFrame, n: int) -> list[int]:
     """The rows recorded step by step so that ``n`` sample trials can be chosen after the test
-    (:func:`choose_samples`): from the largest disparity down, the first ``PER_DISPARITY`` same
-    and mirror pairs of each disparity, ``CANDIDATES_PER_SAMPLE * n`` rows at most. The labels
+    (:func:`choose_samples`): from the largest disparity down, ``PER_DISPARITY`` same and as many
+    mirror pairs of each disparity, spread evenly over the table's order (first and last, ...), ``CANDIDATES_PER_SAMPLE * n`` rows at most. The labels
     only choose what is recorded; the model runs every trial alike."""
     if n <= 0 or table.empty:
         return []
@@ -232,7 +232,8 @@ def candidate_rows(table: pd.DataFrame, n: int) -> list[int]:
     for d in sorted(set(table["disparity"]), reverse=True):
         at = table[table["disparity"] == d]
         for same in (True, False):
-            for row in at.index[at["same"].astype(bool) == same][:PER_DISPARITY]:
+            rows = at.index[at["same"].astype(bool) == same]
+            for row in rows[np.unique(np.linspace(0, len(rows) - 1, min(PER_DISPARITY, len(rows))).round().astype(int))]:
                 if len(out) < CANDIDATES_PER_SAMPLE * n:
                     out.append(int(table.index.get_loc(row)))
     return out
@@ -262,8 +263,8 @@ def choose_samples(table: pd.DataFrame, out: dict, candidates: Sequence[int], n:
     got = [info[k] for k in chosen]
     why = "participant 0's trials that rotated and decided, largest disparity first"
     if got and min(got) < 2:
-        why += (f"; of the {len(candidates)} recorded (the first {PER_DISPARITY} same and mirror pairs of each disparity, "
-                "largest first) "
+        why += (f"; of the {len(candidates)} recorded ({PER_DISPARITY} same and {PER_DISPARITY} mirror pairs of each "
+                "disparity, largest first) "
                 f"{got.count(2)} shown did, {got.count(1)} rotated without deciding, {got.count(0)} never rotated")
     return chosen, why
 
