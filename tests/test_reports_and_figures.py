@@ -87,7 +87,7 @@ def test_a_user_folder_gets_a_report_of_its_own(tmp_path):
         s = evaluate(_exp4("logger=none", "stimuli=folder", f"stimuli.path={folder}"), out_dir=tmp_path / "run")
     assert found == {}, found
     report = (tmp_path / "run" / "report.md").read_text()
-    assert "## Your stimuli" in report and f"`{folder}`" in report and "replace the Recog set" in report
+    assert "## Your stimuli" in report and f"`{folder}`" in report and "It replaces the Recog set" in report
     assert "Above chance? Mean correct rate" in report and "one-sided one-sample t-test" in report
     assert "sets A, B and C" not in report and "Gen1 and Gen2 rates" not in report
     for line in report.splitlines():  # no caption promises a thesis line the figure does not draw

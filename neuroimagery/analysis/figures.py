@@ -231,15 +231,14 @@ def _unclutter(fig) -> None:
     upright."""
     renderer = fig.canvas.get_renderer()
     for ax in fig.axes:
-        labels = _crowded(ax, renderer)
-        if not labels:
+        if not _crowded(ax, renderer):
             continue
-        for t in labels:
-            t.set_text(t.get_text().replace("-", "-\n").replace(" ", "\n"))
+        locs, texts = ax.get_xticks(), [t.get_text() for t in ax.get_xticklabels()]
+        ax.set_xticks(locs, [t.replace("-", "-\n").replace(" ", "\n") for t in texts])
         fig.tight_layout()
-        for t in _crowded(ax, renderer):
-            t.set_text(t.get_text().replace("\n", " ").replace("- ", "-"))
-            t.set_rotation(90)
+        if _crowded(ax, renderer):
+            ax.set_xticks(locs, texts)
+            ax.tick_params(axis="x", labelrotation=90)
 
 
 @timed

@@ -107,11 +107,12 @@ class Report:
         return self
 
     def user_stimuli(self, summary: dict, folder: str, replaced: str, trained_on: str) -> "Report":
-        """The section on a user's stimulus folder (test ``custom``): where it came from, which
-        built-in set it replaced, what the model was trained on, and the one-sided test of the
+        """The section on a user's stimulus folder (test ``custom``): where it came from, the
+        sentence ``replaced`` (which built-in set it replaced), the sentence ``trained_on`` (what
+        the model was trained on), and the one-sided test of the
         participants' correct rates against chance (``summary["custom_vs_chance"]``)."""
         self.h("Your stimuli")
-        self.p(f"The shapes of the folder `{folder}` replace {replaced} as test `custom`; {trained_on}")
+        self.p(f"Folder `{folder}`, tested as test `custom`. {replaced} {trained_on}")
         c = summary.get("custom_vs_chance")
         if c:
             verdict = "above chance" if c["above_chance"] else "**not above chance**"

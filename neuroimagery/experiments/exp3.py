@@ -198,9 +198,9 @@ def report(cfg, run, summary) -> None:
     e = cfg.experiment
     folder = cfg.stimuli.kind == "folder"
     if folder:
-        r.user_stimuli(summary, cfg.stimuli.path, f"the Recog set (`recog_set` = {e.recog_set}); the Gen-I and "
-                       "Gen-II tests are not run", "the forward model and the posture maps are trained on the built-in "
-                       "training images, as in every run.")
+        r.user_stimuli(summary, cfg.stimuli.path, f"It replaces the Recog set (`recog_set` = {e.recog_set}); the "
+                       "Gen-I and Gen-II tests are not run.", "The forward model and the posture maps are trained on "
+                       f"the built-in training images (`train_set` = {e.train_set}), as in every run.")
     r.h("Why the numbers differ")
     r.p("Where this run's errors are: " + pc.error_split(t) + ".")
     r.bullets([

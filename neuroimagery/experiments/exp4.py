@@ -349,9 +349,9 @@ def report(cfg, run, summary) -> None:
             [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
     e = cfg.experiment
     if cfg.stimuli.kind == "folder":
-        r.user_stimuli(summary, cfg.stimuli.path, f"the Recog set (`recog_set` = {e.recog_set}); the Gen1 "
-                       "and Gen2 tests are not run",
-                       f"the forward models are trained on three-dot images and the posture maps C16/C17 on "
+        r.user_stimuli(summary, cfg.stimuli.path, f"It replaces the Recog set (`recog_set` = {e.recog_set}); the "
+                       "Gen1 and Gen2 tests are not run.",
+                       f"The forward models are trained on three-dot images and the posture maps C16/C17 on "
                        f"`train_set` = {e.train_set}, as in every run. All conditions (none, match, mismatch, each "
                        "with and without noise) run on your shapes.")
     r.h("Why the numbers differ")

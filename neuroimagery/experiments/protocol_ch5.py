@@ -178,8 +178,9 @@ def finish_report(r, cfg, run, summary: dict, custom_limit: str) -> None:
 
     c = summary["tests"].get("custom/none")
     if c is not None:
-        r.user_stimuli(summary, cfg.stimuli.path, "no set: the built-in L set (objects A and B) is tested as usual, and "
-                       "your folder's first two shapes (a shape and its mirror) beside it", "the model is trained on the L set, as in every run.")
+        r.user_stimuli(summary, cfg.stimuli.path, "It replaces no set: the built-in L set (objects A and B) is "
+                       "tested as usual, and the folder's first two shapes (a shape and its mirror) beside it.",
+                       "The model is trained on the L set, as in every run.")
         r.h("User stimuli")
         r.p(f"Rotation success {100 * c['rotation_success_rate']:.1f} %, correct answers "
             f"{100 * c['correct_rate']:.1f} %. " + custom_limit)
