@@ -154,8 +154,9 @@ def figure_caption(stem: str, number: int, errorbars: str = "") -> str:
     f = FIGURES.get(stem)
     if f is None and stem.startswith("maps_"):
         key = stem.removeprefix("maps_").replace("_", "/", 1)
-        return (f"Figure {number}. {key}: sample trials at the test's largest disparity (a same and a mirror "
-                "pair), one row per rotation step. The thesis has no such figure for this experiment.")
+        return (f"Figure {number}. {key}: sample trials, one row per rotation step, chosen among the trials that "
+                "rotated and decided, largest disparity first (the panel's title says how). The thesis has no such "
+                "figure for this experiment.")
     if f is None:
         return f"Figure {number}. {stem.replace('_', ' ')}{'. ' + errorbars if errorbars else ''}"
     eb = f" {errorbars}." if errorbars else ""
