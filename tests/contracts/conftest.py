@@ -1,0 +1,51 @@
+"""Trained Experiment 3 and 4 models shared by the contract tests: seed 0, two participants, the
+protocol's own training (three-dot forward models, posture maps on the training set), shrunk to
+the quick preset's forward-model images."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+
+from neuroimagery.config import validate
+from neuroimagery.experiments import exp3, exp4, protocol_ch6 as pc
+
+PARTICIPANTS = [0, 1]
+CONF = str(Path(__file__).resolve().parents[2] / "conf")
+
+
+def make_cfg(*overrides: str):
+    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
+        return compose("config", overrides=list(overrides))
+
+
+def ch6_cfg(name: str, *overrides: str):
+    cfg = validate(make_cfg(f"experiment={name}", "participants=2", "logger=none", "seed=0", *overrides))
+    cfg.preset = "quick"
+    return cfg
+
+
+class Trained:
+    """A trained model with its config, eye and the edge-map banks of its sets."""
+
+    def __init__(self, module, cfg):
+        self.cfg, self.e = cfg, cfg.experiment
+        self.eye = pc.make_eye(cfg)
+        self.model = module.train_model(cfg, PARTICIPANTS, self.eye)
+        self._banks = {}
+
+    def bank(self, name: str) -> pc.StimulusBank:
+        if name not in self._banks:
+            self._banks[name] = pc.StimulusBank.build(self.eye, pc.stimulus_set(self.cfg, name, False), self.e.map_size)
+        return self._banks[name]
+
+
+@pytest.fixture(scope="session")
+def trained3():
+    return Trained(exp3, ch6_cfg("exp3"))
+
+
+@pytest.fixture(scope="session")
+def trained4():
+    return Trained(exp4, ch6_cfg("exp4"))

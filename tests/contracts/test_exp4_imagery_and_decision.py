@@ -1,0 +1,80 @@
+"""Experiment 4 contracts X4.6-X4.10 (docs/contracts.md): the forward models, the matching of
+POCp with the target and the flipped target (C10), the accumulator's gain and the time-outs."""
+import torch
+from support_ch6 import forward_model_shape, item_rows
+
+from neuroimagery.experiments import exp4
+from neuroimagery.vision.edges import iou, rotate
+
+
+def _step(t, move):
+    m, P = t.model, t.model.participants
+
+    def fn(x):
+        x = x.expand(P, -1, -1) if x.shape[0] == 1 else x
+        return m.forward_step(x, torch.full(x.shape[:2], move, dtype=torch.long))
+    return fn
+
+
+def test_x4_6_forward_models_keep_the_shape(trained4):
+    e = trained4.e
+    for name in (e.train_set, e.gen1_set):
+        for move, angle in ((0, e.step_deg), (2, -e.step_deg)):
+            r = forward_model_shape(_step(trained4, move), trained4.bank(name).maps, angle, e.map_size)
+            print(f"X4.6 {name} move {move}: {r}")
+            assert r[1][1] >= 0.6
+            assert 0.8 <= r["ratio"] <= 1.25
+            for k in (1, 2):
+                assert r[k][k] > r[k][k - 1] and r[k][k] > r[k][k + 1]
+
+
+def test_x4_7_an_exact_rotation_overlaps_the_target(trained4):
+    m, e, bank = trained4.model, trained4.e, trained4.bank(trained4.e.train_set)
+    rows, size = item_rows(bank), e.map_size
+    tg, im = [], []
+    for i, o, a, ap in rows:
+        for j, o2, b, ap2 in rows:
+            if o2 == o and ap2 == ap and a != b:
+                tg.append(bank.maps[i]), im.append(rotate(bank.maps[j].reshape(size, size), a - b).reshape(-1))
+    tg, im = torch.stack(tg), torch.stack(im)
+    share = m.overlap(tg, im) / tg.sum(-1).clamp_min(1)
+    ok = float((share >= 0.9).float().mean())
+    print(f"X4.7 overlap of an exact rotation: mean {float(share.mean()):.3f}, share >= 0.9 {ok:.3f}")
+    assert ok >= 0.9
+
+
+def test_x4_8_flipped_target_is_the_mirror(trained4):
+    m, bank = trained4.model, trained4.bank(trained4.e.train_set)
+    rows = item_rows(bank)
+    idx = {(o, a, ap): i for i, o, a, ap in rows}
+    aps = sorted({ap for *_, ap in rows})
+    pairs = [(i, idx[(o, a, ap2)]) for i, o, a, ap in rows for ap2 in aps if ap2 != ap]
+    P, size = m.participants, trained4.e.map_size
+    target = bank.maps[[i for i, _ in pairs]].unsqueeze(0).expand(P, -1, -1)
+    mirror = bank.maps[[j for _, j in pairs]].unsqueeze(0).expand(P, -1, -1)
+    flipped = m.flip_target(target)
+    v = float(iou(flipped.reshape(P, -1, size, size), mirror.reshape(P, -1, size, size)).mean())
+    pocp = m.forward_step(mirror, torch.ones(P, len(pairs), dtype=torch.long))  # the still step at alignment
+    more = float((m.overlap(flipped, pocp) > m.overlap(target, pocp)).float().mean())
+    print(f"X4.8 C10 ({trained4.e.flip_axis}): IoU with the true mirror {v:.3f}; flipped > target overlap {more:.3f}")
+    assert v >= 0.5 and more >= 0.9
+
+
+def test_x4_9_mean_identical_overlap_decides_within_one_step(trained4):
+    m, e = trained4.model, trained4.e
+    ev = m.identical_evidence  # (P, 2) mean PFCtm / PFCfm fractions of identical 0-deg set-A pairs
+    gain = m.input_gain.unsqueeze(-1)
+    print(f"X4.9 identical-pair evidence {ev.tolist()}, gain {m.input_gain.tolist()}")
+    full = m.pmcd(gain * ev, e.lca_cycles, state=m.pmcd.initial_state(ev.shape[:1]))
+    half = m.pmcd(gain * ev / 2, e.lca_cycles, state=m.pmcd.initial_state(ev.shape[:1]))
+    assert bool(full.decided.all()) and bool((full.winner == 0).all())
+    assert not bool(half.decided.any())
+
+
+def test_x4_10_time_outs_are_rare(trained4):
+    cfg = trained4.cfg
+    df, _, _ = exp4.run_tests(cfg, trained4.model, trained4.eye)
+    d = df[df["condition"] == "none"]
+    share = 1 - d.groupby("test")["decided"].mean()
+    print(f"X4.10 time-out share (quick, condition none): {share.round(3).to_dict()}")
+    assert (share < 0.10).all()
