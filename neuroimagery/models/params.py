@@ -106,9 +106,19 @@ class PostureMapParams:
     eta_final: float = 0.1
     sigma: float = 0.3  # neighbourhood radius of the forced winner, in units (not given)
     iterations: int = 1440  # supervised Kohonen steps (not given)
+    # scale of the image fed to the rule and the read-out (not given): 'sum' = divided by its sum, the scale of
+    # the weights eq. 6.8 / 6.16 keep at sum 1, so eta is the real rate | 'raw' = the binary map as it comes
+    input_scale: str = "sum"
+    # order of the training images (not given; "repeated for all the possible orientations"): 'passes' = every
+    # image once per pass, in a fresh random order each pass | 'draws' = each step draws an image at random
+    order: str = "passes"
 
     def __post_init__(self) -> None:
         _check("posture", self, positive=("eta", "eta_final", "sigma"), at_least_one=("iterations",))
+        if self.input_scale not in ("sum", "raw"):
+            raise ValueError(f"experiment.posture.input_scale must be 'sum' or 'raw', got {self.input_scale!r}")
+        if self.order not in ("passes", "draws"):
+            raise ValueError(f"experiment.posture.order must be 'passes' or 'draws', got {self.order!r}")
 
 
 def moved_keys(groups: dict[str, tuple[str, type]]) -> dict[str, str]:

@@ -28,7 +28,7 @@ from typing import List, Optional, Sequence
 import torch
 from torch import nn
 
-from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM
+from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM, population_cover
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul, binary_matmul_rows, pack_bits, popcount, unique_rows, unpack_bits
 from ..vision.reflection import principal_axis_flip, reflection_index
@@ -66,6 +66,32 @@ def lca_gain(p) -> float:
     return p.lca_threshold * k / (1.0 - (1.0 - dt * k) ** n)
 
 
+def smallest_deciding_gain(pmcd, evidence: torch.Tensor, cycles: int, answer: int = 0, iterations: int = 60) -> torch.Tensor:
+    """The smallest gain ``g`` (per row of ``evidence`` ``(R, 2)``) with which the accumulator ``pmcd``,
+    from rest, fed ``g * evidence`` crosses its threshold on unit ``answer`` within ``cycles`` cycles:
+    bisection on ``g`` (the crossing is monotone in the gain). Rows whose evidence favours the other
+    unit, or is empty, get ``inf``."""
+    R = evidence.shape[0]
+    lo, hi = torch.zeros(R, dtype=torch.float64), torch.ones(R, dtype=torch.float64)
+    ok = (evidence[:, answer] > evidence[:, 1 - answer]) & (evidence[:, answer] > 0)
+
+    def decides(g):
+        d = pmcd((g.unsqueeze(-1) * evidence.double()).float(), cycles, state=pmcd.initial_state((R,)))
+        return d.decided & (d.winner == answer)
+
+    for _ in range(40):  # grow the upper bound until it decides
+        bad = ok & ~decides(hi)
+        if not bool(bad.any()):
+            break
+        hi = torch.where(bad, hi * 2, hi)
+    for _ in range(iterations):
+        mid = (lo + hi) / 2
+        d = decides(mid)
+        hi, lo = torch.where(d, mid, hi), torch.where(d, lo, mid)
+    hi = hi * (1 + 1e-5)  # clear of the float32 rounding of the evidence the trials compute
+    return torch.where(ok, hi, torch.full_like(hi, float("inf"))).float()
+
+
 @dataclass
 class EmbodiedPostureParams(PostureMapParams):
     """C16/C17 (``experiment.posture``) and how PPCp reads its winner."""
@@ -87,8 +113,27 @@ def posture_maps(init_high: float, q: PostureMapParams, n_in: int, units: int, g
     built in order, initial weights U[0, ``init_high``], the schedule of ``q``."""
     kw = dict(shape=(units,), n_in=n_in, generators=generators, init=(0.0, init_high), eta=q.eta,
               sigma=q.sigma, eta_final=q.eta_final, sigma_final=q.sigma,
-              iterations=q.iterations, supervised=True, readout="dot")
+              iterations=q.iterations, supervised=True, readout="dot", input_scale=getattr(q, "input_scale", "sum"))
     return [SOM(name=name, **kw) for name in names]
+
+
+def posture_order(generators, n: int, steps: int, how: str) -> torch.Tensor | None:
+    """Image indices ``(P, steps)`` for the posture maps: with ``how='passes'`` every one of the ``n``
+    images once per pass, a fresh random order per pass and participant; ``'draws'`` returns None
+    (the map draws an image at random at every step)."""
+    if how == "draws":
+        return None
+    passes = -(-steps // n)
+    return torch.stack([torch.cat([torch.randperm(n, generator=g) for _ in range(passes)])[:steps] for g in generators])
+
+
+def fit_posture_soms(soms, maps: torch.Tensor, labels: torch.Tensor, generators, q, progress=None) -> None:
+    """Train each supervised posture map of ``soms`` on ``maps`` labelled ``labels``, in the order of
+    ``q.order`` (:func:`posture_order`), by the factored form of the online rule."""
+    for som in (progress(soms) if progress is not None else soms):
+        order = posture_order(generators, maps.shape[0], som.rule.iterations, getattr(q, "order", "draws"))
+        som.fit(maps, labels=labels, generators=None if order is not None else generators, order=order,
+                method="factored")
 
 
 def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int) -> tuple[torch.Tensor, torch.Tensor]:
@@ -118,10 +163,13 @@ class EmbodiedParams:
     # --- posture maps C16/C17 (supervised Kohonen, eq. 6.14-6.16) and the PPCp winner -----
     posture: EmbodiedPostureParams = dc_field(default_factory=EmbodiedPostureParams)
     # axis of the flipped target PFCft (C10, "flipped along the main object axis of the object"; not given how):
-    # 'image' = the principal axis of the target map itself (a fixed transformation of PFCt, as Table 6.2
-    # lists C10: no label, no posture input) | 'ppct' = the axis of the orientation PPCt reads (C17), so a
-    # misread target posture also gives a wrong flip. docs/choices.md
-    flip_axis: str = "image"
+    # 'ppct' (default: the higher IoU with the true mirror on training set A, the rule of docs/contracts.md) =
+    # the axis of the orientation PPCt reads (C17), so a misread target posture also gives a wrong flip |
+    # 'image' = the principal axis of the target map itself (no posture input). No label either way.
+    flip_axis: str = "ppct"
+    # how far a POCp unit reaches when PFCtm / PFCfm compare it with the target (C8, C9): 1 (default) = POCp read
+    # as a population code whose units respond over their 3x3 neighbourhood (contract X4.7); 0 = one-to-one
+    match_tolerance: int = 1
     ppc_sigma: float = 0.5  # width (units) of the Gaussian bump PPCp/PPCt put around the winner (eq. 6.14; not given)
     # --- action selection (eq. 6.10-6.11) ---------------------------------------------------
     softmax_tau: float = 0.1  # PMCm softmax temperature (thesis 0.1)
@@ -135,6 +183,11 @@ class EmbodiedParams:
     # unit); None = the rule of docs/choices.md: the smallest gain with which a full overlap crosses the
     # threshold within one step (1.495 with k 0.5, dt 0.1, 10 cycles)
     lca_input_gain: Optional[float] = None
+    # the rule that sets the gain when lca_input_gain is null: 'identical' (default; contract X4.9) = the
+    # smallest gain with which the mean evidence (target and flipped overlap) of identical 0-deg pairs of the
+    # training set decides YES within one step, per participant, fixed after training | 'full' = the smallest
+    # gain with which a full overlap (1, with no flipped overlap) does (lca_gain)
+    lca_gain_rule: str = "identical"
     max_steps: int = 20  # rotation steps before a random answer (thesis 20)
     # --- embodiment -----------------------------------------------------------------------
     proprio_gain: float = 1.0  # strength of the wrist signal added to PPCp (scaled encoder signal; not given)
@@ -175,6 +228,10 @@ class EmbodiedParams:
             raise ValueError(f"experiment.flip_axis must be 'image' or 'ppct', got {self.flip_axis!r}")
         if self.lca_input_gain is not None and not self.lca_input_gain > 0:
             raise ValueError(f"experiment.lca_input_gain must be > 0 (or null for the rule), got {self.lca_input_gain!r}")
+        if self.lca_gain_rule not in ("identical", "full"):
+            raise ValueError(f"experiment.lca_gain_rule must be 'identical' or 'full', got {self.lca_gain_rule!r}")
+        if int(self.match_tolerance) < 0:
+            raise ValueError(f"experiment.match_tolerance must be >= 0, got {self.match_tolerance!r}")
         if self.proprio_stage not in ("separate", "visual"):
             raise ValueError(f"experiment.proprio_stage must be 'separate' or 'visual', got {self.proprio_stage!r}")
 
@@ -200,6 +257,11 @@ class RotationEmbodied(nn.Module):
         self.pmcd = LeakyCompetingAccumulator(2, k=p.lca_k, w=p.lca_w, threshold=p.lca_threshold, dt=p.lca_dt)
         flips = torch.stack([reflection_index(p.map_size, 90.0 + a) for a in p.ppc_angles])
         self.register_buffer("flip_index", flips)  # (units, n) hard-wired C10 per target posture
+        P = len(generators)
+        # PMCd's input gain per participant (set by calibrate() after training) and the mean evidence of the
+        # identical 0-deg training pairs it was fixed on
+        self.register_buffer("input_gain", torch.full((P,), lca_gain(p)))
+        self.register_buffer("identical_evidence", torch.zeros(P, 2))
         self._tables: list[torch.Tensor] | None = None
 
     @property
@@ -221,9 +283,40 @@ class RotationEmbodied(nn.Module):
         """C16 and C17 (supervised Kohonen, eq. 6.14-6.16) on edge ``maps`` ``(N, n)`` labelled with
         their wrist-posture units; ``progress`` optionally wraps the list of maps."""
         self.train()
-        soms = [self.c16, self.c17]
-        for som in (progress(soms) if progress is not None else soms):
-            som.fit(maps, labels=labels, generators=generators, method="factored")
+        fit_posture_soms([self.c16, self.c17], maps, labels, generators, self.p.posture, progress)
+        self.calibrate(maps)
+
+    @torch.no_grad()
+    def calibrate(self, maps: torch.Tensor) -> None:
+        """Fix PMCd's input gain (``input_gain``, per participant) by the rule of ``lca_gain_rule``
+        (docs/contracts.md, X4.9): pair every training map ``(N, n)`` with itself (target = rotated
+        object, 0 deg), run the still step, take the mean PFCtm and PFCfm evidence (overlap per
+        target unit) and find the smallest gain with which that mean decides YES within one step.
+        An explicit ``lca_input_gain`` or the ``full`` rule sets the same gain for everyone."""
+        p, P = self.p, self.participants
+        self.freeze()
+        x = maps.unsqueeze(0).expand(P, -1, -1)
+        pocp = self.forward_step(x, torch.ones(P, x.shape[1], dtype=torch.long))
+        t = x.sum(-1).clamp_min(1.0)
+        ev = torch.stack([self.overlap(x, pocp) / t, self.overlap(self.flip_target(x), pocp) / t], -1).mean(1)
+        self.identical_evidence.copy_(ev)
+        if p.lca_input_gain is not None or p.lca_gain_rule == "full":
+            self.input_gain.fill_(lca_gain(p))
+        else:
+            self.input_gain.copy_(smallest_deciding_gain(self.pmcd, ev, p.lca_cycles))
+        self._tables = None
+
+    def overlap(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
+        """PFCtm (PFCfm) summed: the target units covered by ``image`` read as a population code of
+        reach ``match_tolerance`` ``(..., n)`` -> ``(...)``."""
+        cover = population_cover(image, self.size, self.p.match_tolerance) > 0.5
+        return ((target > 0.5) & cover).sum(-1).float()
+
+    def flip_target(self, target: torch.Tensor) -> torch.Tensor:
+        """PFCft of targets ``(P, B, n)`` by C10 as ``flip_axis`` sets it."""
+        if self.p.flip_axis == "ppct":
+            return self.flipped(target, self.posture(self.c17, target))
+        return self.flipped_image(target)
 
     def train(self, mode: bool = True):
         """``eval()`` caches the transposed forward-model weights of the binary fast path; ``train()``
@@ -362,6 +455,7 @@ class RotationEmbodied(nn.Module):
         ppct = self.ppc.encode(ppct_unit.float()).reshape(Q, nu)
         if flipped is None:
             flipped = self.flipped(target, ppct_unit) if p.flip_axis == "ppct" else self.flipped_image(target)
+        reach = int(p.match_tolerance)
         pfcft = flipped.reshape(Q, n)
         pfct_w, pfcft_w = pack_bits(pfct), pack_bits(pfcft)
         t_count = pfct.sum(-1).clamp_min(1.0)
@@ -376,26 +470,28 @@ class RotationEmbodied(nn.Module):
         histories: list[list[list[dict]]] = [[[] for _ in shown] for _ in range(C)]
         rec = list(zip(shown, range(len(shown))))  # (flat row q of participant 0, history slot)
 
-        gain = lca_gain(p)
+        gain = self.input_gain[part]  # (Q,) per participant
         unpack = lambda w: unpack_bits(w, n).float()  # noqa: E731  (a recorded map)
 
-        def evidence(rows_q, pocp_w):
-            """PFCtm / PFCfm: one-to-one inputs above 1.5, i.e. the units on in both binary maps."""
-            tm, fm = pfct_w[rows_q] & pocp_w, pfcft_w[rows_q] & pocp_w
-            ev = gain * torch.stack([popcount(tm).float(), popcount(fm).float()], -1) / t_count[rows_q].unsqueeze(-1)
-            return ev, tm, fm
+        def evidence(rows_q, cover_w):
+            """PFCtm / PFCfm: the target (flipped target) units that POCp covers, read as a population
+            code of reach ``match_tolerance`` (one-to-one inputs above 1.5 at reach 0)."""
+            tm, fm = pfct_w[rows_q] & cover_w, pfcft_w[rows_q] & cover_w
+            ev = torch.stack([popcount(tm).float(), popcount(fm).float()], -1) / t_count[rows_q].unsqueeze(-1)
+            return gain[rows_q].unsqueeze(-1) * ev, tm, fm
 
         def predict(group, poci_w):
-            """POCp (packed) of the forward models ``group`` (participant * 3 + move) and its C16
-            activation potentials PPCpA (eq. 6.14), once per distinct pair."""
+            """POCp (packed), what it covers (packed) and its C16 activation potentials PPCpA (eq. 6.14)
+            for the forward models ``group`` (participant * 3 + move), once per distinct pair."""
             g, words, inv = unique_rows(group, poci_w)
             pocp = binary_matmul_rows(fm_table, g, unpack_bits(words, n)) + 1.0 > 1.5
-            return pack_bits(pocp)[inv], binary_matmul_rows(c16_table, g // 3, pocp)[inv]
+            cover = population_cover(pocp.float(), self.size, reach) > 0.5 if reach > 0 else pocp
+            return pack_bits(pocp)[inv], pack_bits(cover)[inv], binary_matmul_rows(c16_table, g // 3, pocp)[inv]
 
         # ---- step 1: the "still" forward model on every trial, identical in every condition
         still = torch.ones(Q, dtype=torch.long)
-        pocp0, score0 = predict(part * 3 + 1, pack_bits(rotated.reshape(Q, n)))
-        ev0, tm0, fm0 = evidence(torch.arange(Q), pocp0)
+        pocp0, cover0, score0 = predict(part * 3 + 1, pack_bits(rotated.reshape(Q, n)))
+        ev0, tm0, fm0 = evidence(torch.arange(Q), cover0)
         dec = self.pmcd(ev0, p.lca_cycles, state=self.pmcd.initial_state((Q,)))
         steps += 1
         rt += dec.cycles
@@ -431,8 +527,8 @@ class RotationEmbodied(nn.Module):
                 if rec:
                     self._note_ppc(histories[c], rec, qc, ppcp, ppcc)
             # forward model, overlap, accumulator on the live rows
-            pocp, score = predict(part[q] * 3 + move, poci)
-            ev, tm, fm = evidence(q, pocp)
+            pocp, cover, score = predict(part[q] * 3 + move, poci)
+            ev, tm, fm = evidence(q, cover)
             dec = self.pmcd(ev, p.lca_cycles, state=y)
             angle[cond, q] += step_deg[move]
             rotations[cond, q] += (move != 1).long()

@@ -9,7 +9,6 @@ from __future__ import annotations
 import torch
 
 from ..nn.functional import gain_field, softmax_select
-from .rotation_embodied import lca_gain
 
 
 @torch.no_grad()
@@ -18,7 +17,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
     """:meth:`RotationEmbodied.run` of ``model`` for ``target`` / ``rotated`` ``(P, B, n)``, plainly."""
     p, (P, B, _) = model.p, target.shape
     nu = len(p.ppc_angles)
-    gain = lca_gain(p)
+    gain = model.input_gain  # PMCd's input gain per participant (fixed after training)
     fm = [c.weight for c in model.fm]  # C1-C3 (P, n, n): Ml, Ms, Mr
     ppct_unit = model.posture(model.c17, target)  # PPCt winner (eq. 6.14), (P, B)
     if p.flip_axis == "ppct":
@@ -35,10 +34,10 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
         return ((fm[m][pi] @ x) + 1.0 > 1.5).float()
 
     def decide(pi: int, b: int, pocp: torch.Tensor, y):
-        """PFCtm, PFCfm (one-to-one sums > 1.5), the evidence and ``lca_cycles`` cycles of PMCd (eq. 6.12-6.13)."""
+        """PFCtm, PFCfm (the target units POCp covers), the evidence and ``lca_cycles`` cycles of PMCd (eq. 6.12-6.13)."""
         t, f = target[pi, b], flipped[pi, b]
-        tm, fmm = (t + pocp > 1.5).float(), (f + pocp > 1.5).float()
-        ev = gain * torch.stack([tm.sum(), fmm.sum()]) / t.sum().clamp_min(1.0)
+        tm, fmm = model.overlap(t, pocp), model.overlap(f, pocp)  # POCp read as a population code
+        ev = gain[pi] * torch.stack([tm, fmm]) / t.sum().clamp_min(1.0)
         return model.pmcd(ev.unsqueeze(0), p.lca_cycles, state=y)
 
     for pi in range(P):  # step 1: the "still" forward model, from rest

@@ -25,12 +25,12 @@ from typing import List, Sequence
 import torch
 from torch import nn
 
-from ..nn import AllToAll, Delta, SOM
+from ..nn import AllToAll, Delta, SOM, population_cover
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul
 from .params import ForwardModelParams, PostureMapParams
 from .recording import sample_indices
-from .rotation_embodied import posture_maps, triangle_weights
+from .rotation_embodied import fit_posture_soms, posture_maps, triangle_weights
 
 MOVES = ("n1", "n2", "n3")
 
@@ -78,20 +78,21 @@ class GeneralisingParams:
     # than the others'. sigma^2 = 0.82 / 4 puts the other units two "standard" widths down (exp(-2) ~ 0.13),
     # i.e. a clear posture difference gives a clear move and the softmax (tau 0.3) picks it ~90 % of the time.
     m1_sigma: float = 0.45
-    # how eq. 6.2 compares M1_1 with the weights of n1, n2, n3. 'pattern' (default, eq. 6.2 as printed): the
-    # whole 16-unit pattern as a direction (width m1_sigma), where flat codes favour the 6-unit triangles and
-    # keep the rotation going. 'centre': by where the M1_1 activity is centred across the diagonal (mean SS
-    # unit - PMC_1 unit, in posture units), so that two flat posture codes, like two coinciding ones, put it on
-    # the diagonal and select n2 (thesis 6.1.3: objects with no clear orientation stop the rotation early).
-    m1_readout: str = "pattern"
+    # how eq. 6.2 compares M1_1 with the weights of n1, n2, n3. 'centre' (default; contract X3.6): by where the
+    # M1_1 activity is centred across the diagonal (mean SS unit - PMC_1 unit, in posture units), so that two
+    # flat posture codes, like two coinciding ones, put it on the diagonal and select n2 (thesis 6.1.3: objects
+    # with no clear orientation stop the rotation early). 'pattern' (the literal reading of eq. 6.2): the whole
+    # 16-unit pattern as a direction (width m1_sigma), where flat codes favour the 6-unit triangles.
+    m1_readout: str = "centre"
     # width of the Gaussian of the 'centre' readout, in posture units (not given): half the spacing of the
     # posture units, so that a centre one unit off the diagonal selects a turn (n2 falls to ~0.3, the softmax
     # picks the turn ~87 % of the time) and a centre on the diagonal selects n2 (the turns fall to ~0.004)
     m1_centre_sigma: float = 0.5
-    # C8 reach: 0 (default) = the thesis's one-to-one subtraction; r > 0 = a PP_2 unit covers the target
-    # units within r map units (Chebyshev), since edge maps are 1-2 units thick and one 45-deg step shifts
-    # resampled edges by up to one unit.
-    match_tolerance: int = 0
+    # how far a PP_2 unit reaches when C8 subtracts it from PFC_2: 1 (default) = PP_2 read as a population code
+    # whose units respond over their 3x3 neighbourhood (contract X3.8: an exact rotation of a same image leaves
+    # <= 5 % of the target uncovered); 0 = the literal one-to-one reading, under which a resampled 45-deg
+    # rotation of a 1-2-unit edge leaves about a quarter of the target uncovered.
+    match_tolerance: int = 1
     softmax_tau: float = 0.3  # M1_2 softmax temperature (thesis 0.3)
     match_threshold: float = 0.05  # NO when PMC_2 > this fraction of PFC_1's active units (thesis 5 %)
     max_steps: int = 15  # rotation steps before answering NO (thesis 15)
@@ -111,6 +112,19 @@ class GeneralisingParams:
             raise ValueError(f"experiment.match_threshold must lie in [0, 1], got {self.match_threshold!r}")
         if not (1 <= self.fm.dot_inner <= self.map_size - 2):
             raise ValueError(f"experiment.fm.dot_inner must lie in [1, map_size - 2], got {self.fm.dot_inner}")
+
+
+def posture_code_distances(som: SOM, x: torch.Tensor) -> torch.Tensor:
+    """Squared distances of images ``x`` ``(..., n)`` to each unit of ``som``, minus the best unit's,
+    divided by the squared norm of the image as the map sees it when the map scales its inputs
+    (``input_scale='sum'``: a binary image of K units has squared norm 1 / K, so the division
+    multiplies by K and undoes the scaling's shrinking of every distance); as they are otherwise."""
+    d = som.distances(x)
+    d = d - d.min(-1, keepdim=True).values
+    if getattr(som.rule, "input_scale", "raw") == "sum":
+        xs = som.rule.scale_input(x)
+        d = d / (xs * xs).sum(-1, keepdim=True).clamp_min(1e-12)
+    return d
 
 
 class RotationGeneralising(nn.Module):
@@ -144,9 +158,7 @@ class RotationGeneralising(nn.Module):
         """C2 and C3 (supervised Kohonen, eq. 6.7-6.8) on edge ``maps`` ``(N, n)`` labelled with
         their posture units; ``progress`` optionally wraps the list of maps."""
         self.train()
-        soms = [self.c2, self.c3]
-        for som in (progress(soms) if progress is not None else soms):
-            som.fit(maps, labels=labels, generators=generators, method="factored")
+        fit_posture_soms([self.c2, self.c3], maps, labels, generators, self.p.posture, progress)
 
     def train(self, mode: bool = True):
         """``eval()`` caches the transposed C6 weights of the binary fast path; ``train()`` drops it."""
@@ -162,9 +174,14 @@ class RotationGeneralising(nn.Module):
 
     def posture(self, som: SOM, x: torch.Tensor) -> torch.Tensor:
         """Graded posture code (eq. 6.5-6.6): a Gaussian of each unit's distance to the image,
-        measured from the best unit's distance, ``exp(-(d_i^2 - d_min^2) / (2 sigma^2))``."""
-        d = som.distances(x)
-        return torch.exp(-(d - d.min(-1, keepdim=True).values) / (2 * self.p.posture.code_sigma ** 2))
+        measured from the best unit's distance, ``exp(-(d_i^2 - d_min^2) / (2 sigma^2))``.
+
+        The distances are those of the image as the map sees it (scaled to sum 1 with the default
+        ``posture.input_scale``) and are measured in units of that image's squared norm, so that
+        ``code_sigma`` has the same meaning at either input scale: differences of about twice the
+        difference of the units' overlap with the image (see :func:`posture_code_distances`)."""
+        d = posture_code_distances(som, x)
+        return torch.exp(-d / (2 * self.p.posture.code_sigma ** 2))
 
     def m1_2(self, m11: torch.Tensor) -> torch.Tensor:
         """M1_2 activity (eq. 6.2): a Gaussian of the distance between M1_1 ``(P, B, 16)`` and the
@@ -210,11 +227,7 @@ class RotationGeneralising(nn.Module):
         (a max over that square neighbourhood), so an edge displaced by resampling a rotated
         image on the 32x32 grid still covers the target edge next to it.
         """
-        r = int(self.p.match_tolerance)
-        if r > 0:
-            shape = pp2.shape
-            pp2 = torch.nn.functional.max_pool2d(pp2.reshape(-1, 1, self.size, self.size), 2 * r + 1, 1, r).reshape(shape)
-        return (pfc1 - pp2).clamp_min(0.0)
+        return (pfc1 - population_cover(pp2, self.size, self.p.match_tolerance)).clamp_min(0.0)
 
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
         """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; output > threshold."""

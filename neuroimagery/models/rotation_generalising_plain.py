@@ -13,8 +13,12 @@ from ..nn.functional import gain_field, softmax_select
 def posture_code(model, som, pi: int, x: torch.Tensor) -> torch.Tensor:
     """Participant ``pi``'s graded posture code of image ``x`` (eq. 6.5-6.6): a Gaussian of each
     unit's squared distance to the image, measured from the best unit's."""
-    d = ((x - som.weight[pi]) ** 2).sum(-1)
-    return torch.exp(-(d - d.min()) / (2 * model.p.posture.code_sigma ** 2))
+    xs = som.rule.scale_input(x)  # the image as the map sees it (sum 1 by default)
+    d = ((xs - som.weight[pi]) ** 2).sum(-1)
+    d = d - d.min()
+    if getattr(som.rule, "input_scale", "raw") == "sum":
+        d = d / (xs * xs).sum().clamp_min(1e-12)  # in units of the image's squared norm
+    return torch.exp(-d / (2 * model.p.posture.code_sigma ** 2))
 
 
 @torch.no_grad()

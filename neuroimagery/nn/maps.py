@@ -109,3 +109,18 @@ class PopulationMap(nn.Module):
 
     def extra_repr(self) -> str:
         return f"name={self.name!r}, shape={self.shape}, sigma={self.sigma}"
+
+
+def population_cover(x: torch.Tensor, size: int, reach: int = 1) -> torch.Tensor:
+    """What a square image map ``x`` ``(..., size*size)`` covers when read as a population code whose
+    units respond over their ``(2 reach + 1)^2`` neighbourhood (Chebyshev distance ``reach``): the
+    maximum of the map over each unit's neighbourhood, same shape as ``x``. ``reach=0`` is the map
+    itself (one-to-one)."""
+    r = int(reach)
+    if r < 0:
+        raise ValueError(f"reach must be >= 0, got {reach}")
+    if r == 0:
+        return x
+    shape = x.shape
+    flat = x.reshape(-1, 1, size, size).float()
+    return torch.nn.functional.max_pool2d(flat, 2 * r + 1, 1, r).reshape(shape).to(x.dtype)

@@ -208,6 +208,13 @@ class Kohonen(Rule):
     def extra_repr(self) -> str:
         return f"eta={self.eta0}->{self.eta1}, sigma={self.sigma0}->{self.sigma1}, iterations={self.iterations}"
 
+    def scale_input(self, x: torch.Tensor) -> torch.Tensor:
+        """The input as the rule and the read-out see it (unchanged for the plain Kohonen rule)."""
+        return x
+
+
+INPUT_SCALES = ("auto", "sum", "raw")
+
 
 class SupervisedKohonen(Kohonen):
     """Supervised Kohonen step (eq. 6.7-6.8, 6.14-6.16).
@@ -215,14 +222,30 @@ class SupervisedKohonen(Kohonen):
     The winner is not searched for: it is forced to the unit that codes the known label (e.g.
     the wrist posture the image was seen at). After the Kohonen step each unit's weights are
     normalised to sum to one. The returned change is ``normalised(w + dw) - w``.
+
+    ``input_scale``: with ``'sum'`` each input pattern is divided by its sum before the step (and
+    by the maps that read the weights, :meth:`scale_input`), so that it lies on the scale of the
+    weights that eq. 6.8 / 6.16 keep summing to one and ``eta`` is the real rate: a raw binary
+    image of K active units against a prototype summing to one would otherwise replace about
+    ``eta K / (1 + eta K)`` of the prototype per step. ``'raw'`` feeds the pattern as given (the
+    literal reading). ``'auto'`` (default) is ``'sum'`` when the weights are normalised, else ``'raw'``.
     """
 
     def __init__(self, eta: float = 0.1, sigma: float = 1.0, iterations: int = 1000,
                  eta_final: float | None = None, sigma_final: float | None = None, normalise: bool = True,
-                 cutoff: float = 1e-6) -> None:
+                 cutoff: float = 1e-6, input_scale: str = "auto") -> None:
         super().__init__(eta, sigma, iterations, eta if eta_final is None else eta_final,
                          sigma if sigma_final is None else sigma_final, cutoff)
         self.normalise = bool(normalise)
+        if input_scale not in INPUT_SCALES:
+            raise ValueError(f"input_scale must be one of {INPUT_SCALES}, got {input_scale!r}")
+        self.input_scale = ("sum" if self.normalise else "raw") if input_scale == "auto" else input_scale
+
+    def scale_input(self, x: torch.Tensor) -> torch.Tensor:
+        """``x / sum(x)`` per pattern with ``input_scale='sum'`` (an empty pattern stays empty), else ``x``."""
+        if self.input_scale != "sum":
+            return x
+        return x / x.sum(-1, keepdim=True).clamp_min(1e-12)
 
     def delta(self, weight: torch.Tensor, pre: torch.Tensor, bmu: torch.Tensor, grid: torch.Tensor,
               t: int | torch.Tensor = 0, **_) -> torch.Tensor:

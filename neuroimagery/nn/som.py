@@ -46,6 +46,9 @@ class SOM(nn.Module):
         eta, sigma, eta_final, sigma_final, iterations: decay schedule of eq. 4.5 (``sigma`` in grid
             units; default: half the larger side).
         supervised: forced winners and unit-sum normalisation (eq. 6.7-6.8) instead of BMU search.
+        input_scale: supervised maps only: ``'auto'`` (default: each input divided by its sum, the
+            weights' scale, in training and read-out alike), ``'sum'`` or ``'raw'`` (inputs as
+            given); see :class:`~.rules.SupervisedKohonen`.
         readout: ``'dot'`` (``y = W x``, eq. 4.4) or ``'distance'`` (``y = -|x - w|``, shifted to be
             positive), both normalised by their maximum (eq. 4.6).
     """
@@ -54,7 +57,7 @@ class SOM(nn.Module):
                  generators: Sequence[torch.Generator] | None = None, seed: int = 0,
                  init: tuple[float, float] = (0.0, 0.1), eta: float = 0.1, sigma: float | None = None,
                  eta_final: float = 0.01, sigma_final: float = 0.5, iterations: int = 10_000,
-                 supervised: bool = False, readout: str = "dot", name: str = "") -> None:
+                 supervised: bool = False, readout: str = "dot", name: str = "", input_scale: str = "auto") -> None:
         super().__init__()
         self.shape = tuple(int(s) for s in shape)
         if len(self.shape) not in (1, 2) or min(self.shape) < 1:
@@ -76,8 +79,10 @@ class SOM(nn.Module):
         sigma = max(self.shape) / 2.0 if sigma is None else sigma
         rule_cls = SupervisedKohonen if supervised else Kohonen
         if supervised:
-            self.rule = SupervisedKohonen(eta, sigma, iterations, eta_final, sigma_final)
+            self.rule = SupervisedKohonen(eta, sigma, iterations, eta_final, sigma_final, input_scale=input_scale)
         else:
+            if input_scale not in ("auto", "raw"):
+                raise ValueError(f"SOM {name!r}: input_scale={input_scale!r} applies to supervised maps only")
             self.rule = rule_cls(eta, sigma, iterations, eta_final, sigma_final)
         self.register_buffer("grid", grid_coords(self.shape))
         self.register_buffer("weight", seeding.uniform(generators, (units, self.n_in), float(init[0]), float(init[1])))
@@ -91,6 +96,7 @@ class SOM(nn.Module):
     def distances(self, x: torch.Tensor) -> torch.Tensor:
         """Squared Euclidean distance of every input ``(P, B, in)`` to every unit -> ``(P, B, units)``."""
         xb, _ = as_batched(x, self.n_in, f"input of SOM {self.name!r}")
+        xb = self.rule.scale_input(xb)
         w = self.weight
         d = squared_norms(w).unsqueeze(1) - 2 * torch.bmm(xb, w.transpose(1, 2)) + (xb * xb).sum(-1, keepdim=True)
         return d.clamp_min(0)
@@ -102,6 +108,7 @@ class SOM(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Max-normalised read-out (eq. 4.4 + 4.6), shape ``(P, B, *shape)`` (or without P for 2-D input)."""
         xb, squeeze = as_batched(x, self.n_in, f"input of SOM {self.name!r}")
+        xb = self.rule.scale_input(xb)
         if self.readout == "dot":
             y = torch.bmm(xb, self.weight.transpose(1, 2))
         else:
@@ -123,7 +130,7 @@ class SOM(nn.Module):
         are still returned).
         """
         check_tensor("x", x, (self.n_in,))
-        xb = x.reshape(self.participants, 1, self.n_in)
+        xb = self.rule.scale_input(x.reshape(self.participants, 1, self.n_in))
         if winner is None:
             if self.supervised:
                 raise ValueError(f"SOM {self.name!r} is supervised: step() needs the winner")
@@ -155,7 +162,7 @@ class SOM(nn.Module):
             raise ValueError(f"method must be 'auto' or one of {sorted(TRAINERS)}, got {method!r}")
         check_tensor("patterns", patterns, (self.n_in,))
         P = self.participants
-        X = patterns.to(self.weight.dtype)
+        X = self.rule.scale_input(patterns.to(self.weight.dtype))
         X = X.unsqueeze(0).expand(P, -1, -1) if X.dim() == 2 else X
         if X.dim() != 3 or X.shape[0] != P:
             raise ValueError(f"patterns must be (N, {self.n_in}) or ({P}, N, {self.n_in}), got {tuple(patterns.shape)}")
