@@ -3,6 +3,7 @@ the posture maps C16/C17, the gain field and PMCm, and the wrist signal in PPCp.
 import torch
 from support_ch6 import item_rows, rule_rate
 
+from neuroimagery.experiments import exp4
 from neuroimagery.nn.functional import gain_field, softmax_probabilities
 
 
@@ -30,9 +31,12 @@ def _contrast(m, maps):
 
 def test_x4_3_hard_shapes_give_flatter_potentials(trained4):
     e = trained4.e
-    a, c = _contrast(trained4.model, trained4.bank(e.train_set).maps), _contrast(trained4.model, trained4.bank(e.gen2_set).maps)
-    print(f"X4.3 PPCpA contrast: set A {a:.4f}, set C {c:.4f}")
-    assert a > c
+    A, C = trained4.bank(e.train_set).maps, trained4.bank(e.gen2_set).maps
+    a, c = _contrast(trained4.model, A), _contrast(trained4.model, C)
+    untrained = exp4._model(trained4.cfg, [0, 1])  # the same participants' initial weights
+    a0, c0 = _contrast(untrained, A), _contrast(untrained, C)
+    print(f"X4.3 PPCpA contrast: set A {a:.4f}, set C {c:.4f}; untrained: set A {a0:.4f}, set C {c0:.4f}")
+    assert a > c and a - c > a0 - c0
 
 
 def _probs(m, tau, ppct_unit, ppcp_unit):
