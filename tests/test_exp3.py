@@ -67,10 +67,11 @@ def test_match_tolerance_covers_a_one_unit_shift_only():
     img[10, 5:25] = 1.0
     shifted, two, far = torch.roll(img, 1, 0), torch.roll(img, 2, 0), torch.roll(img, 3, 0)
     t = img.reshape(1, 1, -1)
-    assert model.p.match_tolerance == 0  # the default: the thesis's one-to-one C8
+    assert model.p.match_tolerance == 1  # the default: PP_2 read as a population code of reach 1
+    model.p.match_tolerance = 0  # the option: the literal one-to-one C8
     assert model.uncovered(t, t).sum() == 0
     assert model.uncovered(t, shifted.reshape(1, 1, -1)).sum() == img.sum()
-    model.p.match_tolerance = 1  # the option: a reach of one map unit
+    model.p.match_tolerance = 1
     assert model.uncovered(t, shifted.reshape(1, 1, -1)).sum() == 0
     assert model.uncovered(t, two.reshape(1, 1, -1)).sum() == img.sum()  # tolerance 2 would cover it
     assert model.uncovered(t, far.reshape(1, 1, -1)).sum() == img.sum()
