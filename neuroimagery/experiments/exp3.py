@@ -121,12 +121,13 @@ def evaluate(cfg, run, trained) -> dict:
     df, histories, banks = run_tests(cfg, trained, record=cfg.logger.sample_trials)
     run.write_csv("trials.csv", df)
     tests = summarise_trials(df)
+    time_outs = pc.add_time_outs(tests, df)
     P = trained.participants
     iou = {t: pc.generalisation_iou(lambda x: trained.forward_step(x.expand(P, -1, -1) if x.shape[0] == 1 else x,
                                                                    torch.full((P, x.shape[1]), 2, dtype=torch.long)),
                                     b, e.step_deg, 3, e.map_size) for t, b in banks.items()}
     # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
-    summary = {"experiment": "exp3", "participants": int(df["participant"].nunique()), "tests": tests,
+    summary = {"experiment": "exp3", "participants": int(df["participant"].nunique()), "tests": tests, "time_out_rates": time_outs,
                "targets": {k: {"error_rate": v} for k, v in THESIS.items()}, "forward_model_iou": iou,
                "effects": effects(df)}
     for key, hist in histories.items():
@@ -190,8 +191,9 @@ def report(cfg, run, summary) -> None:
     r.h("Effects, the participant as the unit")
     r.effects(summary.get("effects", []))
     r.h("All tests")
-    r.table(["test", "trials", "error", "rotated ok", "RT mean", "RT by disparity"],
-            [[k, v["n_trials"], f"{100 * v['error_rate']:.1f} %", f"{100 * v['rotation_success_rate']:.1f} %", v["rt_mean"],
+    r.table(["test", "trials", "error", "time-outs (15 rotations, NO)", "rotated ok", "RT mean", "RT by disparity"],
+            [[k, v["n_trials"], f"{100 * v['error_rate']:.1f} %", f"{100 * v.get('time_out_rate', 0.0):.1f} %",
+              f"{100 * v['rotation_success_rate']:.1f} %", v["rt_mean"],
               ", ".join(f"{a}: {b}" for a, b in v["rt_by_disparity"].items())] for k, v in t.items()])
     r.h("Forward model trained on three dots, applied to the test shapes (IoU with the true rotation)")
     r.table(["set", "1 step", "2 steps", "3 steps"], [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
@@ -208,10 +210,10 @@ def report(cfg, run, summary) -> None:
         "are not in its text); `python -m neuroimagery.stimuli --measure` prints how each set meets them."
         if not folder else "`python -m neuroimagery.stimuli --measure` prints how your shapes meet the design rules "
         "of the built-in sets (docs/stimuli.md).",
-        f"C8 reaches {'only the same unit (one-to-one, as the thesis has it)' if e.match_tolerance == 0 else f'the units within {e.match_tolerance} map unit(s)'}"
+        f"C8 reaches {'only the same unit (the literal one-to-one reading)' if e.match_tolerance == 0 else f'the units within {e.match_tolerance} map unit(s): PP_2 read as a population code'}"
         f" (`match_tolerance` = {e.match_tolerance}). An edge map turned by 45 deg and resampled on the 32x32 grid "
         "seldom lands on the same units as the target's, so with the one-to-one C8 most same pairs shown at a "
-        "disparity leave more than the 5 % threshold uncovered and are answered NO (the split above).",
+        "disparity leave more than the 5 % threshold uncovered and are answered NO (docs/contracts.md, X3.8).",
         f"M1_2 compares M1_1 with the weights of n1, n2, n3 by `m1_readout` = {e.m1_readout} "
         "('pattern': eq. 6.2 on the whole 16-unit pattern; 'centre': where the activity is centred across the "
         "diagonal). docs/choices.md gives the measured effect of every departure from the thesis.",

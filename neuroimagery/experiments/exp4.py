@@ -16,7 +16,7 @@ import pandas as pd
 import torch
 
 from ..analysis import figures
-from ..models.rotation_embodied import PROPRIOCEPTION as CONDITIONS, EmbodiedParams, lca_gain
+from ..models.rotation_embodied import PROPRIOCEPTION as CONDITIONS, EmbodiedParams
 from ..analysis.report import Report, fmt_p, reproducibility_note
 from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, slope_by_participant,
                                 summarise_trials)
@@ -58,8 +58,8 @@ CONFIG = Exp4Config
 INPUTS = ("vision", "stimuli")
 CHECKPOINTS = ("exp4",)
 # read only by the tests: a trained model (forward models, posture maps C16/C17) does not depend on them
-TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "flip_axis", "posture.tau", "ppc_sigma", "softmax_tau", "lca_k",
-             "lca_w", "lca_threshold", "lca_dt", "lca_cycles", "lca_input_gain", "max_steps", "proprio_gain",
+TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "posture.tau", "ppc_sigma", "softmax_tau",
+             "max_steps", "proprio_gain",
              "proprio_stage", "noise_amplitude", "noise_tests", "quick.objects")
 # keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
 MOVED = {**pc.MOVED_CH6, "posture_tau": "posture.tau"}
@@ -249,8 +249,9 @@ def evaluate(cfg, run, trained) -> dict:
     df, histories, banks = run_tests(cfg, trained, eye, record=cfg.logger.sample_trials)
     run.write_csv("trials.csv", df)
     tests = summarise_trials(df)
+    time_outs = pc.add_time_outs(tests, df)
     # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
-    summary = {"experiment": "exp4", "participants": int(df["participant"].nunique()), "tests": tests,
+    summary = {"experiment": "exp4", "participants": int(df["participant"].nunique()), "tests": tests, "time_out_rates": time_outs,
                "targets": {k: {"correct_rate": v} for k, v in THESIS.items()},
                "effects": effects(df), "statistics": _stats(df), "statistics_by_disparity": _stats_by_disparity(df),
                "rt_by_rotation_steps": _rt_vs_steps(df),
@@ -317,8 +318,9 @@ def report(cfg, run, summary) -> None:
         rows.insert(0, ("custom/none correct rate", t["custom/none"]["correct_rate"], None, True))
     r.targets(rows)
     r.h("All tests")
-    r.table(["test", "trials", "correct", "rotated ok", "RT mean", "RT slope/deg", "rt_r"],
-            [[k, v["n_trials"], f"{100 * v['correct_rate']:.1f} %", f"{100 * v['rotation_success_rate']:.1f} %",
+    r.table(["test", "trials", "correct", "time-outs (random answer)", "rotated ok", "RT mean", "RT slope/deg", "rt_r"],
+            [[k, v["n_trials"], f"{100 * v['correct_rate']:.1f} %", f"{100 * v.get('time_out_rate', 0.0):.1f} %",
+              f"{100 * v['rotation_success_rate']:.1f} %",
               v["rt_mean"], v["rt_slope_per_deg"], v["rt_r"]] for k, v in t.items()])
     r.h("RT against the number of rotation steps (thesis: slightly above 10 n)")
     req = summary.get("rt_by_required_steps", {})
@@ -367,8 +369,10 @@ def report(cfg, run, summary) -> None:
         f"The flipped target (C10, `flip_axis` = {e.flip_axis}) is made from the target image alone "
         "('image': a reflection about the map's principal axis; 'ppct': about the axis of the orientation "
         "PPCt reads); no trial label reaches the model.",
-        f"PMCd's evidence is the overlap as a fraction of the target's units times {lca_gain(e):.3g} "
-        "(`lca_input_gain`; by default the smallest gain with which a full overlap decides within one step).",
+        "PMCd's evidence is the overlap as a fraction of the target's units times a gain (`lca_input_gain`; by "
+        "default, per participant, the smallest with which the mean evidence of identical 0-deg training pairs "
+        "decides within one step, `lca_gain_rule` = " + e.lca_gain_rule + "); POCp is read as a population code "
+        f"of reach {e.match_tolerance} (`match_tolerance`).",
         "Eq. 6.14 puts a fixed bump on the arg-max posture, which discards the flatter C16 potentials of "
         f"unfamiliar shapes (`posture.tau` = {e.posture.tau}; 0 = arg-max).",
         "docs/choices.md gives the rule behind every constant the thesis does not state and the measured "

@@ -328,6 +328,22 @@ def load_model(checkpoint_dir, name: str, build):
     return model.eval()
 
 
+def add_time_outs(tests: dict, df: pd.DataFrame) -> dict:
+    """Add to each ``"<test>/<condition>"`` entry of ``tests`` the share of its trials that reached the
+    step limit (``time_out_rate``: Exp 4's random answers, Exp 3's forced NO), from the ``decided``
+    column of ``trials.csv``; returns ``{key: share}``."""
+    out = {}
+    if "decided" not in df:
+        return out
+    for (test, cond), g in df.groupby(["test", "condition"], sort=False):
+        share = round(float(1.0 - g["decided"].astype(bool).mean()), 4)
+        key = f"{test}/{cond}"
+        if key in tests:
+            tests[key]["time_out_rate"] = share
+        out[key] = share
+    return out
+
+
 def error_split(tests: dict) -> str:
     """'recog/none: NO to same 12.0 %, YES to mirror 0.5 %; ...' from summary tests."""
     pct = lambda v: "-" if v is None else f"{100 * v:.1f} %"

@@ -191,4 +191,32 @@ class LeakyCompetingAccumulator(nn.Module):
         pass
 
 
-__all__ = ["Decision", "DynamicField", "LeakyCompetingAccumulator", "softmax_select", "softmax_probabilities"]
+@torch.no_grad()
+def smallest_deciding_gain(pmcd: "LeakyCompetingAccumulator", evidence: torch.Tensor, cycles: int, answer: int = 0, iterations: int = 60) -> torch.Tensor:
+    """The smallest gain ``g`` (per row of ``evidence`` ``(R, 2)``) with which the accumulator ``pmcd``,
+    from rest, fed ``g * evidence`` crosses its threshold on unit ``answer`` within ``cycles`` cycles:
+    bisection on ``g`` (the crossing is monotone in the gain). Rows whose evidence favours the other
+    unit, or is empty, get ``inf``."""
+    R = evidence.shape[0]
+    lo, hi = torch.zeros(R, dtype=torch.float64), torch.ones(R, dtype=torch.float64)
+    ok = (evidence[:, answer] > evidence[:, 1 - answer]) & (evidence[:, answer] > 0)
+
+    def decides(g):
+        d = pmcd((g.unsqueeze(-1) * evidence.double()).float(), cycles, state=pmcd.initial_state((R,)))
+        return d.decided & (d.winner == answer)
+
+    for _ in range(40):  # grow the upper bound until it decides
+        bad = ok & ~decides(hi)
+        if not bool(bad.any()):
+            break
+        hi = torch.where(bad, hi * 2, hi)
+    for _ in range(iterations):
+        mid = (lo + hi) / 2
+        d = decides(mid)
+        hi, lo = torch.where(d, mid, hi), torch.where(d, lo, mid)
+    hi = hi * (1 + 1e-5)  # clear of the float32 rounding of the evidence the trials compute
+    return torch.where(ok, hi, torch.full_like(hi, float("inf"))).float()
+
+
+__all__ = ["Decision", "DynamicField", "LeakyCompetingAccumulator", "smallest_deciding_gain", "softmax_select",
+           "softmax_probabilities"]
