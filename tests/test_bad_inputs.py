@@ -112,7 +112,7 @@ CONFIG_CASES = [
     (["experiment=exp4", "logger=none", "logger.map_images=false"], "logger.map_images"),
     (["experiment=exp3", "experiment.quick.objects=2"], "experiment.quick.objects"),
     (["experiment=exp4", "preset=quick", "experiment.fm.images=100"], "experiment.fm.images"),
-    (["experiment=exp3", "experiment.m1_centre_sigma=0.3"], "experiment.m1_centre_sigma"),
+    (["experiment=exp3", "experiment.m1_sigma=0.3"], "experiment.m1_sigma"),  # not read with the default m1_readout=centre
     (["experiment=exp4", "experiment.noise_tests=[]", "experiment.noise_amplitude=0.3"], "experiment.noise_amplitude"),
     (["experiment=exp5", "preset=quick", "experiment.repetitions=5"], "experiment.repetitions"),
     (["experiment=exp2", "threads=1", "experiment.auto_threads=2"], "experiment.auto_threads"),
