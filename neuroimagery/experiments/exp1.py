@@ -57,7 +57,7 @@ def _t(key: str) -> float:
 
 
 TARGETS = {
-    # thesis 5.1.2 (line 697): A rotated in 51 of 52 recognition trials, B in all 52 -> (51 + 52) / 104 overall
+    # thesis section 5.1.2: A rotated in 51 of 52 recognition trials, B in all 52 -> (51 + 52) / 104 overall
     "recognition/none": {"rotation_success_rate": (51 + 52) / 104, "rotation_success_A": _t("recognition/A rotation success"),
                          "rotation_success_B": _t("recognition/B rotation success")},
     "generalisation/none": {"rotation_success_rate": (93 + 92) / 192,
@@ -68,7 +68,7 @@ TARGETS = {
 
 
 def effects(df) -> list[dict]:
-    """The effect the thesis states (line 697): RT rises with |disparity|, per test and rotated
+    """The effect the thesis states (section 5.1.2, Fig. 5.5a): RT rises with |disparity|, per test and rotated
     object, each judged with the participant as the unit; Holm's correction over the family."""
     rows = []
     for test in ("recognition", "generalisation"):

@@ -181,7 +181,7 @@ def evaluate(cfg, run, trained) -> dict:
 
 
 def effects(df) -> list[dict]:
-    """The effects the thesis states (section 5.2.3, thesis lines 859 and 869) on the trials of
+    """The effects the thesis states (section 5.2.2, Figs. 5.8a and 5.8b) on the trials of
     test ``all``, each with the participant as the unit; Holm's correction over the family."""
     a = df[df["test"] == "all"]
     base, mis = a[a["condition"] == "none"], a[a["condition"] == "mismatch"]
