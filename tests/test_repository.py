@@ -48,3 +48,18 @@ def test_no_merge_conflict_markers_in_tracked_files():
     files = tracked_files(ROOT)
     assert len(files) > 50, "the tracked tree was not read"
     assert conflict_markers(files) == []
+
+
+def test_citation_files_name_the_thesis_and_the_package():
+    import yaml
+
+    cff = yaml.safe_load((ROOT / "CITATION.cff").read_text())
+    thesis = cff["references"][0]
+    assert thesis["type"] == "thesis" and thesis["title"] == "Mental Imagery in Humanoid Robots"
+    assert cff["version"] == __import__("tomllib").loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
+    readme = (ROOT / "README.md").read_text()
+    bib = readme.split("```bibtex\n", 1)[1].split("```", 1)[0]
+    entries = re.findall(r"@(\w+)\{([^,]+),", bib)
+    assert entries == [("phdthesis", "seepanomwan_mental_imagery"), ("software", "neuroimagery")]
+    assert bib.count("{") == bib.count("}")
+    assert f"version = {{{cff['version']}}}" in bib

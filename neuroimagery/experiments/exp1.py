@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .. import progress
 from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import effect, holm, slope_by_participant, summarise_trials
@@ -159,6 +160,9 @@ def evaluate(cfg, run, trained) -> dict:
     model = trained
     model.eval()
     builtin = get_stimulus_set("L")
+    custom = stimulus_set(cfg) if cfg.stimuli.kind == "folder" else None
+    blocks = [(builtin, "recognition"), (builtin, "generalisation")] + ([(custom, "custom")] if custom else [])
+    progress.expect(model.participants * sum(len(test_pairs(t, objects_of(s))) for s, t in blocks))
     frames = {}
     rows = []
     for test in ("recognition", "generalisation"):
@@ -166,8 +170,8 @@ def evaluate(cfg, run, trained) -> dict:
         rows += r
         if test == "recognition":
             frames = {"out": out, "pairs": pairs}
-    if cfg.stimuli.kind == "folder":
-        r, _, _ = run_test(cfg, model, stimulus_set(cfg), "custom")
+    if custom is not None:
+        r, _, _ = run_test(cfg, model, custom, "custom")
         rows += r
     df = trials_frame(rows)
     run.write_csv("trials.csv", df)
