@@ -28,12 +28,15 @@ def active_units(X: torch.Tensor) -> torch.Tensor:
         raise ValueError("the compact checkpoint stores 0/1 images only")
     if X.shape[-1] > torch.iinfo(torch.int16).max:
         raise ValueError(f"maps of {X.shape[-1]} units do not fit int16 indices")
-    on = X > 0
-    D = int(on.sum(-1).max()) if on.numel() else 0
-    # stable sort: the active units first, in increasing order
-    order = torch.sort((~on).to(torch.uint8), dim=-1, stable=True).indices[..., :D]
-    idx = torch.where(torch.gather(on, -1, order), order, torch.full_like(order, -1))
-    return idx.to(torch.int16)
+    n = X.shape[-1]
+    on = (X > 0).reshape(-1, n)
+    counts = on.sum(-1)  # active units per image
+    D = int(counts.max()) if counts.numel() else 0
+    rows, units = on.nonzero(as_tuple=True)  # by image, then unit: each image's units in increasing order
+    slot = torch.arange(rows.numel()) - (torch.cumsum(counts, 0) - counts)[rows]
+    idx = torch.full((on.shape[0], D), -1, dtype=torch.int16)
+    idx[rows, slot] = units.to(torch.int16)
+    return idx.reshape(*X.shape[:-1], D)
 
 
 def from_active(idx: torch.Tensor, n: int, dtype: torch.dtype = torch.float32) -> torch.Tensor:
