@@ -1,6 +1,12 @@
 # Quick start: `make run` (main job) and `make test` (test suite). Both create .venv and install
 # what they need on first use; a second call skips the install.
-PYTHON ?= python3.11
+# The Python that builds .venv: PYTHON if given (a name on PATH or a path), else the first of
+# python3.13, python3.12, python3.11, python3 that is 3.11 or newer (tools/find_python.sh)
+PYTHON ?=
+# (looked up once, on first use: only when .venv is to be made)
+PYTHON_FOUND = $(eval PYTHON_FOUND := $$(shell sh tools/find_python.sh $(PYTHON)))$(PYTHON_FOUND)
+# the torch version the test suite was run with; the package itself accepts a range (pyproject.toml)
+CONSTRAINTS := constraints.txt
 # pip's index for torch: empty = pip's default (on Linux the CUDA build, gigabytes);
 # e.g. make test TORCH_INDEX=https://download.pytorch.org/whl/cpu for the CPU-only build
 TORCH_INDEX ?=
@@ -12,22 +18,23 @@ BENCH_STAMP := $(VENV)/.installed-bench
 .PHONY: install run test test-slow bench clean tb
 
 $(PY):
-	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (Python 3.11 is required)"; exit 1; }
-	$(PYTHON) -m venv $(VENV)
+	@$(if $(PYTHON_FOUND),:,exit 1)
+	$(PYTHON_FOUND) -m venv $(VENV)
 
-# torch==2.13.0 first and explicitly (from TORCH_INDEX when set): the package's install below then
-# finds it installed and keeps it, instead of choosing a build itself.
-$(STAMP): $(PY) pyproject.toml
+# torch first and explicitly, at the tested version of constraints.txt (from TORCH_INDEX when
+# set): the package's install below then finds it installed and keeps it, instead of choosing a
+# build itself.
+$(STAMP): $(PY) pyproject.toml $(CONSTRAINTS)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet torch==2.13.0 $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX))
-	$(PY) -m pip install --quiet -e ".[test]"
+	$(PY) -m pip install --quiet -c $(CONSTRAINTS) torch $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX))
+	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e ".[test]"
 	@touch $(STAMP)
 
 install: $(STAMP)
 
 # the benchmarks' reference libraries (MiniSom, pydmps), on top of the install above
 $(BENCH_STAMP): $(STAMP)
-	$(PY) -m pip install --quiet -e ".[bench]"
+	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e ".[bench]"
 	@touch $(BENCH_STAMP)
 
 run: $(STAMP)

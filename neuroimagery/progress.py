@@ -3,7 +3,8 @@
 ``neuroimagery.run`` opens a :func:`phase` around an experiment's ``train`` and ``evaluate``; the
 protocol code shared by Experiments 1-4 reports its work into it: :func:`bar` wraps a loop of
 known length (a bar ``exp4 train: forward model``), :func:`advance` counts finished trials on one
-bar per phase (``exp4 test: 1440 trials``, with the block just finished). Nothing is shown outside
+bar per phase (``exp4 test: 1440/2160 trials``, with the block just finished); :func:`expect`
+gives that bar its total before the first block, so it shows how far the phase is and an ETA. Nothing is shown outside
 a phase or with ``progress=false``, and an experiment that reports nothing (Exp. 5 has its own bar)
 shows nothing. Each phase that showed work leaves one line in the job log.
 """
@@ -32,11 +33,21 @@ class _Phase:
         return tqdm(iterable, total=total, desc=f"{self.label}: {what}", unit=unit, file=sys.stderr,
                     disable=not self.enabled, dynamic_ncols=True)
 
-    def advance(self, n: int, unit: str, note: str) -> None:
+    def _counter(self, unit: str, total: int | None = None) -> tqdm:
         if self.counter is None:
             self.unit = unit
-            self.counter = tqdm(total=None, desc=self.label, unit=f" {unit}", file=sys.stderr,
+            self.counter = tqdm(total=total, desc=self.label, unit=f" {unit}", file=sys.stderr,
                                 disable=not self.enabled, dynamic_ncols=True)
+        elif total is not None:
+            self.counter.total = total
+            self.counter.refresh()
+        return self.counter
+
+    def expect(self, total: int, unit: str) -> None:
+        self._counter(unit, int(total))
+
+    def advance(self, n: int, unit: str, note: str) -> None:
+        self._counter(unit)
         self.counted += n
         if note:
             self.counter.set_postfix_str(note, refresh=False)
@@ -48,6 +59,9 @@ class _Phase:
         if self.counter is not None or self.bars:
             done = f"{self.counted} {self.unit} " if self.counter is not None else ""
             LOG.info(f"{self.label}: {done}done in {time.perf_counter() - self.t0:.1f} s")
+        total = None if self.counter is None else self.counter.total
+        if total is not None and total != self.counted:  # the announced total was wrong (or the phase stopped early)
+            LOG.warning(f"{self.label}: counted {self.counted} of the {total} {self.unit} announced")
 
 
 _current: _Phase | None = None
@@ -71,6 +85,13 @@ def bar(iterable: Iterable | None = None, total: int | None = None, what: str = 
     if _current is None:
         return tqdm(iterable, total=total, disable=True)
     return _current.bar(iterable, total, what, unit)
+
+
+def expect(total: int, unit: str = "trials") -> None:
+    """Say that the running phase will count ``total`` ``unit`` in all: its bar shows the share
+    done and an ETA (call it before the first :func:`advance`)."""
+    if _current is not None:
+        _current.expect(total, unit)
 
 
 def advance(n: int, unit: str = "trials", note: str = "") -> None:

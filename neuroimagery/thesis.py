@@ -1,18 +1,36 @@
-"""The thesis's target numbers and the figures it draws, each with its line in the thesis text.
+"""The thesis's target numbers and the figures it draws, each with where the thesis states it.
 
 One module for reports, figures, tests and docs alike. ``value`` is what the thesis's text states
 (a rate as a fraction, an RT in the experiment's unit); where the text gives only a trend, the entry
-says so in ``states`` and has no value. Line numbers refer to the thesis text shipped with the
-project's sources (``SPEC.md`` maps them).
+says so in ``states`` and has no value. Each entry keeps the line of the statement in the plain
+text of the thesis the project was built from (a pointer for maintainers: ``SPEC.md`` maps those
+lines); what users see is the section it lies in (:func:`section_of`) and the figure, table or
+equation number, which any copy of the thesis has.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 
+# the first line of each heading of chapters 5-8 in the thesis text: section_of() maps a line to
+# the section it lies in
+SECTIONS = ((574, "5"), (580, "5.1"), (590, "5.1.1"), (673, "5.1.2"), (714, "5.1.3"), (726, "5.2"),
+            (730, "5.2.1"), (843, "5.2.2"), (887, "5.2.3"), (899, "6"), (909, "6.1"), (917, "6.1.1"),
+            (1035, "6.1.2"), (1059, "6.1.3"), (1069, "6.2"), (1083, "6.2.1"), (1236, "6.2.3"), (1322, "7"),
+            (1328, "7.1"), (1330, "7.1.1"), (1352, "7.1.2"), (1676, "7.1.3"), (1708, "7.1.4"), (1726, "8"))
+
+
+def section_of(line: int) -> str:
+    """``'section 6.2.3'``: the section of the thesis a line of its text lies in (chapters 5-8)."""
+    if line < SECTIONS[0][0]:
+        raise ValueError(f"line {line} lies before chapter 5")
+    return "section " + [name for start, name in SECTIONS if start <= line][-1]
+
+
 @dataclass(frozen=True)
 class Target:
-    """One number the thesis states: ``value`` (a fraction for rates), ``line`` of the text."""
+    """One number the thesis states: ``value`` (a fraction for rates), ``line`` of the text
+    (:func:`section_of` gives its section)."""
 
     value: float
     line: int
@@ -22,7 +40,8 @@ class Target:
 @dataclass(frozen=True)
 class Figure:
     """A thesis figure redrawn from a run: its label, what it plots, what the thesis's text states
-    about it (values or only a trend) and the line of that statement."""
+    about it (values or only a trend) and the line of that statement (:func:`section_of` gives
+    its section, which captions cite)."""
 
     label: str
     shows: str
@@ -30,7 +49,7 @@ class Figure:
     line: int
 
 
-# Experiment 1 (section 5.1): rotation success per object and test, thesis line 697
+# Experiment 1 (section 5.1.2): rotation success per object and test
 EXP1 = {
     "recognition/A rotation success": Target(51 / 52, 697, "object A rotated correctly, recognition (51 of 52)"),
     "recognition/B rotation success": Target(1.0, 697, "object B rotated correctly, recognition"),
@@ -39,13 +58,13 @@ EXP1 = {
     "overall rotation success": Target(0.966, 697, "rotation success over both tests"),
 }
 
-# Experiment 2 (section 5.2), thesis line 857
+# Experiment 2 (section 5.2.2)
 EXP2 = {
     "rotation success": Target(192 / 196, 857, "left stimulus rotated to the target (192 of 196)"),
     "correct answers": Target(168 / 196, 857, "correct same/mirror answers (168 of 196)"),
 }
 
-# Experiment 3 (section 6.1): error rates of Fig. 6.5b, thesis line 1043; Gen-II's step at 0 deg, line 1040
+# Experiment 3 (section 6.1.2): error rates of Fig. 6.5b; Gen-II's step at 0 deg (Fig. 6.5a)
 EXP3 = {
     "recog/none error rate": Target(0.187, 1043, "error rate, Recog"),
     "gen1/none error rate": Target(0.247, 1043, "error rate, Gen-I"),
@@ -53,7 +72,7 @@ EXP3 = {
     "gen2/none steps at 0 deg": Target(1.0, 1040, "rotation steps of Gen-II at zero disparity (about one)"),
 }
 
-# Experiment 4 (section 6.2): correct rates of Fig. 6.9c, thesis line 1248; RT per rotation step, line 1267
+# Experiment 4 (section 6.2.3): correct rates of Fig. 6.9c; RT per rotation step (Fig. 6.9a, as the text reads it)
 EXP4 = {
     "recog/none correct rate": Target(0.79, 1248, "correct responses, Recog (about 79 %)"),
     "gen1/none correct rate": Target(0.86, 1248, "correct responses, Gen1 (about 86 %)"),
@@ -149,7 +168,7 @@ def figure_order(stem: str) -> tuple:
 
 
 def figure_caption(stem: str, number: int, errorbars: str = "") -> str:
-    """``Figure n. (Fig. x.y) what it shows. Thesis: what it states (line).`` for a figure file
+    """``Figure n. (Fig. x.y) what it shows. Thesis: what it states (section).`` for a figure file
     ``stem``; a stem the thesis has no entry for (a user's stimuli, say) gets its own words."""
     f = FIGURES.get(stem)
     if f is None and stem.startswith("maps_"):
@@ -160,19 +179,19 @@ def figure_caption(stem: str, number: int, errorbars: str = "") -> str:
     if f is None:
         return f"Figure {number}. {stem.replace('_', ' ')}{'. ' + errorbars if errorbars else ''}"
     eb = f" {errorbars}." if errorbars else ""
-    return f"Figure {number}. ({f.label}) {f.shows[0].upper() + f.shows[1:]}.{eb} Thesis: {f.states} (line {f.line})."
+    return f"Figure {number}. ({f.label}) {f.shows[0].upper() + f.shows[1:]}.{eb} Thesis: {f.states} ({section_of(f.line)})."
 
 
 # Experiment 5
-# Section 7.1.3: HP1 (Fig. 7.9, line 1690: tool behind about 90 % at every age, 100 % at 14 months;
-# line 1692: tool far about 0, 10, 40, 45, 60 % for 2..6 skills) and HP2 (Fig. 7.10, line 1699: no
-# training about 60 % behind and 20 % far). Keyed by hypothesis, situation and level (skills or trials).
+# Section 7.1.3: HP1 (Fig. 7.9: tool behind about 90 % at every age, 100 % at 14 months; tool far
+# about 0, 10, 40, 45, 60 % for 2..6 skills) and HP2 (Fig. 7.10: no training about 60 % behind and
+# 20 % far). Keyed by hypothesis, situation and level (skills or trials).
 EXP5 = {
     "hp1": {"behind": {2: 1.0, 3: 0.9, 4: 0.9, 5: 0.9, 6: 0.9}, "far": {2: 0.0, 3: 0.1, 4: 0.4, 5: 0.45, 6: 0.6}},
     "hp2": {"behind": {0: 0.6}, "far": {0: 0.2}},
 }
 EXP5_LINES = {"hp1/behind": 1690, "hp1/far": 1692, "hp2": 1699, "table_7_1": 1439}
-# Table 7.1 (line 1439): which interesting events (retrieve, touch, south, north, west, east) each
+# Table 7.1 (section 7.1.2): which interesting events (retrieve, touch, south, north, west, east) each
 # initial posture can produce, and from which postures each skill (P, T, S, N, W, E) can be learnt
 EXP5_TABLE_7_1 = {
     "posture-1": {"events": [1, 0, 1, 0, 1, 0], "skills": [1, 0, 1, 0, 1, 0]},

@@ -49,3 +49,24 @@ def reports_render(request):
             if _CHECKED.get(path) != mtime:
                 _CHECKED[path] = mtime
                 check_report(Path(path))
+
+
+@pytest.fixture(autouse=True)
+def progress_misses(monkeypatch):
+    """Every run a test makes counts exactly the trials its test phase announced
+    (``progress.expect``): a phase closing with another count fails the test. A test that misses
+    on purpose empties the list this fixture yields."""
+    from neuroimagery import progress
+
+    missed: list[str] = []
+    close = progress._Phase.close
+
+    def checked_close(self):
+        total = None if self.counter is None else self.counter.total
+        if total is not None and total != self.counted:
+            missed.append(f"{self.label}: counted {self.counted} of {total}")
+        close(self)
+
+    monkeypatch.setattr(progress._Phase, "close", checked_close)
+    yield missed
+    assert missed == [], missed

@@ -104,5 +104,6 @@ def test_kernels_are_chosen_from_the_inputs_and_refused_when_they_do_not_apply()
 def test_a_sequence_in_eval_mode_changes_nothing():
     a = AllToAll(5, 3, participants=1, rules=Hebbian(0.5)).eval()
     w = a.weight.clone()
-    a.learn(torch.rand(4, 5), torch.rand(4, 3), sequence=True)
+    with pytest.warns(UserWarning, match=r"eval\(\) mode"):
+        a.learn(torch.rand(4, 5), torch.rand(4, 3), sequence=True)
     assert torch.equal(a.weight, w)

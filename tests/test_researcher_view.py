@@ -37,7 +37,7 @@ def test_figures_come_in_the_thesis_order_with_numbered_captions():
                                                 "fig6_11a_rt", "fig6_12a_recog"]
     c = figure_caption("fig6_9c_correct", 3, "Error bars: SEM over participants")
     assert c.startswith("Figure 3. (Fig. 6.9c)") and "SEM over participants" in c and "79 %" in c
-    assert "(line 1248)" in c
+    assert c.endswith("(section 6.2.3).")
     assert is_map_panel("fig6_12a_recog") and not is_map_panel("fig6_9a_rt")
     assert all(f.line > 0 and f.states for f in FIGURES.values())
     # the stated values are those the reports compare with

@@ -126,7 +126,8 @@ def test_learning_step_changes_weights_only_in_train_mode():
     x, y = torch.ones(1, 3), torch.ones(1, 2)
     before = c.weight.clone()
     c.eval()
-    c.learn(x, y)
+    with pytest.warns(UserWarning, match=r"eval\(\) mode"):
+        c.learn(x, y)
     assert torch.equal(c.weight, before)
     c.train()
     c.learn(x, y)

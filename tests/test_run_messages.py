@@ -67,9 +67,13 @@ def test_a_quick_run_shows_training_and_test_bars_and_progress_false_none(tmp_pa
     err = capsys.readouterr().err
     for bar in ("exp4 train: forward model: 100%", "exp4 train: posture maps: 100%", "13/13", "2/2"):
         assert bar in err, bar
-    last = err.replace("\r", "\n").split("exp4 test: ")[-1]
-    assert last.startswith("2160 trials") and "gen2/mismatch" in last  # every trial counted, the last block named
+    shown = err.replace("\r", "\n").split("exp4 test: ")
+    assert any(b.startswith("  0%|") and "| 0/2160 " in b for b in shown)  # the total before the first block
+    last = shown[-1]
+    assert last.startswith("100%|") and "| 2160/2160 [" in last and "<00:00" in last  # every trial counted, an ETA
+    assert "gen2/mismatch" in last  # the last block named
     logged = [r.getMessage() for r in caplog.records]
+    assert not any("announced" in m for m in logged)
     assert any(m.startswith("exp4 train: done in") for m in logged)
     assert any(m.startswith("exp4 test: 2160 trials done in") for m in logged)
     # fewer trials: whether bars are drawn does not depend on how many
@@ -100,3 +104,23 @@ def test_a_run_or_checkpoint_of_another_version_says_which(tmp_path, capsys):
     with pytest.raises(SystemExit):
         cli.friendly_errors(train)(cfg(), out_dir=tmp_path / "tr")
     assert "holds a run without a manifest (train.json, model.pt; a run of version 0.1.0" in capsys.readouterr().err
+
+
+def test_the_test_bar_has_a_total_and_says_when_the_count_misses_it(capsys, caplog, progress_misses):
+    from neuroimagery import progress
+
+    with caplog.at_level(logging.INFO, logger="neuroimagery"):
+        with progress.phase("exp9 test", True):
+            progress.expect(10)
+            progress.advance(4, note="a/none")
+            progress.advance(6, note="b/none")
+        with progress.phase("exp9 test", False):
+            progress.expect(10)
+            progress.advance(4)
+    err = capsys.readouterr().err.replace("\r", "\n")
+    assert "| 0/10 [" in err and "| 10/10 [" in err and "0 trials [" not in err
+    logged = [r.getMessage() for r in caplog.records]
+    assert logged[0].startswith("exp9 test: 10 trials done in")
+    assert logged[-1] == "exp9 test: counted 4 of the 10 trials announced"
+    assert progress_misses == ["exp9 test: counted 4 of 10"]
+    progress_misses.clear()  # missed on purpose

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from .. import progress
 from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import effect, holm, slope_by_participant, summarise_trials
@@ -57,7 +58,7 @@ def _t(key: str) -> float:
 
 
 TARGETS = {
-    # thesis 5.1.2 (line 697): A rotated in 51 of 52 recognition trials, B in all 52 -> (51 + 52) / 104 overall
+    # thesis section 5.1.2: A rotated in 51 of 52 recognition trials, B in all 52 -> (51 + 52) / 104 overall
     "recognition/none": {"rotation_success_rate": (51 + 52) / 104, "rotation_success_A": _t("recognition/A rotation success"),
                          "rotation_success_B": _t("recognition/B rotation success")},
     "generalisation/none": {"rotation_success_rate": (93 + 92) / 192,
@@ -68,7 +69,7 @@ TARGETS = {
 
 
 def effects(df) -> list[dict]:
-    """The effect the thesis states (line 697): RT rises with |disparity|, per test and rotated
+    """The effect the thesis states (section 5.1.2, Fig. 5.5a): RT rises with |disparity|, per test and rotated
     object, each judged with the participant as the unit; Holm's correction over the family."""
     rows = []
     for test in ("recognition", "generalisation"):
@@ -159,6 +160,9 @@ def evaluate(cfg, run, trained) -> dict:
     model = trained
     model.eval()
     builtin = get_stimulus_set("L")
+    custom = stimulus_set(cfg) if cfg.stimuli.kind == "folder" else None
+    blocks = [(builtin, "recognition"), (builtin, "generalisation")] + ([(custom, "custom")] if custom else [])
+    progress.expect(model.participants * sum(len(test_pairs(t, objects_of(s))) for s, t in blocks))
     frames = {}
     rows = []
     for test in ("recognition", "generalisation"):
@@ -166,8 +170,8 @@ def evaluate(cfg, run, trained) -> dict:
         rows += r
         if test == "recognition":
             frames = {"out": out, "pairs": pairs}
-    if cfg.stimuli.kind == "folder":
-        r, _, _ = run_test(cfg, model, stimulus_set(cfg), "custom")
+    if custom is not None:
+        r, _, _ = run_test(cfg, model, custom, "custom")
         rows += r
     df = trials_frame(rows)
     run.write_csv("trials.csv", df)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field as dc_field, replace
 import numpy as np
 import torch
 
+from .. import progress
 from ..analysis import figures
 from ..analysis.report import Report, fmt_p
 from ..analysis.summary import (compare_rates, compare_rt, effect, equivalent_levels, holm, paired_by_participant, repeated_anova,
@@ -118,13 +119,16 @@ def evaluate(cfg, run, trained) -> dict:
     model = trained
     model.eval()
     rows, frames = [], None
+    custom = stimulus_set(cfg) if cfg.stimuli.kind == "folder" else None
+    pairs = lambda sset: (len(objects_of(sset)) * len(ANGLES)) ** 2  # noqa: E731  (every item against every item)
+    progress.expect(model.participants * (len(CONDITIONS) * pairs(get_stimulus_set("L")) + (pairs(custom) if custom else 0)))
     for cond in CONDITIONS:
         r, out = run_test(cfg, model, get_stimulus_set("L"), "all", cond, record=196 if cond == "none" else 0)
         rows += r
         if cond == "none":
             frames = out["frames"]
-    if cfg.stimuli.kind == "folder":
-        r, _ = run_test(cfg, model, stimulus_set(cfg), "custom", "none")
+    if custom is not None:
+        r, _ = run_test(cfg, model, custom, "custom", "none")
         rows += r
     df = trials_frame(rows)
     run.write_csv("trials.csv", df)
@@ -181,7 +185,7 @@ def evaluate(cfg, run, trained) -> dict:
 
 
 def effects(df) -> list[dict]:
-    """The effects the thesis states (section 5.2.3, thesis lines 859 and 869) on the trials of
+    """The effects the thesis states (section 5.2.2, Figs. 5.8a and 5.8b) on the trials of
     test ``all``, each with the participant as the unit; Holm's correction over the family."""
     a = df[df["test"] == "all"]
     base, mis = a[a["condition"] == "none"], a[a["condition"] == "mismatch"]

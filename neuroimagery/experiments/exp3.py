@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import pandas as pd
 import torch
 
+from .. import progress
 from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import effect, holm, paired_by_participant, slope_by_participant, summarise_trials
@@ -99,13 +100,16 @@ def run_tests(cfg, model, eye=None, record: int = 0):
         sets = {"custom": pc.stimulus_set(cfg, e.recog_set)}
     else:
         sets = {t: pc.stimulus_set(cfg, getattr(e, f"{t}_set"), use_user_folder=False) for t in TESTS}
-    frames, histories, banks = [], {}, {}
-    for k, (test, sset) in enumerate(sets.items()):
-        bank = pc.StimulusBank.build(eye, sset, e.map_size)
-        banks[test] = bank
+    frames, histories, banks, tables = [], {}, {}, {}
+    for test, sset in sets.items():  # every test's trials first: the test bar's total
+        banks[test] = bank = pc.StimulusBank.build(eye, sset, e.map_size)
         table = pc.trial_table(bank, test, "none")
         if cfg.preset == "quick":
             table = table[table["target_object"].isin(bank.set.objects[: e.quick.objects])].reset_index(drop=True)
+        tables[test] = table
+    progress.expect(sum(len(t) for t in tables.values()) * P)
+    for k, (test, table) in enumerate(tables.items()):
+        bank = banks[test]
         tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         gens = seeding.participant_generators(cfg.seed, ids, stream=100 + k)

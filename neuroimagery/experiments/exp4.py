@@ -15,6 +15,7 @@ from typing import List
 import pandas as pd
 import torch
 
+from .. import progress
 from ..analysis import figures
 from ..models.rotation_embodied import PROPRIOCEPTION as CONDITIONS, EmbodiedParams
 from ..analysis.report import Report, fmt_p, reproducibility_note
@@ -98,14 +99,34 @@ def train_model(cfg, ids, eye=None):
 
 
 def train(cfg, run):
-    ids = _ids(cfg)
-    model = train_model(cfg, ids)
-    pc.save_model(run, "exp4", model, ids)
+    from ..models.sequence_checkpoint import compact_state
+
+    model = train_model(cfg, _ids(cfg))
+    # compact: the forward models' training sequence instead of their weights (docs/results.md)
+    run.save_checkpoint("exp4", compact_state(model))
     return model
 
 
 def load(cfg, checkpoint_dir):
-    return pc.load_model(checkpoint_dir, "exp4", lambda ids: _model(cfg, ids))
+    """The trained model of ``checkpoints/exp4.pt``: compact (the forward models trained again on
+    the stored sequence) or full (``state_dict``, as earlier versions wrote)."""
+    from pathlib import Path
+
+    from ..errors import UserInputError
+    from ..models import sequence_checkpoint as sc
+    from ..run import load_checkpoint
+
+    ck = load_checkpoint(checkpoint_dir, "exp4")
+    if "state_dict" in ck:
+        model = _model(cfg, ck["participants"])
+        model.load_state_dict(ck["state_dict"])
+        return model.eval()
+    model = _model(cfg, ck.get("participants", []))
+    try:
+        sc.load_compact_state(model, ck)
+    except (ValueError, KeyError) as err:
+        raise UserInputError(f"checkpoint {Path(checkpoint_dir) / 'checkpoints' / 'exp4.pt'}: {err}") from err
+    return model
 
 
 def _test_sets(cfg):
@@ -127,13 +148,15 @@ def run_tests(cfg, model, eye=None, record: int = 0):
     e = cfg.experiment
     eye = pc.make_eye(cfg) if eye is None else eye
     ids, P = model.participant_ids, model.participants
-    frames, histories, banks = [], {}, {}
-    k = 0
-    for test, sset in _test_sets(cfg).items():
-        bank = pc.StimulusBank.build(eye, sset, e.map_size)
-        banks[test] = bank
+    frames, histories, banks, tables = [], {}, {}, {}
+    for test, sset in _test_sets(cfg).items():  # every test's trials first: the test bar's total
+        banks[test] = bank = pc.StimulusBank.build(eye, sset, e.map_size)
         noisy = [False] + ([True] if (test in e.noise_tests or test == "custom") else [])
-        table = _subset(bank, pc.trial_table(bank, test, "none"), cfg)
+        tables[test] = _subset(bank, pc.trial_table(bank, test, "none"), cfg), noisy
+    progress.expect(sum(len(t) * len(noisy) * len(CONDITIONS) * P for t, noisy in tables.values()))
+    k = 0
+    for test, (table, noisy) in tables.items():
+        bank = banks[test]
         tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
         names, conds = [], []

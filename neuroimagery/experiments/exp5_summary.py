@@ -237,7 +237,7 @@ def summarise(df: pd.DataFrame, e: Exp5Config) -> dict:
              for (h, lv, si, st) in rate if st == "reactive" and (h, lv, si, "planning") in rate]
     checks["reactive_planning_max_abs_diff"] = round(float(max(diffs)), 4) if diffs else None
     # how the tool-far tests were solved (thesis: pulling only after a move that brings the tool
-    # behind the toy, Fig. 7.8; at 14 months "sometimes pulling after touching", l. 1692)
+    # behind the toy, Fig. 7.8; at 14 months "sometimes pulling after touching", section 7.1.3)
     routes = success_routes(df)
     young = [r for r in routes if r["hypothesis"] == "hp1" and r["level"] == e.hp1_levels[0] and r["situation"] == "far"]
     checks["hp1_far_youngest_successes"] = int(sum(r["successes"] for r in young))

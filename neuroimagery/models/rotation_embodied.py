@@ -107,6 +107,7 @@ class RotationEmbodied(nn.Module):
         self.register_buffer("input_gain", torch.full((P,), lca_gain(p)))
         self.register_buffer("identical_evidence", torch.zeros(P, 2))
         self._tables: list[torch.Tensor] | None = None
+        self.fm_sequence: dict | None = None  # the forward models' training sequence (fit_forward_models)
 
     @property
     def participants(self) -> int:
@@ -117,8 +118,12 @@ class RotationEmbodied(nn.Module):
                            progress=None) -> None:
         """C1-C3 by the delta rule (eq. 6.4) in mini-batches of ``batch``: forward model ``m`` on the
         pairs ``X`` ``(P, N, n)`` -> ``Y`` ``(P, N, n)`` whose drawn movement ``moves`` ``(P, N)`` is
-        ``m`` (:func:`images_of_move`); ``progress`` optionally wraps each one's mini-batches."""
+        ``m`` (:func:`images_of_move`); ``progress`` optionally wraps each one's mini-batches. The
+        sequence is kept, compactly, in ``fm_sequence`` (what a compact checkpoint stores)."""
+        from .sequence_checkpoint import record
+
         self.train()
+        self.fm_sequence = record(X, Y, moves, batch)
         for m, conn in enumerate(self.fm):
             Xm, Ym = images_of_move(X, Y, moves, m)
             conn.learn(Xm, None, sequence=True, batch=batch, target=Ym, progress=progress)

@@ -10,19 +10,21 @@ respect to its input, while the weights themselves never require grad.
 
 Learning: ``conn.learn(pre=..., post=..., ...)`` asks each attached rule for a change (computed at
 the same weights) and adds their sum in place under ``torch.no_grad()``; it does nothing while the
-module is in ``eval()`` mode or has no rule. Of the classes here only :class:`AllToAll` takes rules:
+module is in ``eval()`` mode (warning once per connection) or has no rule. Of the classes here only :class:`AllToAll` takes rules:
 :class:`HardWired` has none, and :class:`OneToOne` (a fixed element-wise gain) refuses them with a
 ``ValueError``. :class:`GainField` has no weights.
 """
 from __future__ import annotations
 
+import warnings
 from typing import Iterable, Sequence
 
 import torch
 from torch import nn
 
 from . import seeding
-from .functional import as_batched, check_tensor, checks_enabled, gain_field, transfer
+from .functional import (as_batched, check_participants, check_tensor, checks_enabled, gain_field,
+                         participants_weight, transfer)
 from .rules import Rule
 
 
@@ -36,11 +38,21 @@ def _applies_in_place(rule: Rule) -> bool:
 
 
 class Connection(nn.Module):
-    """Base class: a weight buffer ``(P, out, in)``, a transfer function, and learning rules."""
+    """Base class: a weight buffer ``(P, out, in)``, a transfer function, and learning rules.
+
+    ``name`` appears in error messages and training-curve tags; without one a connection is named
+    after its class and sizes, e.g. ``AllToAll(37->13)``.
+
+    A connection computes in the dtype of its input (weights of another floating dtype are cast
+    for the product, the buffer keeps its own); :meth:`learn` casts the activity to the weights'
+    dtype, so the weights keep theirs. Integer and boolean activity is refused, naming the
+    connection.
+    """
 
     def __init__(self, n_in: int, n_out: int, weight: torch.Tensor, transfer_fn: str = "identity",
                  rules: Rule | Iterable[Rule] = (), name: str = "", copy: bool = True) -> None:
         super().__init__()
+        name = name or f"{type(self).__name__}({n_in}->{n_out})"
         if n_in < 1 or n_out < 1:
             raise ValueError(f"connection {name!r}: n_in and n_out must be >= 1, got {n_in}, {n_out}")
         self.n_in, self.n_out, self.name = int(n_in), int(n_out), name
@@ -50,23 +62,21 @@ class Connection(nn.Module):
         self.register_buffer("weight", weight.detach().clone() if copy else weight.detach())
         self.rules = nn.ModuleList([rules] if isinstance(rules, Rule) else list(rules))
         self.learnt_factors: dict | None = None  # what a closed-form sequence formed the weights from
+        self.warned_eval = False  # learn() in eval() mode has warned once
 
     @property
     def participants(self) -> int:
         return self.weight.shape[0]
 
-    def _weight_for(self, x: torch.Tensor) -> torch.Tensor:
-        w = self.weight
-        if w.shape[0] == 1 and x.shape[0] != 1:
-            w = w.expand(x.shape[0], -1, -1)
-        elif w.shape[0] != x.shape[0]:
-            raise ValueError(f"connection {self.name!r}: input has {x.shape[0]} participants, weights have {w.shape[0]}")
-        return w
+    def _weight_for(self, xb: torch.Tensor, given: Sequence[int]) -> torch.Tensor:
+        """The weights for the batched input ``xb`` (``given``: its shape as passed): expanded if
+        shared, in the input's dtype; an error naming the connection if the participants differ."""
+        return participants_weight(f"connection {self.name!r}", self.weight, xb, given)
 
     def net(self, x: torch.Tensor) -> torch.Tensor:
-        """Weighted sum ``W x`` before the transfer function."""
-        xb, squeeze = as_batched(x, self.n_in, f"input of {self.name or type(self).__name__}")
-        y = torch.bmm(xb, self._weight_for(xb).transpose(1, 2))
+        """Weighted sum ``W x`` before the transfer function, in ``x``'s dtype."""
+        xb, squeeze = as_batched(x, self.n_in, f"input of connection {self.name!r}")
+        y = torch.bmm(xb, self._weight_for(xb, x.shape).transpose(1, 2))
         return y[0] if squeeze and x.dim() == 2 else (y[0, 0] if squeeze else y)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -92,7 +102,7 @@ class Connection(nn.Module):
         :meth:`learn` step per group); what a closed form formed the weights from is left in
         ``learnt_factors``. ``progress`` optionally wraps the iterable of steps.
         """
-        if not self.training or len(self.rules) == 0:
+        if not self.learning():
             return None
         if sequence:
             if return_delta:
@@ -101,12 +111,12 @@ class Connection(nn.Module):
 
             learn_sequence(self, pre, post, batch, method, progress, **kw)
             return None
-        pre_b, _ = as_batched(pre, self.n_in, "pre")
+        pre_b = self._activity(pre, self.n_in, "pre")
         if post is not None:
-            post, _ = as_batched(post, self.n_out, "post")
+            post = self._activity(post, self.n_out, "post")
         for key in ("target",):
             if key in kw and kw[key] is not None:
-                kw[key], _ = as_batched(kw[key], self.n_out, key)
+                kw[key] = self._activity(kw[key], self.n_out, key)
         if len(self.rules) == 1 and _applies_in_place(self.rules[0]) and not return_delta:
             # one rule: let it update the weights in place (same numbers, fewer passes over memory);
             # the inputs were checked finite (while value checks run)
@@ -117,6 +127,22 @@ class Connection(nn.Module):
             raise FloatingPointError(f"connection {self.name!r}: learning produced non-finite weights")
         self.weight.add_(total)
         return total
+
+    def learning(self) -> bool:
+        """Whether :meth:`learn` changes the weights now: in ``train()`` mode with a rule. The
+        first call in ``eval()`` mode (with a rule) warns that learning is off."""
+        if not self.training and len(self.rules) > 0 and not getattr(self, "warned_eval", False):
+            self.warned_eval = True
+            warnings.warn(f"connection {self.name!r} is in eval() mode: learn() leaves its weights "
+                          "unchanged (call .train() to learn; this warning is given once)", stacklevel=4)
+        return self.training and len(self.rules) > 0
+
+    def _activity(self, x: torch.Tensor, n: int, what: str) -> torch.Tensor:
+        """``x`` ``(P, B, n)`` for a learning step, in the weights' dtype (so they keep it)."""
+        name = f"{what} of connection {self.name!r}"
+        xb, _ = as_batched(x, n, name)
+        check_participants(name, self.participants, xb, x.shape)
+        return xb if xb.dtype == self.weight.dtype else xb.to(self.weight.dtype)
 
     def reset_state(self) -> None:
         """Connections hold no activity; present for a uniform interface."""
@@ -184,8 +210,8 @@ class OneToOne(Connection):
         super().__init__(n, n, torch.full((participants, 1, n), float(value)), transfer_fn, (), name)
 
     def net(self, x: torch.Tensor) -> torch.Tensor:
-        xb, squeeze = as_batched(x, self.n_in, f"input of {self.name or 'OneToOne'}")
-        y = xb * self._weight_for(xb)
+        xb, squeeze = as_batched(x, self.n_in, f"input of connection {self.name!r}")
+        y = xb * self._weight_for(xb, x.shape)
         return y[0] if squeeze and x.dim() == 2 else (y[0, 0] if squeeze else y)
 
 
@@ -194,7 +220,7 @@ class GainField(nn.Module):
 
     def __init__(self, n_a: int, n_b: int, name: str = "") -> None:
         super().__init__()
-        self.n_a, self.n_b, self.name = int(n_a), int(n_b), name
+        self.n_a, self.n_b, self.name = int(n_a), int(n_b), name or f"GainField({n_a}x{n_b})"
 
     def forward(self, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
         check_tensor("a", a, (self.n_a,))

@@ -14,7 +14,7 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from .functional import (check_bounds, check_rate, check_tensor, grid_coords,  # noqa: F401
+from .functional import (check_bounds, check_floating, check_rate, check_tensor, grid_coords,  # noqa: F401
                          softmax_probabilities, softmax_select)
 
 
@@ -63,7 +63,7 @@ class DynamicField(nn.Module):
                                             threshold=threshold))
         self.tau, self.h, self.a_exc = ok["tau"], ok["h"], ok["a_exc"]
         self.sigma_exc, self.a_inh, self.threshold = ok["sigma_exc"], ok["a_inh"], ok["threshold"]
-        self.name = name
+        self.name = name or f"DynamicField({'x'.join(map(str, self.shape))})"
         g = grid_coords(self.shape)
         d2 = ((g.unsqueeze(0) - g.unsqueeze(1)) ** 2).sum(-1)
         self.register_buffer("kernel", self.a_exc * torch.exp(-d2 / (2 * self.sigma_exc**2)) - self.a_inh)
@@ -77,7 +77,8 @@ class DynamicField(nn.Module):
     @torch.no_grad()
     def forward(self, s: torch.Tensor, max_cycles: int = 1000, u0: torch.Tensor | None = None) -> Decision:
         """Race to threshold with constant input ``s`` ``(..., *shape)``; returns a :class:`Decision`."""
-        check_tensor("input", s, self.shape)
+        check_tensor(f"input of DynamicField {self.name!r}", s, self.shape)
+        check_floating(f"input of DynamicField {self.name!r}", s)
         if max_cycles < 1:
             raise ValueError(f"max_cycles must be >= 1, got {max_cycles}")
         flat = s.reshape(*s.shape[: s.dim() - len(self.shape)], self.n)

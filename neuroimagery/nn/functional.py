@@ -103,6 +103,39 @@ def check_tensor(name: str, x: torch.Tensor, last_dims: Sequence[int] | None = N
     return x
 
 
+def check_floating(name: str, x: torch.Tensor) -> torch.Tensor:
+    """Raise ValueError naming ``name`` if the activity ``x`` is not floating point (an integer or
+    boolean map would be summed with integer arithmetic or refused deep inside torch)."""
+    if not (x.is_floating_point() or x.is_complex()):
+        raise ValueError(f"{name} has dtype {x.dtype}: activity must be floating point (e.g. x.float())")
+    return x
+
+
+def check_participants(block: str, P: int, xb: torch.Tensor, given: Sequence[int]) -> None:
+    """Raise ValueError naming ``block`` unless the batched input ``xb`` ``(P', B, n)`` has the
+    ``P`` participants of the block's weights (or the weights are shared, ``P = 1``); ``given`` is
+    the input's shape as the caller passed it (1-D and 2-D inputs are one participant)."""
+    Px = xb.shape[0]
+    if P == Px or P == 1:
+        return
+    given = tuple(given)
+    if len(given) < 3:
+        what = "one trial of one participant" if len(given) == 1 else f"{given[0]} trials of one participant"
+        raise ValueError(f"{block}: a {len(given)}-D input {given} is {what}, but the block holds the "
+                         f"weights of {P} participants: give ({P}, trials, {xb.shape[-1]})")
+    raise ValueError(f"{block}: input has {Px} participant{'' if Px == 1 else 's'}, the weights {P}")
+
+
+def participants_weight(block: str, weight: torch.Tensor, xb: torch.Tensor, given: Sequence[int]) -> torch.Tensor:
+    """``weight`` ``(P, ...)`` ready for the batched input ``xb`` ``(P', B, n)`` of ``block``
+    (:func:`check_participants`): a shared ``(1, ...)`` weight expanded to ``P'``, cast to the
+    input's dtype (a block computes in its input's dtype; the buffer keeps its own)."""
+    check_participants(block, weight.shape[0], xb, given)
+    if weight.shape[0] == 1 and xb.shape[0] != 1:
+        weight = weight.expand(xb.shape[0], *weight.shape[1:])
+    return weight if weight.dtype == xb.dtype else weight.to(xb.dtype)
+
+
 def as_batched(x: torch.Tensor, n: int, name: str = "input") -> tuple[torch.Tensor, bool]:
     """View ``x`` as ``(P, B, n)``.
 
@@ -110,6 +143,7 @@ def as_batched(x: torch.Tensor, n: int, name: str = "input") -> tuple[torch.Tens
     view and whether the caller should squeeze the participant axis away again.
     """
     check_tensor(name, x, (n,))
+    check_floating(name, x)
     if x.dim() == 1:
         return x.reshape(1, 1, n), True
     if x.dim() == 2:

@@ -31,6 +31,7 @@ from typing import Callable
 import torch
 
 from . import monitor
+from .functional import check_floating
 
 
 class IndexedRows:
@@ -130,7 +131,15 @@ def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", p
             if x.participants != P:
                 raise ValueError(f"{name}: {x.participants} participants for a connection of {P}")
         elif x.dim() not in (2, 3) or (x.dim() == 3 and x.shape[0] != P):
-            raise ValueError(f"{name} must be (T, n) or ({P}, T, n), got {tuple(x.shape)}")
+            raise ValueError(f"{name} of connection {conn.name!r} must be (T, n) or ({P}, T, n), got {tuple(x.shape)}")
+        else:
+            check_floating(f"{name} of connection {conn.name!r}", x)
+    # the sequence in the weights' dtype, so they keep it
+    cast = (lambda x: x if x is None or isinstance(x, IndexedRows) or x.dtype == conn.weight.dtype
+            else x.to(conn.weight.dtype))
+    pre, post = cast(pre), cast(post)
+    if kw.get("target") is not None:
+        kw = {**kw, "target": cast(kw["target"])}
     T = length(pre)
     if any(x is not None and length(x) != T for x in (post, kw.get("target"))):
         raise ValueError("pre, post and target must have the same number of steps")

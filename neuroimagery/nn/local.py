@@ -21,6 +21,7 @@ import torch
 
 from . import seeding
 from .connections import Connection
+from .functional import check_floating
 from .rules import Delta, Rule
 
 
@@ -80,10 +81,12 @@ class LocalConnection(Connection):
         """``W x`` for any input ``(P, B, n)``: gathers each output's receptive field."""
         if x.dim() != 3 or x.shape[-1] != self.n_in or x.shape[0] != self.participants:
             raise ValueError(f"connection {self.name!r}: input must be ({self.participants}, B, {self.n_in}), got {tuple(x.shape)}")
+        check_floating(f"input of connection {self.name!r}", x)
+        w = self.weight if self.weight.dtype == x.dtype else self.weight.to(x.dtype)  # in the input's dtype
         pad = torch.cat([x, x.new_zeros(*x.shape[:-1], 1)], -1)  # (P, B, n + 1)
         out = x.new_zeros(x.shape)
         for k in range(self.K):  # one offset at a time keeps the memory at (P, B, n)
-            out += pad[..., self.source[:, k]] * self.weight[:, :, k].unsqueeze(1)
+            out += pad[..., self.source[:, k]] * w[:, :, k].unsqueeze(1)
         return out
 
     def net_binary(self, x: torch.Tensor, group: torch.Tensor | None = None) -> torch.Tensor:
@@ -163,8 +166,8 @@ class LocalConnection(Connection):
         when None), ``target`` ``(P, B, n)``; binary ``pre`` takes a sparse path. Index form, for
         binary patterns: ``pre_index`` ``(P, B, D)`` and ``target_index`` ``(P, B, T)`` list the
         active units (-1 = none); the same rule without forming the maps. Only in ``train()`` mode
-        and with a rule attached."""
-        if not self.training or len(self.rules) == 0:
+        and with a rule attached (the first call in ``eval()`` mode warns)."""
+        if not self.learning():
             return None
         if pre_index is not None:
             if target_index is None:
@@ -181,6 +184,10 @@ class LocalConnection(Connection):
             raise ValueError(f"connection {self.name!r}: learn needs pre or pre_index")
         if target is None:
             raise ValueError(f"connection {self.name!r}: the delta rule needs a target")
+        # the change in the weights' dtype, so they keep it
+        pre, target = (check_floating(f"{what} of connection {self.name!r}", x).to(self.weight.dtype)
+                       for what, x in (("pre", pre), ("target", target)))
+        post = None if post is None else post.to(self.weight.dtype)
         P, B, n = pre.shape
         binary = bool(((pre == 0) | (pre == 1)).all())
         if post is None:

@@ -27,7 +27,8 @@ import torch
 from torch import nn
 
 from . import monitor, seeding
-from .functional import as_batched, check_rate, check_tensor, checks_enabled, grid_coords, squared_norms
+from .functional import (as_batched, check_floating, check_rate, check_tensor, checks_enabled, grid_coords,
+                         participants_weight, squared_norms)
 from .rules import Kohonen, SupervisedKohonen
 from .som_trainers import TRAINERS, choose
 
@@ -51,6 +52,10 @@ class SOM(nn.Module):
             given); see :class:`~.rules.SupervisedKohonen`.
         readout: ``'dot'`` (``y = W x``, eq. 4.4) or ``'distance'`` (``y = -|x - w|``, shifted to be
             positive), both normalised by their maximum (eq. 4.6).
+        name: in messages and training-curve tags (default ``SOM(rows x cols, in=n)``).
+
+    The read-out computes in the input's dtype; training (:meth:`step`, :meth:`fit`) casts the
+    patterns to the weights' dtype, so the weights keep theirs.
     """
 
     def __init__(self, shape: Sequence[int], n_in: int, participants: int = 1,
@@ -60,6 +65,7 @@ class SOM(nn.Module):
                  supervised: bool = False, readout: str = "dot", name: str = "", input_scale: str = "auto") -> None:
         super().__init__()
         self.shape = tuple(int(s) for s in shape)
+        name = name or f"SOM({'x'.join(map(str, self.shape))}, in={n_in})"
         if len(self.shape) not in (1, 2) or min(self.shape) < 1:
             raise ValueError(f"SOM {name!r}: shape must be (n,) or (rows, cols), got {shape}")
         if n_in < 1:
@@ -97,7 +103,7 @@ class SOM(nn.Module):
         """Squared Euclidean distance of every input ``(P, B, in)`` to every unit -> ``(P, B, units)``."""
         xb, _ = as_batched(x, self.n_in, f"input of SOM {self.name!r}")
         xb = self.rule.scale_input(xb)
-        w = self.weight
+        w = participants_weight(f"SOM {self.name!r}", self.weight, xb, x.shape)
         d = squared_norms(w).unsqueeze(1) - 2 * torch.bmm(xb, w.transpose(1, 2)) + (xb * xb).sum(-1, keepdim=True)
         return d.clamp_min(0)
 
@@ -110,7 +116,7 @@ class SOM(nn.Module):
         xb, squeeze = as_batched(x, self.n_in, f"input of SOM {self.name!r}")
         xb = self.rule.scale_input(xb)
         if self.readout == "dot":
-            y = torch.bmm(xb, self.weight.transpose(1, 2))
+            y = torch.bmm(xb, participants_weight(f"SOM {self.name!r}", self.weight, xb, x.shape).transpose(1, 2))
         else:
             d = self.distances(xb).sqrt()
             y = d.max(-1, keepdim=True).values - d
@@ -130,7 +136,8 @@ class SOM(nn.Module):
         are still returned).
         """
         check_tensor("x", x, (self.n_in,))
-        xb = self.rule.scale_input(x.reshape(self.participants, 1, self.n_in))
+        check_floating(f"x of SOM {self.name!r}", x)
+        xb = self.rule.scale_input(x.reshape(self.participants, 1, self.n_in).to(self.weight.dtype))
         if winner is None:
             if self.supervised:
                 raise ValueError(f"SOM {self.name!r} is supervised: step() needs the winner")
@@ -307,8 +314,8 @@ class BidirectionalSOM(nn.Module):
         return self.som.fit(X, labels=labels, **kw)
 
     def _match(self, x: torch.Tensor, lo: int, hi: int) -> torch.Tensor:
-        xb, _ = as_batched(x, hi - lo, "pattern")
-        w = self.som.weight[..., lo:hi]
+        xb, _ = as_batched(x, hi - lo, f"pattern of {self.name!r}")
+        w = participants_weight(f"BidirectionalSOM {self.name!r}", self.som.weight[..., lo:hi], xb, x.shape)
         d = (w * w).sum(-1).unsqueeze(1) - 2 * torch.bmm(xb, w.transpose(1, 2))
         return d.argmin(-1)  # (P, B)
 
