@@ -17,6 +17,7 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from .bounds import bounded, check_declared
 from .errors import UserInputError
 from .validation import check_finite
 from .vision.config import StimuliConfig, VisionConfig
@@ -33,15 +34,12 @@ warnings.filterwarnings("ignore", message=r"\s*'hydra/launcher/submitit_\w+' is 
 class LoggerConfig:
     """TensorBoard output (``logger=tensorboard``) or none (``logger=none``)."""
 
-    kind: str = "tensorboard"
+    kind: str = bounded("tensorboard", choices=("tensorboard", "none"))
     map_images: bool = True  # write map activity as images
-    sample_trials: int = 2  # trials per test whose maps are logged step by step
+    sample_trials: int = bounded(2, ge=0, le=10_000)  # trials per test whose maps are logged step by step
 
     def __post_init__(self) -> None:
-        if self.kind not in ("tensorboard", "none"):
-            raise ValueError(f"logger.kind must be 'tensorboard' or 'none', got {self.kind!r}")
-        if self.sample_trials < 0:
-            raise ValueError(f"logger.sample_trials must be >= 0, got {self.sample_trials}")
+        check_declared(self, "logger.")
 
 
 @dataclass
@@ -54,23 +52,22 @@ class Config:
     logger: LoggerConfig = field(default_factory=LoggerConfig)
     # fixes every random draw of training and testing, except the eye's image noise (off by default),
     # which has its own seed, vision.seed, and is the same whatever this seed (see docs/stimuli.md)
-    seed: int = 0
-    participants: int = 10  # simulated participants (independent weights), trained as one batch
-    preset: str = "full"  # full protocol, or 'quick' for a first look (each experiment says what it shrinks)
+    seed: int = bounded(0, ge=0, lt=2 ** 63)
+    participants: int = bounded(10, ge=1)  # simulated participants (independent weights), trained as one batch
+    # full protocol, or 'quick' for a first look (each experiment says what it shrinks)
+    preset: str = bounded("full", choices=("full", "quick"))
     checkpoint: Optional[str] = None  # evaluate.py: a training run's directory; None trains first
     progress: bool = True  # progress bars on long loops
-    threads: int = 0  # torch intra-op threads during the run (0 = the cores other work leaves free, neuroimagery.threads)
+    # torch intra-op threads during the run (0 = the cores other work leaves free, neuroimagery.threads);
+    # more than the cores this process may use is refused (neuroimagery.resources)
+    threads: int = bounded(0, ge=0)
     overwrite: bool = False  # write into a run directory that holds a run with other settings
+    # skip the checks of the memory a run needs and of threads against the cores (neuroimagery.resources),
+    # for a machine whose limits are not visible to the process
+    allow_large: bool = False
 
     def __post_init__(self) -> None:
-        if self.seed < 0:
-            raise ValueError(f"seed must be >= 0, got {self.seed}")
-        if self.participants < 1:
-            raise ValueError(f"participants must be >= 1, got {self.participants}")
-        if self.preset not in ("full", "quick"):
-            raise ValueError(f"preset must be 'full' or 'quick', got {self.preset!r}")
-        if self.threads < 0:
-            raise ValueError(f"threads must be >= 0, got {self.threads}")
+        check_declared(self, "", recursive=False)
 
 
 def experiment_module(name: str):

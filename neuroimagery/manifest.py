@@ -24,7 +24,7 @@ import torch
 
 FORMAT = 1
 # top-level keys that change neither a trained model nor a result
-NEUTRAL = ("checkpoint", "progress", "threads", "overwrite", "logger")
+NEUTRAL = ("checkpoint", "progress", "threads", "overwrite", "allow_large", "logger")
 # top-level keys that only the tests read: the stimuli a trained model is tested on
 TEST_ONLY = ("stimuli",)
 

@@ -5,15 +5,21 @@ the file,
 
 - a number that is not finite (``nan`` slips through every range check written as a
   comparison, ``inf`` through every lower bound);
+- a value outside the bounds its field declares (:mod:`neuroimagery.bounds`), the whole
+  configuration walked, each key named by its full path;
 - a key set to something other than its default that has no effect in this experiment or with
   these options (:func:`ineffective`), so a misplaced setting never passes silently;
-- a stimulus folder that cannot be used (unreadable or oversized images, no shape found, too
-  few objects), before any training.
+- settings that need more memory, or threads than the cores, this process may use
+  (:mod:`neuroimagery.resources`; ``allow_large=true`` skips this check);
+- what the experiment module's own ``check_inputs(conf)`` refuses (names of stimulus sets, a
+  module path, object placement: whatever can be checked without the work);
+- a stimulus folder that cannot be used (unreadable, truncated or oversized images, links that
+  lead nowhere, no shape found, too few objects), before any training.
 
 Whether a key was "set" is judged against the schema's defaults (the dataclasses), so a run
 composed by Hydra and a :class:`~neuroimagery.config.Config` built in Python are checked alike.
-An experiment module may add its own rules with ``ineffective_keys(conf) -> {key: reason}`` and
-declare ``INPUTS`` (the groups of what it sees: ``vision``, ``stimuli``) and ``MIN_OBJECTS``
+An experiment module may add its own rules with ``ineffective_keys(conf) -> {key: reason}``,
+``memory_estimate(conf) -> [resources.Need]`` and ``check_inputs(conf)``, and declare ``INPUTS`` (the groups of what it sees: ``vision``, ``stimuli``) and ``MIN_OBJECTS``
 (how many shapes a user folder must hold).
 """
 from __future__ import annotations
@@ -148,6 +154,14 @@ def image_size(path: Path) -> tuple[int, int]:
 
 def check_run(conf, module) -> None:
     """Every check of this module, cheapest first."""
+    from .bounds import check_declared
+    from .resources import check_resources
+
     check_finite(conf)
+    check_declared(conf)
     check_ineffective(conf, module)
+    check_resources(conf, module)
+    extra = getattr(module, "check_inputs", None)
+    if extra is not None:
+        extra(conf)
     check_stimulus_folder(conf, module)

@@ -22,6 +22,7 @@ from ..analysis.summary import effect, holm, paired_by_participant, slope_by_par
 from ..models.rotation_generalising import GeneralisingParams
 from ..nn import seeding
 from . import protocol_ch6 as pc
+from .ch6_checks import check_inputs, memory_estimate  # noqa: F401  (checks before work: neuroimagery.validation)
 from ..thesis import EXP3 as THESIS_TARGETS
 
 TESTS = ("recog", "gen1", "gen2")

@@ -23,6 +23,7 @@ from ..analysis.summary import (compare_rates, compare_rt, effect, holm, paired_
                                 summarise_trials)
 from ..nn import seeding
 from . import protocol_ch6 as pc
+from .ch6_checks import check_inputs, memory_estimate  # noqa: F401  (checks before work: neuroimagery.validation)
 from ..thesis import EXP4 as THESIS_TARGETS
 
 TESTS = ("recog", "gen1", "gen2")

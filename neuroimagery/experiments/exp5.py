@@ -39,6 +39,7 @@ from ..errors import UserInputError
 from ..models.tool_use import EVENTS, Library, Outcomes, ToolUseBrain, acquire_skills, build_brain, run_trial
 from ..nn.seeding import participant_seed
 from . import exp5_tasks as task_files
+from .exp5_checks import check_inputs  # noqa: F401  (checks before work: neuroimagery.validation)
 from .exp5_config import (MOVED_KEYS, SITUATIONS, THESIS, THESIS_TABLE_7_1, Exp5Config, dotted,  # noqa: F401 (public names)
                           nest)
 from .exp5_summary import (ROUTES, STRATEGIES, group_rates, library_columns, success_route,  # noqa: F401

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
+from ..bounds import bounded, check_declared
 from ..models.tool_use import EVENTS, AcquisitionParams, BrainParams, SequencingParams, check_params
 from ..thesis import EXP5, EXP5_TABLE_7_1
 
@@ -107,12 +108,12 @@ class Exp5Config:
 
     name: str = "exp5"
     # --- simulations (section 7.1.3)
-    repetitions: int = 30  # repetitions per group and situation (thesis: 30)
+    repetitions: int = bounded(30, ge=1)  # repetitions per group and situation (thesis: 30)
     hp1_levels: list[int] = field(default_factory=lambda: [2, 3, 4, 5, 6])  # IM detectors per HP1 group
-    hp1_ages: list[int] = field(default_factory=lambda: [14, 16, 18, 20, 22])  # months, one per HP1 level
-    hp1_training_trials: int = 10  # training trials of every HP1 robot
-    hp2_trials: list[int] = field(default_factory=lambda: [0, 2, 4, 6, 8, 10])  # training trials per HP2 group
-    hp2_ages: list[int] = field(default_factory=lambda: [14, 14, 16, 18, 20, 22])  # months, one per HP2 level
+    hp1_ages: list[int] = bounded(factory=lambda: [14, 16, 18, 20, 22], ge=0, each=True)  # months, one per HP1 level
+    hp1_training_trials: int = bounded(10, ge=0)  # training trials of every HP1 robot
+    hp2_trials: list[int] = bounded(factory=lambda: [0, 2, 4, 6, 8, 10], ge=0, each=True)  # training trials per HP2 group
+    hp2_ages: list[int] = bounded(factory=lambda: [14, 14, 16, 18, 20, 22], ge=0, each=True)  # months, one per HP2 level
     base_detectors: list[str] = field(default_factory=lambda: ["retrieve", "touch"])  # always on under HP1
     situations: list[str] = field(default_factory=lambda: ["behind", "far"])  # tool behind / far from toy
     quick: QuickParams = field(default_factory=QuickParams)  # what preset=quick shrinks
@@ -128,16 +129,11 @@ class Exp5Config:
 
         if self.name != "exp5":
             bad("name", "must be 'exp5'")
-        if int(self.repetitions) < 1:
-            bad("repetitions", "must be >= 1")
-        if int(self.hp1_training_trials) < 0:
-            bad("hp1_training_trials", "must be >= 0")
+        check_declared(self, "experiment.", recursive=False)
         if len(self.hp1_levels) != len(self.hp1_ages) or not self.hp1_levels:
             bad("hp1_ages", "must give one age per entry of hp1_levels")
         if len(self.hp2_trials) != len(self.hp2_ages) or not self.hp2_trials:
             bad("hp2_ages", "must give one age per entry of hp2_trials")
-        if any(t < 0 for t in self.hp2_trials):
-            bad("hp2_trials", "must be >= 0")
         if any(e not in EVENTS for e in self.base_detectors) or len(set(self.base_detectors)) != len(self.base_detectors):
             bad("base_detectors", f"must be distinct events of {EVENTS}")
         if any(not len(self.base_detectors) <= k <= len(EVENTS) for k in self.hp1_levels):

@@ -22,6 +22,7 @@ from ..errors import UserInputError
 from ..models.rotation_embodied import PROPRIOCEPTION
 from ..nn import seeding
 from ..vision import shepard_metzler as sm
+from .exp6_checks import check_inputs, memory_estimate  # noqa: F401  (checks before work: neuroimagery.validation)
 
 TESTS = sm.KINDS  # picture, depth
 CONDITIONS = PROPRIOCEPTION  # the wrist conditions, as Exp 4

@@ -1,0 +1,147 @@
+"""Checks of Experiment 6 that run before any work (``neuroimagery.validation.check_run``): the
+memory its settings need (:func:`memory_estimate`) and whether the eye can see the objects and
+the map can hold them (:func:`check_inputs`).
+
+The estimate (float32, per participant times ``participants``): the forward models (7 local
+connections on the ``G^3`` voxel map, ``rotation_3d.fm_bytes``), the six posture maps (``units x
+G^3`` each), the dot images of training (3 voxel indices each, int64) and the bank of test maps
+(every test view of every test object, ``G^3`` each). It leaves out smaller arrays, so it is a
+lower bound of the peak.
+
+Placement rules (fixed before they were checked, from the scene's geometry): the object, a ball of
+radius ``rho`` cube edges around its centre, must lie between the eye camera's clipping planes
+(0.05 m and 3 m) and inside its field of view, and one cube must cover at least one pixel; a
+probe view (the first training object in the general view, one render) must show pixels redder
+than ``red_threshold``. A set ``cube_voxels`` may not exceed the scale rule's (the largest at
+which every object fits the dot ball in every orientation): above it, rotations carry parts of
+the object out of the map and no comparison is decided.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import UserInputError
+from ..resources import Need, culprit
+
+FLOAT = 4
+NEAR, FAR = 0.05, 3.0  # the eye camera's clipping planes (vision.shepard_metzler.SMScene)
+
+
+def _grid(e) -> int | None:
+    from .exp6 import grid_side
+
+    try:
+        return grid_side(e)
+    except ValueError:
+        return None
+
+
+def _test_objects(cfg) -> tuple[str, int]:
+    e = cfg.experiment
+    if e.test_cubes is not None:
+        return "experiment.test_cubes", len(e.test_cubes)
+    if e.test_set == "train":
+        return "experiment.train_objects", int(e.train_objects)
+    if cfg.preset == "quick":
+        return "experiment.quick_objects", int(e.quick_objects)
+    return "experiment.test_objects", int(e.test_objects)
+
+
+def memory_estimate(cfg) -> list[Need]:
+    """The bytes of the forward models, posture maps, training dots and test maps."""
+    from ..models.rotation_3d import fm_bytes
+
+    e, P = cfg.experiment, int(cfg.participants)
+    G = _grid(e)
+    if G is None:  # fm_memory_mb holds no grid: check_inputs names it
+        return []
+    vox = float(G) ** 3
+    gkey = {"experiment.grid" if e.grid is not None else "experiment.fm_memory_mb":
+            (G, 18) if e.grid is not None else (float(e.fm_memory_mb), 24.0)}
+    nu = len(e.posture_angles)
+    n_img = int(e.quick_fm_images if cfg.preset == "quick" else e.fm_images)
+    ikey = "experiment.quick_fm_images" if cfg.preset == "quick" else "experiment.fm_images"
+    tkey, n_test = _test_objects(cfg)
+    views = 2 * len(e.tests) * len(e.test_angles)
+    who = {**gkey, "participants": (P, 10)}
+    return [
+        Need(culprit(who), float(fm_bytes(G, e.step_deg)) * P, f"forward models, {P} x 7 on a {G}^3 map"),
+        Need(culprit({**who, "experiment.posture_angles": (nu, 10)}), 6.0 * P * nu * vox * FLOAT,
+             f"posture maps, {P} x 6 x {nu} units x {G}^3"),
+        Need(culprit({"participants": (P, 10), ikey: (n_img, 84000)}), 2.0 * P * n_img * 3 * 8,
+             f"training dots, {P} x {n_img} images"),
+        Need(culprit({**gkey, tkey: (n_test, 5)}), float(n_test) * views * vox * FLOAT,
+             f"test maps, {n_test} objects x {views} views x {G}^3"),
+    ]
+
+
+def _objects(e):
+    from ..vision import shepard_metzler as sm
+
+    n = int(e.train_objects) + int(e.test_objects)
+    try:
+        return sm.generate(n, seed=e.object_seed)
+    except ValueError:
+        raise UserInputError(f"experiment.train_objects + experiment.test_objects = {n}: the object generator "
+                             f"finds fewer distinct objects with object_seed={e.object_seed}; ask for fewer "
+                             "(or give experiment.test_cubes)") from None
+
+
+def check_inputs(cfg) -> None:
+    """Object count, grid, placement in the eye's view, map scale and a probe view, before training."""
+    from ..models.rotation_3d import fm_bytes
+    from ..vision import shepard_metzler as sm
+
+    e = cfg.experiment
+    G = _grid(e)
+    if G is None:
+        raise UserInputError(f"experiment.fm_memory_mb={e.fm_memory_mb:g} holds no voxel grid: the smallest "
+                             f"(8^3) needs {fm_bytes(8, e.step_deg) / 1e6:.2f} MB per participant")
+    built = _objects(e)
+    shown = list(built) + [np.asarray(c, float) for c in (e.test_cubes or [])]
+    rho = max(float(np.linalg.norm(sm.centred(c), axis=1).max()) for c in shown) + math.sqrt(3) / 2
+    radius = rho * e.cube_edge  # metres
+    d = float(e.object_distance)
+    if not NEAR < d - radius or not d + radius < FAR:
+        raise UserInputError(f"experiment.object_distance={d:g} m puts the object (radius {radius:.3f} m) outside "
+                             f"the eye's depth range ({NEAR} to {FAR} m): place it within "
+                             f"[{NEAR + radius:.2f}, {FAR - radius:.2f}] m")
+    half_h = math.radians(e.fov_deg) / 2
+    half_w = math.atan(math.tan(half_h) * e.image_width / e.image_height)
+    seen = math.atan(radius / d)
+    if seen > min(half_h, half_w):
+        raise UserInputError(f"experiment.object_distance={d:g} m: the object (radius {radius:.3f} m, "
+                             f"experiment.cube_edge={e.cube_edge:g}) does not fit the eye's field of view "
+                             f"(experiment.fov_deg={e.fov_deg:g}); move it farther or make it smaller")
+    focal = 0.5 * e.image_height / math.tan(half_h)
+    if e.cube_edge * focal / d < 1.0:
+        raise UserInputError(f"experiment.object_distance={d:g} m: one cube (experiment.cube_edge={e.cube_edge:g} m) "
+                             f"covers {e.cube_edge * focal / d:.2f} pixel of the eye's image; at least 1 is needed")
+    if e.cube_voxels is not None:
+        most = (G / 2.0 - 1.5) / rho
+        if float(e.cube_voxels) > most:
+            raise UserInputError(f"experiment.cube_voxels={e.cube_voxels:g} makes the objects larger than the "
+                                 f"{G}^3 map holds in every orientation (at most {most:.2f} voxels per cube edge, "
+                                 "the scale rule): rotations would carry them out of the map and no comparison "
+                                 "would be decided")
+    _probe(e, built[0])
+
+
+def _probe(e, cells) -> None:
+    """Render the first training object once, in the general view; refuse when no pixel of it is
+    redder than ``red_threshold``."""
+    from ..vision import shepard_metzler as sm
+    from .exp6 import make_scene
+
+    scene = make_scene(e)
+    try:
+        view = scene.look(sm.centred(cells), sm.pose(None, 0, e.view_tilt_deg, e.view_turn_deg))
+    finally:
+        scene.close()
+    b, g, r = (view.bgr[..., k].astype(np.float32) for k in range(3))
+    redness = r - np.maximum(g, b)
+    if not (redness > e.red_threshold).any():
+        raise UserInputError(f"experiment.red_threshold={e.red_threshold:g}: no pixel of the object is that red "
+                             f"(R - max(G, B) reaches {float(redness.max()):.0f} in a probe view); lower it")
