@@ -114,11 +114,15 @@ def plain_hydra_errors() -> None:
         except UserInputError as ex:
             _fail(str(ex), log=False)
         except (HydraException, OmegaConfBaseException) as ex:
-            from .config import moved_message
+            from .config import moved_message, unknown_key_message
 
-            moved = moved_message(_one_line(ex))
+            full = "\n".join(str(e) for e in (ex, ex.__cause__) if e is not None)  # object_type= names the schema
+            moved = moved_message(full) if " not in " in full else None
             if moved:
                 _fail(moved, log=False)
+            unknown = unknown_key_message(full)
+            if unknown:
+                _fail(unknown, log=False)
             _fail(_one_line(ex) + (_CLUSTER_HINT if "hydra_submitit_launcher" in str(ex) else ""), log=False)
         except OSError as ex:
             _fail(os_error_message(ex), log=False)

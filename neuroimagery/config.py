@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import re
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Optional
@@ -112,23 +113,62 @@ def moved_keys(experiment: str | None = None) -> dict[str, str]:
     return out
 
 
+def _experiment_in(text: str) -> str | None:
+    """The experiment whose schema a Hydra or OmegaConf message names (``object_type=Exp6Config``,
+    ``not in 'Exp5Config'``), if any."""
+    return next((name for name, mod in experiment_modules() if getattr(mod, "CONFIG", None) is not None
+                 and re.search(rf"\b{mod.CONFIG.__name__}\b", text)), None)
+
+
+def schema_keys(experiment: str | None = None) -> list[str]:
+    """Every dotted key a run may set: the top level's and those of ``experiment``'s schema (of
+    every experiment when None)."""
+    from .manifest import flatten
+
+    keys = [k for k in flatten(Config(experiment=None)) if k != "experiment"]  # type: ignore[arg-type]
+    for name, mod in experiment_modules():
+        schema = getattr(mod, "CONFIG", None)
+        if schema is not None and (experiment is None or name == experiment):
+            keys += [k for k in flatten(schema(), "experiment.") if k not in keys]
+    return keys
+
+
+def did_you_mean(key: str, experiment: str | None = None) -> str:
+    """`` (did you mean 'experiment.map_size'?)`` for a misspelt ``key``: the closest key of the
+    schema (difflib), or ``""`` when none is close."""
+    import difflib
+
+    close = difflib.get_close_matches(key, schema_keys(experiment), n=1, cutoff=0.75)
+    return f" (did you mean {close[0]}?)" if close else ""
+
+
 def moved_message(text: str, experiment: str | None = None) -> str | None:
     """The refusal of a key under its old name, if ``text`` (an error message, or a key) names one
-    (of ``experiment``'s keys when given): ``experiment.field_tau has moved: it is
-    experiment.field.tau now``."""
-    import re
-
+    (of ``experiment``'s keys when given, else of the experiment the message names): ``experiment.field_tau has moved: it is
+    experiment.field.tau now``. A key that is one of that experiment's own keys has not moved
+    (a wrong value of it is not about its name)."""
     if experiment is None:  # Hydra's refusal names the schema: "Key 'c3_eta' not in 'Exp5Config'"
-        experiment = next((name for name, mod in experiment_modules()
-                           if getattr(mod, "CONFIG", None) is not None and f"'{mod.CONFIG.__name__}'" in text), None)
+        experiment = _experiment_in(text)
     moved = moved_keys(experiment)
-    for key in re.findall(r"\bexperiment\.\w+", text):
-        if key in moved:
+    own = set(schema_keys(experiment)) if experiment is not None else set()
+    for key in re.findall(r"\bexperiment\.[\w.]*\w", text):
+        if key in moved and key not in own:
             new = moved[key]
             if new.startswith(REMOVED):
                 return f"{key} is no longer a setting: {new.removeprefix(REMOVED)}"
             return f"{key} has moved: it is {new} now (see the experiment's docs)"
     return None
+
+
+def unknown_key_message(text: str) -> str | None:
+    """For Hydra's refusal of a key that is not in the schema (``Key 'map_sise' not in
+    'Exp3Config'``): one line naming the key, with the closest existing key; None for other errors."""
+    m = re.search(r"full_key: (\S+)", text)
+    if m is None or " not in " not in text:
+        return None
+    key = m.group(1)
+    experiment = _experiment_in(text)
+    return f"{key} is not a setting{' of ' + experiment if experiment else ''}{did_you_mean(key, experiment)}"
 
 
 def _unknown_keys(node: DictConfig, path: str = "") -> list[str]:
@@ -155,12 +195,14 @@ def validate(cfg: DictConfig | Config) -> Config:
         raise UserInputError("invalid configuration: choose an experiment, e.g. experiment=exp4")
     unknown = [k for k in _unknown_keys(cfg) if not k.startswith("hydra")]
     name = cfg.experiment.get("name") if "name" in cfg.experiment else None
+    experiment = name if name in EXPERIMENTS else None
     for k in unknown:
-        hint = moved_message(k, name if name in EXPERIMENTS else None)
+        hint = moved_message(k, experiment)
         if hint:
             raise UserInputError(f"invalid configuration: {hint}")
     if unknown:
-        raise UserInputError(f"invalid configuration: unknown key(s) {', '.join(unknown)}")
+        raise UserInputError(f"invalid configuration: unknown key(s) {', '.join(unknown)}"
+                             f"{did_you_mean(unknown[0], experiment)}")
     check_finite(cfg)
     try:
         obj = OmegaConf.to_object(cfg)
