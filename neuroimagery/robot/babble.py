@@ -120,16 +120,52 @@ def markdown(table: dict) -> str:
             + "---|" * len(EVENTS) + "\n" + thesis_rows)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m neuroimagery.robot.babble", description=__doc__.split("\n")[0])
-    parser.add_argument("--rollouts", type=int, default=1000, help="random DMPs per posture and seed")
-    parser.add_argument("--seeds", type=int, default=3, help="seeds 0 .. K-1")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
-    args = parser.parse_args(argv)
+# the most rollouts per posture and seed, and seeds, without --allow-large: a rollout is a physics
+# simulation of a movement (tens of ms), so these already take hours
+MAX_ROLLOUTS = 100_000
+MAX_SEEDS = 100
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse whose refusals are the one ``error:`` line of every tool (no usage text)."""
+
+    def error(self, message: str):
+        raise UserInputError(message)
+
+
+def count(text: str) -> int:
+    """A whole number given as ``1000``, ``1e6`` or ``1_000``; anything else is refused."""
     try:
+        value = float(text.replace("_", ""))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not math.isfinite(value) or value != int(value):
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}")
+    return int(value)
+
+
+def parse(argv: list[str] | None = None) -> argparse.Namespace:
+    """The command line, every value checked (a :class:`UserInputError` naming the option)."""
+    parser = _Parser(prog="python -m neuroimagery.robot.babble", description=__doc__.split("\n")[0])
+    parser.add_argument("--rollouts", type=count, default=1000, help="random DMPs per posture and seed")
+    parser.add_argument("--seeds", type=count, default=3, help="seeds 0 .. K-1")
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--allow-large", action="store_true",
+                        help=f"allow more than {MAX_ROLLOUTS} rollouts per posture and seed or {MAX_SEEDS} seeds")
+    args = parser.parse_args(argv)
+    for name, value, most in (("--rollouts", args.rollouts, MAX_ROLLOUTS), ("--seeds", args.seeds, MAX_SEEDS)):
+        if value < 1:
+            raise UserInputError(f"{name} must be >= 1, got {value}")
+        if value > most and not args.allow_large:
+            raise UserInputError(f"{name} {value}: at most {most} without --allow-large (it would run "
+                                 f"{args.rollouts * args.seeds * len(THESIS_EVENTS):.3g} physics rollouts)")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        args = parse(argv)
         t0 = time.perf_counter()
-        if args.rollouts < 1 or args.seeds < 1:
-            raise UserInputError(f"--rollouts and --seeds must be >= 1, got {args.rollouts}, {args.seeds}")
         table = measure(args.rollouts, args.seeds)
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "table_7_1.json").write_text(json.dumps(table, indent=2))
