@@ -32,6 +32,7 @@ import numpy as np
 
 from neuroimagery.errors import UserInputError
 from neuroimagery.vision.edges import principal_axis
+from neuroimagery.vision.image_files import IMAGE_SUFFIXES, MAX_FOLDER_IMAGES, check_size, list_images, read_image
 from neuroimagery.vision.shapes import (
     BACKGROUND_BGR,
     BUILTIN_GRIDS,
@@ -51,7 +52,6 @@ __all__ = [
     "IMAGE_SUFFIXES",
 ]
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 PAIR_GAP = 0.25  # background between the two objects of a pair image, in canvas sides
 
 _EXP3_ANGLES = [-90.0, -45.0, 0.0, 45.0]
@@ -233,8 +233,20 @@ def resolve_stimulus_set(stimuli_cfg, builtin: str) -> StimulusSet:
 
 
 # ---------------------------------------------------------------------- user folders
-def _foreground(image: np.ndarray, file: Path) -> np.ndarray:
-    """Mask of the single shape in a user image: pixels darker or redder than the background."""
+def _foreground(image: np.ndarray, file: Path, transparent: bool = False) -> np.ndarray:
+    """Mask of the single shape in a user image: pixels darker or redder than the background.
+    ``transparent``: the image's alpha channel varies, named when no shape is found in its colours."""
+    try:
+        return _colour_foreground(image, file)
+    except UserInputError as err:
+        if not transparent:
+            raise
+        raise UserInputError(f"{err} (the image is transparent in places and its colours are read without "
+                             "the transparency: a shape drawn only in the alpha channel is not seen; flatten "
+                             "the image onto a white background)") from None
+
+
+def _colour_foreground(image: np.ndarray, file: Path) -> np.ndarray:
     img = image.astype(np.float32)
     border = np.concatenate([img[0], img[-1], img[:, 0], img[:, -1]])
     bg = np.median(border, axis=0)
@@ -275,16 +287,18 @@ def load_folder(path: str | os.PathLike) -> StimulusSet:
     folder = Path(path)
     if not folder.is_dir():
         raise UserInputError(f"stimulus folder {folder} does not exist or is not a folder")
-    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+    files = list_images(folder)
     if not files:
         raise UserInputError(f"stimulus folder {folder} contains no PNG or JPEG images")
+    if len(files) > MAX_FOLDER_IMAGES:
+        raise UserInputError(f"stimulus folder {folder} holds {len(files)} images; at most {MAX_FOLDER_IMAGES}")
+    for f in files:  # every size from the headers before anything is decoded
+        check_size(f)
     shapes: dict[str, Shape] = {}
     for f in files:
-        img = cv2.imread(str(f), cv2.IMREAD_COLOR)
-        if img is None or img.size == 0:
-            raise UserInputError(f"cannot read image {f}: not a valid PNG or JPEG file")
+        img, transparent = read_image(f)
         name = f.stem
         if name in shapes:
             name = f.name
-        shapes[name] = Shape(_foreground(img, f), name)
+        shapes[name] = Shape(_foreground(img, f, transparent), name)
     return StimulusSet(folder.name or str(folder), shapes, _EXP4_ANGLES, ["basic", "mirror"])
