@@ -49,8 +49,9 @@ def check_set_name(key: str, name: str) -> None:
     known = list_stimulus_sets()
     if name in known or os.path.isdir(name):
         return
-    close = difflib.get_close_matches(name, known, n=1)
-    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    lower = {k.lower(): k for k in known}
+    close = difflib.get_close_matches(name.lower(), list(lower), n=1)
+    hint = f" (did you mean {lower[close[0]]!r}?)" if close else ""
     raise UserInputError(f"{key}={name!r} is not a stimulus set{hint}: not a folder, and not one of {', '.join(known)}")
 
 

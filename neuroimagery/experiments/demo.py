@@ -18,6 +18,7 @@ import pandas as pd
 import torch
 
 from ..analysis.report import Report, reproducibility_note
+from ..bounds import bounded, check_declared
 from ..analysis.summary import TRIAL_COLUMNS, summarise_trials
 from ..analysis.figures import rt_by_disparity
 from ..nn import AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
@@ -27,25 +28,18 @@ from ..run import load_checkpoint
 @dataclass
 class DemoConfig:
     name: str = "demo"
-    step_deg: float = 15.0  # rotation produced by one affordance -> forward cycle
-    units: int = 37  # ANGLE and POSTURE map sizes (5 deg resolution over -90..90)
-    sigma_deg: float = 8.0  # tuning width of both maps
-    eta: float = 0.2  # Hebbian learning rate
-    epochs: int = 30  # passes over the training angles
-    max_steps: int = 10  # rotation cycles before giving up
-    cycles_per_step: int = 10  # simulated ms per rotation cycle
-    noise: float = 0.05  # activity noise added to the angle code per step (eq. 4.1 n_i)
-    sharpen: float = 4.0  # exponent applied to the max-normalised forward-model output
+    step_deg: float = bounded(15.0, gt=0)  # rotation produced by one affordance -> forward cycle
+    units: int = bounded(37, ge=1)  # ANGLE and POSTURE map sizes (5 deg resolution over -90..90)
+    sigma_deg: float = bounded(8.0, gt=0)  # tuning width of both maps
+    eta: float = bounded(0.2, gt=0)  # Hebbian learning rate
+    epochs: int = bounded(30, ge=1)  # passes over the training angles
+    max_steps: int = bounded(10, ge=1)  # rotation cycles before giving up
+    cycles_per_step: int = bounded(10, ge=1)  # simulated ms per rotation cycle
+    noise: float = bounded(0.05, ge=0)  # activity noise added to the angle code per step (eq. 4.1 n_i)
+    sharpen: float = bounded(4.0, gt=0)  # exponent applied to the max-normalised forward-model output
 
     def __post_init__(self) -> None:
-        for k in ("step_deg", "sigma_deg", "eta", "sharpen"):
-            if getattr(self, k) <= 0:
-                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)}")
-        for k in ("units", "epochs", "max_steps", "cycles_per_step"):
-            if getattr(self, k) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)}")
-        if self.noise < 0:
-            raise ValueError(f"experiment.noise must be >= 0, got {self.noise}")
+        check_declared(self, "experiment.")
 
 
 CONFIG = DemoConfig

@@ -19,6 +19,7 @@ from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import effect, holm, slope_by_participant, summarise_trials
 from ..thesis import EXP1 as THESIS
+from ..bounds import bounded
 from ..models.params import FieldParams, SomParams, moved_keys
 from ..models.rotation_affordance import AffordanceParams, AffordanceRotationModel
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of,
@@ -31,12 +32,8 @@ class Exp1Config(AffordanceParams):
     """The model's parameters (:class:`AffordanceParams`) and the run's."""
 
     name: str = "exp1"
-    auto_threads: int = 0  # intra-op threads for training and testing when the run's `threads` is 0; 0: the free cores measured at start (see docs)
+    auto_threads: int = bounded(0, ge=0)  # intra-op threads for training and testing when the run's `threads` is 0; 0: the free cores measured at start (see docs)
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if self.auto_threads < 0:
-            raise ValueError(f"experiment.auto_threads must be >= 0, got {self.auto_threads!r}")
 
 
 CONFIG = Exp1Config

@@ -19,6 +19,7 @@ from ..analysis.report import Report, fmt_p
 from ..analysis.summary import (compare_rates, compare_rt, effect, equivalent_levels, holm, paired_by_participant, repeated_anova,
                                 slope_by_participant, summarise_trials)
 from ..thesis import EXP2 as THESIS
+from ..bounds import bounded, check_declared
 from ..models.params import FieldParams, SomParams, moved_keys
 from ..models.rotation_motor import ANGLES, MotorRotationModel, MotorRotationParams
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of,
@@ -30,11 +31,10 @@ from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report,
 class Exp2Quick:
     """What ``preset=quick`` shrinks (``experiment.quick``)."""
 
-    som_iterations: int = 300  # SOM steps
+    som_iterations: int = bounded(300, ge=1)  # SOM steps
 
     def __post_init__(self) -> None:
-        if self.som_iterations < 1:
-            raise ValueError(f"experiment.quick.som_iterations must be >= 1, got {self.som_iterations!r}")
+        check_declared(self, "experiment.quick.")
 
 
 @dataclass
@@ -42,13 +42,9 @@ class Exp2Config(MotorRotationParams):
     """The model's parameters (:class:`MotorRotationParams`) and the run's."""
 
     name: str = "exp2"
-    auto_threads: int = 0  # intra-op threads for training and testing when the run's `threads` is 0; 0: the free cores measured at start (see docs)
+    auto_threads: int = bounded(0, ge=0)  # intra-op threads for training and testing when the run's `threads` is 0; 0: the free cores measured at start (see docs)
     quick: Exp2Quick = dc_field(default_factory=lambda: Exp2Quick())  # what preset=quick shrinks
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if self.auto_threads < 0:
-            raise ValueError(f"experiment.auto_threads must be >= 0, got {self.auto_threads!r}")
 
 
 CONFIG = Exp2Config

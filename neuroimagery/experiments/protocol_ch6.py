@@ -21,6 +21,7 @@ import pandas as pd
 import torch
 
 from .. import progress
+from ..bounds import bounded, check_declared
 from ..errors import UserInputError
 from ..nn import seeding
 from ..analysis import figures
@@ -31,13 +32,11 @@ from ..analysis.summary import TRIAL_COLUMNS
 class QuickParams:
     """What ``preset=quick`` shrinks in Experiments 3 and 4 (``experiment.quick``)."""
 
-    objects: int = 1  # objects per test set
-    fm_images: int = 3000  # three-dot training images
+    objects: int = bounded(1, ge=1)  # objects per test set
+    fm_images: int = bounded(3000, ge=1)  # three-dot training images
 
     def __post_init__(self) -> None:
-        for k in ("objects", "fm_images"):
-            if int(getattr(self, k)) < 1:
-                raise ValueError(f"experiment.quick.{k} must be >= 1, got {getattr(self, k)!r}")
+        check_declared(self, "experiment.quick.")
 
 
 # keys of Experiments 3 and 4 that moved into a group (both experiments' MOVED)

@@ -35,6 +35,7 @@ from ..nn.functional import intra_op_threads
 from ..nn.row_cache import RowCache, distinct_rows
 from ..nn.som_windowed import windowed_factors
 from .factor_checkpoint import FactorCheckpoint
+from ..bounds import bounded, check_declared
 from .params import FieldParams, SomParams
 
 
@@ -42,37 +43,23 @@ from .params import FieldParams, SomParams
 class AffordanceParams:
     """The parameters of :class:`AffordanceRotationModel` (``experiment.*`` of Experiment 1)."""
 
-    step_deg: float = 15.0  # rotation of one C1/C2 cycle and spacing of the trained orientations (thesis: 15)
-    max_cycles: int = 10  # rotation cycles before the model gives up and matches the last image (thesis: 10)
-    centre_tolerance_deg: float = 7.5  # |posture| at which the PMC_1 cluster counts as "at the centre" (half a step)
-    init_high: float = 0.1  # initial weights U[0, init_high] (thesis: 0.1)
-    hebb_eta: float = 0.3  # outstar Hebbian rate of C1, C2, C5 (not given in the thesis)
-    hebb_epochs: int = 6  # passes over the training patterns (Table 5.1 of Exp. 2 uses 6 passes)
-    feed_order: str = "sequential"  # 'sequential': all of object A, then B (as in the thesis); or 'shuffled'
-    posture_sigma_deg: float = 6.0  # width of a PMC_1 posture cluster (deg along both axes)
-    object_band_deg: float = 22.5  # PMC_1 row offset (deg units) of object A (-) and B (+) clusters
-    answer_sigma: float = 1.5  # width (units) of the PMC_2 answer clusters
-    image_threshold: float = 0.5  # C2 output (max-normalised) above which a PC unit is on in the mental image
-    sharpen: float = 4.0  # exponent on the PMC_1 column profile before the competition (contrast)
+    step_deg: float = bounded(15.0, gt=0)  # rotation of one C1/C2 cycle and spacing of the trained orientations (thesis: 15)
+    max_cycles: int = bounded(10, ge=1)  # rotation cycles before the model gives up and matches the last image (thesis: 10)
+    centre_tolerance_deg: float = bounded(7.5, gt=0)  # |posture| at which the PMC_1 cluster counts as "at the centre" (half a step)
+    init_high: float = bounded(0.1, gt=0)  # initial weights U[0, init_high] (thesis: 0.1)
+    hebb_eta: float = bounded(0.3, gt=0, le=1)  # outstar Hebbian rate of C1, C2, C5 (not given in the thesis)
+    hebb_epochs: int = bounded(6, ge=1)  # passes over the training patterns (Table 5.1 of Exp. 2 uses 6 passes)
+    feed_order: str = bounded("sequential", choices=("sequential", "shuffled"))  # 'sequential': all of object A, then B (as in the thesis); or 'shuffled'
+    posture_sigma_deg: float = bounded(6.0, gt=0)  # width of a PMC_1 posture cluster (deg along both axes)
+    object_band_deg: float = bounded(22.5, ge=0)  # PMC_1 row offset (deg units) of object A (-) and B (+) clusters
+    answer_sigma: float = bounded(1.5, gt=0)  # width (units) of the PMC_2 answer clusters
+    image_threshold: float = bounded(0.5, gt=0, lt=1)  # C2 output (max-normalised) above which a PC unit is on in the mental image
+    sharpen: float = bounded(4.0, gt=0)  # exponent on the PMC_1 column profile before the competition (contrast)
     som: SomParams = dc_field(default_factory=SomParams)  # the PFC_2 map (not given for Exp. 1) and its cluster
     field: FieldParams = dc_field(default_factory=FieldParams)  # the PMC_1 and PMC_2 competitions
 
     def __post_init__(self) -> None:
-        pos = ["step_deg", "centre_tolerance_deg", "init_high", "hebb_eta", "posture_sigma_deg", "answer_sigma",
-               "image_threshold", "sharpen"]
-        for k in pos:
-            if not getattr(self, k) > 0:
-                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
-        for k in ("max_cycles", "hebb_epochs"):
-            if getattr(self, k) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        for k in ("object_band_deg",):
-            if getattr(self, k) < 0:
-                raise ValueError(f"experiment.{k} must be >= 0, got {getattr(self, k)!r}")
-        if self.hebb_eta > 1 or self.image_threshold >= 1:
-            raise ValueError("experiment.hebb_eta must be <= 1 and experiment.image_threshold < 1")
-        if self.feed_order not in ("sequential", "shuffled"):
-            raise ValueError(f"experiment.feed_order must be 'sequential' or 'shuffled', got {self.feed_order!r}")
+        check_declared(self, "experiment.", recursive=False)
         if 90 % self.step_deg != 0:
             raise ValueError(f"experiment.step_deg must divide 90, got {self.step_deg!r}")
 

@@ -38,6 +38,7 @@ from ..nn.som_windowed import windowed_factors
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 from ..nn.functional import intra_op_threads
 from .factor_checkpoint import FactorCheckpoint
+from ..bounds import bounded, check_declared
 from .params import FieldParams, SomParams
 
 ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]
@@ -48,42 +49,29 @@ CHECKPOINT_FORMAT = "neuroimagery.exp2.factors/1"  # the compact checkpoint of M
 class MotorRotationParams:
     """The parameters of :class:`MotorRotationModel` (``experiment.*`` of Experiment 2)."""
 
-    max_cycles: int = 10  # rotation cycles before matching the last image (thesis: 10)
-    init_high: float = 0.1  # initial weights U[0, init_high] (thesis: 0.1)
-    hebb_eta: float = 0.3  # outstar Hebbian rate of every Hebbian connection (not given)
-    c1_epochs: int = 6  # passes over the 14 images for C1 and C6 (Table 5.1: 84 cycles = 6 x 14)
+    max_cycles: int = bounded(10, ge=1)  # rotation cycles before matching the last image (thesis: 10)
+    init_high: float = bounded(0.1, gt=0)  # initial weights U[0, init_high] (thesis: 0.1)
+    hebb_eta: float = bounded(0.3, gt=0, le=1)  # outstar Hebbian rate of every Hebbian connection (not given)
+    c1_epochs: int = bounded(6, ge=1)  # passes over the 14 images for C1 and C6 (Table 5.1: 84 cycles = 6 x 14)
     # babbling steps that train C9, C10 and C2, after the SOM M1_1 has finished (Table 5.1: 1,960 for C9 and
     # C10; it gives C2 14 patterns x 84 cycles, here C2 learns on these same steps; see docs/exp2.md)
-    hebb_steps: int = 1960
-    c5_epochs: int = 6  # passes over the 196 pairs for C5 (Table 5.1: 1,176 = 6 x 196)
+    hebb_steps: int = bounded(1960, ge=1)
+    c5_epochs: int = bounded(6, ge=1)  # passes over the 196 pairs for C5 (Table 5.1: 1,176 = 6 x 196)
     # the SOMs M1_1 and PFC_2 (Table 5.1: 10,000 steps; radius not given, see docs/exp2.md) and the
     # winning cluster they pass on to C5, C9, C10
     som: SomParams = dc_field(default_factory=lambda: SomParams(iterations=10000, cutoff=0.01, cluster_sigma=1.0))
-    posture_sigma_deg: float = 6.0  # width of SS / PMC_1 posture clusters (deg)
-    object_band_deg: float = 22.5  # SS row offset of object A (-) and B (+)
-    preactivation: float = 0.2  # C1 pre-activation of each afforded posture (thesis: 0.2)
-    bias: float = 1.0  # C6 bias of the selected posture (thesis: 1.0)
-    proprio_gain: float = 0.5  # proprioceptive input to SS relative to the forward model's 1.0 (weaker, < 1)
-    answer_sigma: float = 1.5  # width of PMC_2 / M1_2 clusters (units)
-    image_threshold: float = 0.5  # C2 output (max-normalised) above which a PP unit is on
+    posture_sigma_deg: float = bounded(6.0, gt=0)  # width of SS / PMC_1 posture clusters (deg)
+    object_band_deg: float = bounded(22.5, ge=0)  # SS row offset of object A (-) and B (+)
+    preactivation: float = bounded(0.2, gt=0)  # C1 pre-activation of each afforded posture (thesis: 0.2)
+    bias: float = bounded(1.0, gt=0)  # C6 bias of the selected posture (thesis: 1.0)
+    proprio_gain: float = bounded(0.5, ge=0, lt=1, why="weaker than the forward model")  # input to SS, forward model = 1
+    answer_sigma: float = bounded(1.5, gt=0)  # width of PMC_2 / M1_2 clusters (units)
+    image_threshold: float = bounded(0.5, gt=0, lt=1)  # C2 output (max-normalised) above which a PP unit is on
     # the SS and PMC_2 competitions (inhibition strong enough that the weaker proprioceptive cluster alone cannot win)
     field: FieldParams = dc_field(default_factory=lambda: FieldParams(a_inh=0.2))
 
     def __post_init__(self) -> None:
-        for k in ("init_high", "hebb_eta", "posture_sigma_deg", "preactivation", "bias", "answer_sigma",
-                  "image_threshold"):
-            if not getattr(self, k) > 0:
-                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
-        for k in ("max_cycles", "c1_epochs", "hebb_steps", "c5_epochs"):
-            if getattr(self, k) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        for k in ("proprio_gain", "object_band_deg"):
-            if getattr(self, k) < 0:
-                raise ValueError(f"experiment.{k} must be >= 0, got {getattr(self, k)!r}")
-        if self.proprio_gain >= 1:
-            raise ValueError(f"experiment.proprio_gain must be < 1 (weaker than the forward model), got {self.proprio_gain!r}")
-        if self.hebb_eta > 1 or self.image_threshold >= 1:
-            raise ValueError("experiment.hebb_eta must be <= 1 and experiment.image_threshold < 1")
+        check_declared(self, "experiment.", recursive=False)
 
 
 class MotorRotationModel(FactorCheckpoint, nn.Module):
