@@ -1,22 +1,17 @@
-"""Malformed inputs across the five experiments, stimulus folders, checkpoints, run directories and
-the pooling tool: each is refused with one ``error:`` line naming the culprit, exit status 2, no
-traceback, within seconds and before any training starts.
+"""Malformed checkpoints, run directories and pool inputs: each is refused with one ``error:`` line
+naming the culprit, exit status 2, no traceback, within seconds and before any training starts.
 
-The cases run in-process through the same wrappers the command line uses (``friendly_errors`` for a
-run, the patched Hydra reporter for composition errors), so the table costs the suite little time;
-two cases go through ``train.py`` itself.
+The cases run in-process through the same wrappers the command line uses (``friendly_errors``), so
+the table costs the suite little time. The other tables of bad inputs: ``test_bad_inputs_sizes.py``
+(memory, threads, declared bounds), ``test_bad_inputs_settings.py`` (settings and key names),
+``test_bad_inputs_stimuli.py`` (stimulus folders and images), ``test_bad_inputs_babble.py``.
 """
 from __future__ import annotations
 
-import os
 import pickle
-import subprocess
-import sys
 import time
 from pathlib import Path
 
-import cv2
-import numpy as np
 import pytest
 import torch
 
@@ -25,7 +20,6 @@ from neuroimagery.run import evaluate, train
 
 from conftest import make_cfg
 
-ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "exp6", "demo")
 LIMIT_S = 10.0  # a refusal must come within seconds: these are checks, not work
 
@@ -71,114 +65,6 @@ def _refused(capsys, fn, *needles):
 
 def _evaluate(tmp, *over):
     return lambda: cli.friendly_errors(evaluate)(make_cfg(*over), out_dir=tmp)
-
-
-def _train(tmp, *over):
-    return lambda: cli.friendly_errors(train)(make_cfg(*over), out_dir=tmp)
-
-
-CONFIG_CASES = [
-    # numbers that are not finite, or out of range
-    (["experiment=exp4", "experiment.noise_amplitude=inf"], "experiment.noise_amplitude"),
-    (["experiment=exp2", "experiment.proprio_gain=nan"], "experiment.proprio_gain"),
-    (["experiment=exp1", "experiment.hebb_eta=nan"], "experiment.hebb_eta"),
-    (["experiment=exp3", "experiment.m1_centre_sigma=inf"], "experiment.m1_centre_sigma"),
-    (["experiment=exp5", "experiment.brain.eta=nan"], "experiment.brain.eta"),
-    (["experiment=demo", "experiment.noise=inf"], "experiment.noise"),
-    (["experiment=exp4", "vision.gamma=nan"], "vision.gamma"),
-    (["experiment=exp4", "experiment.ppc_angles=[0,nan]"], "experiment.ppc_angles"),
-    (["experiment=exp5", "experiment.acquisition.explore_patience=0"], "experiment.acquisition.explore_patience"),
-    (["experiment=exp1", "participants=0"], "participants"),
-    (["experiment=exp3", "seed=-1"], "seed"),
-    (["experiment=exp4", "preset=huge"], "preset"),
-    (["experiment=exp2", "threads=-2"], "threads"),
-    (["experiment=exp5", "experiment.engine.n_jobs=0"], "experiment.engine.n_jobs"),
-    (["experiment=exp4", "experiment.flip_axis=diagonal"], "experiment.flip_axis"),
-    (["experiment=exp3", "experiment.m1_readout=middle"], "experiment.m1_readout"),
-    (["experiment=exp5", "experiment.situations=[nowhere]"], "experiment.situations"),
-    (["experiment=exp4", "logger.kind=wandb"], "logger.kind"),
-    (["experiment=exp1", "vision.kind=laser"], "vision.kind"),
-    (["experiment=demo", "+experiment.stp_deg=3"], "experiment.stp_deg"),
-    (["experiment=exp2", "+experiment.som_eta=0.2"], "it is experiment.som.eta now"),  # an old key added with +
-    (["experiment=exp1", "experiment.field.tau=0"], "experiment.field.tau"),  # a group's own range check
-    (["experiment=exp4", "experiment.fm.batch=0"], "experiment.fm.batch"),
-    # keys that would have no effect in this experiment or with these options
-    (["experiment=exp4", "vision.size=16"], "vision.size"),
-    (["experiment=exp1", "vision.gaze_jitter_deg=1"], "vision.gaze_jitter_deg"),
-    (["experiment=exp4", "stimuli.path=/tmp"], "stimuli.path"),
-    (["experiment=exp5", "participants=3"], "participants"),
-    (["experiment=exp5", "vision.noise_std=5"], "vision.noise_std"),
-    (["experiment=demo", "stimuli=folder", "stimuli.path=/tmp"], "stimuli.kind"),
-    (["experiment=exp4", "logger=none", "logger.map_images=false"], "logger.map_images"),
-    (["experiment=exp3", "experiment.quick.objects=2"], "experiment.quick.objects"),
-    (["experiment=exp4", "preset=quick", "experiment.fm.images=100"], "experiment.fm.images"),
-    (["experiment=exp3", "experiment.m1_sigma=0.3"], "experiment.m1_sigma"),  # not read with the default m1_readout=centre
-    (["experiment=exp4", "experiment.noise_tests=[]", "experiment.noise_amplitude=0.3"], "experiment.noise_amplitude"),
-    (["experiment=exp5", "preset=quick", "experiment.repetitions=5"], "experiment.repetitions"),
-    (["experiment=exp2", "threads=1", "experiment.auto_threads=2"], "experiment.auto_threads"),
-]
-
-
-@pytest.mark.parametrize("over,needle", CONFIG_CASES, ids=[" ".join(o) for o, _ in CONFIG_CASES])
-def test_bad_settings_are_refused_before_any_work(tmp_path, capsys, no_training, over, needle):
-    _refused(capsys, _evaluate(tmp_path / "run", *over), needle)
-    assert not (tmp_path / "run").exists()  # nothing written
-
-
-def test_checkpoint_is_refused_in_training(tmp_path, capsys, no_training):
-    _refused(capsys, _train(tmp_path / "run", "experiment=demo", f"checkpoint={tmp_path}"), "checkpoint=")
-
-
-@pytest.mark.parametrize("over,needle", [(["experiment=demo", "experiment.stp_deg=3"], "stp_deg"),
-                                         (["experiment=demo", "seed=abc"], "seed"),
-                                         # a key that moved into a group is refused with its new place
-                                         (["experiment=exp1", "experiment.field_tau=5"], "it is experiment.field.tau now"),
-                                         (["experiment=exp2", "experiment.cluster_sigma=2"], "experiment.som.cluster_sigma"),
-                                         (["experiment=exp3", "experiment.quick_fm_images=9"], "experiment.quick.fm_images"),
-                                         (["experiment=exp4", "experiment.eta_posture=0.2"], "experiment.posture.eta")])
-def test_hydra_composition_errors_are_one_line(monkeypatch, capsys, over, needle):
-    from hydra._internal import utils as hydra_utils
-
-    monkeypatch.setattr(hydra_utils, "run_and_report", hydra_utils.run_and_report)  # restored afterwards
-    cli.plain_hydra_errors()
-    _refused(capsys, lambda: hydra_utils.run_and_report(lambda: make_cfg(*over)), needle)
-
-
-# ------------------------------------------------------------------------ stimulus folders
-def _png(path, image):
-    assert cv2.imwrite(str(path), image)
-
-
-def _shape_image(w=64, h=64):
-    img = np.full((h, w, 3), 255, np.uint8)
-    img[h // 4: h // 2, w // 4: 3 * w // 4] = (0, 0, 200)
-    return img
-
-
-def _folder(tmp_path, kind):
-    d = tmp_path / f"stim_{kind}"
-    d.mkdir()
-    if kind == "corrupt":
-        (d / "a.png").write_bytes(os.urandom(300))
-    elif kind == "blank":
-        _png(d / "a.png", np.full((64, 64, 3), 255, np.uint8))
-    elif kind == "huge":
-        _png(d / "a.png", _shape_image(4097, 8))
-    elif kind == "one":
-        _png(d / "a.png", _shape_image())
-    elif kind == "file":
-        d.rmdir()
-        d.write_text("not a folder")
-    return d
-
-
-@pytest.mark.parametrize("exp,kind,needle", [
-    ("exp4", "empty", "no PNG or JPEG"), ("exp3", "corrupt", "a.png"), ("exp4", "blank", "no shape found"),
-    ("exp3", "huge", "4097 x 8"), ("exp1", "one", "at least 2"), ("exp2", "file", "not a folder"),
-    ("exp4", "missing", "not a folder")])
-def test_bad_stimulus_folders_are_refused_before_training(tmp_path, capsys, no_training, exp, kind, needle):
-    d = tmp_path / "nowhere" if kind == "missing" else _folder(tmp_path, kind)
-    _refused(capsys, _evaluate(tmp_path / "run", f"experiment={exp}", "stimuli=folder", f"stimuli.path={d}"), needle)
 
 
 # ------------------------------------------------------------------------------ checkpoints
@@ -306,13 +192,3 @@ def test_the_pool_refuses_what_is_not_a_run(tmp_path, capsys, make, needle):
     if make == "empty":
         d.mkdir()
     _refused(capsys, lambda: cli.friendly_errors(exp5_pool.main)([str(d)]), needle)
-
-
-# ------------------------------------------------------------------------ the command line
-@pytest.mark.parametrize("args,needle", [(["experiment.stp_deg=1"], "stp_deg"), (["experiment.eta=nan"], "experiment.eta")])
-def test_the_command_line_prints_one_error_line(tmp_path, args, needle):
-    p = subprocess.run([sys.executable, str(ROOT / "train.py"), "experiment=demo", f"hydra.run.dir={tmp_path / 'r'}", *args],
-                       capture_output=True, text=True, cwd=ROOT, timeout=120)
-    assert p.returncode == 2, p.stderr
-    assert [ln for ln in p.stderr.splitlines() if ln.strip()] == [ln for ln in p.stderr.splitlines() if ln.startswith("error:")]
-    assert needle in p.stderr and "Traceback" not in p.stderr

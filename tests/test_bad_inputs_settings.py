@@ -4,10 +4,16 @@ one line that says what was meant. Each refusal: exit 2, one ``error:`` line, no
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
-from support_bad_inputs import composing, evaluating, hydra_reporter, no_training, refused  # noqa: F401 (fixtures)
+from support_bad_inputs import (composing, evaluating, hydra_reporter, no_training, refused,  # noqa: F401 (fixtures)
+                                training)
+
+ROOT = Path(__file__).resolve().parents[1]
 
 SETTING_CASES = [
     (["experiment=exp3", "experiment.train_set=nosuchset"], "experiment.train_set='nosuchset'"),
@@ -87,3 +93,77 @@ def test_key_messages_say_what_was_meant(capsys, hydra_reporter, over, needle, a
 def test_a_misspelt_key_added_with_plus_gets_the_closest_key(tmp_path, capsys, no_training):
     refused(capsys, evaluating(tmp_path / "run", "experiment=exp3", "+experiment.map_sise=3"),
             "experiment.map_sise", "did you mean experiment.map_size?")
+
+
+# ------------------------------------------------- numbers, choices and keys of every experiment
+CONFIG_CASES = [
+    # numbers that are not finite, or out of range
+    (["experiment=exp4", "experiment.noise_amplitude=inf"], "experiment.noise_amplitude"),
+    (["experiment=exp2", "experiment.proprio_gain=nan"], "experiment.proprio_gain"),
+    (["experiment=exp1", "experiment.hebb_eta=nan"], "experiment.hebb_eta"),
+    (["experiment=exp3", "experiment.m1_centre_sigma=inf"], "experiment.m1_centre_sigma"),
+    (["experiment=exp5", "experiment.brain.eta=nan"], "experiment.brain.eta"),
+    (["experiment=demo", "experiment.noise=inf"], "experiment.noise"),
+    (["experiment=exp4", "vision.gamma=nan"], "vision.gamma"),
+    (["experiment=exp4", "experiment.ppc_angles=[0,nan]"], "experiment.ppc_angles"),
+    (["experiment=exp5", "experiment.acquisition.explore_patience=0"], "experiment.acquisition.explore_patience"),
+    (["experiment=exp1", "participants=0"], "participants"),
+    (["experiment=exp3", "seed=-1"], "seed"),
+    (["experiment=exp4", "preset=huge"], "preset"),
+    (["experiment=exp2", "threads=-2"], "threads"),
+    (["experiment=exp5", "experiment.engine.n_jobs=0"], "experiment.engine.n_jobs"),
+    (["experiment=exp4", "experiment.flip_axis=diagonal"], "experiment.flip_axis"),
+    (["experiment=exp3", "experiment.m1_readout=middle"], "experiment.m1_readout"),
+    (["experiment=exp5", "experiment.situations=[nowhere]"], "experiment.situations"),
+    (["experiment=exp4", "logger.kind=wandb"], "logger.kind"),
+    (["experiment=exp1", "vision.kind=laser"], "vision.kind"),
+    (["experiment=demo", "+experiment.stp_deg=3"], "experiment.stp_deg"),
+    (["experiment=exp2", "+experiment.som_eta=0.2"], "it is experiment.som.eta now"),  # an old key added with +
+    (["experiment=exp1", "experiment.field.tau=0"], "experiment.field.tau"),  # a group's own range check
+    (["experiment=exp4", "experiment.fm.batch=0"], "experiment.fm.batch"),
+    # keys that would have no effect in this experiment or with these options
+    (["experiment=exp4", "vision.size=16"], "vision.size"),
+    (["experiment=exp1", "vision.gaze_jitter_deg=1"], "vision.gaze_jitter_deg"),
+    (["experiment=exp4", "stimuli.path=/tmp"], "stimuli.path"),
+    (["experiment=exp5", "participants=3"], "participants"),
+    (["experiment=exp5", "vision.noise_std=5"], "vision.noise_std"),
+    (["experiment=demo", "stimuli=folder", "stimuli.path=/tmp"], "stimuli.kind"),
+    (["experiment=exp4", "logger=none", "logger.map_images=false"], "logger.map_images"),
+    (["experiment=exp3", "experiment.quick.objects=2"], "experiment.quick.objects"),
+    (["experiment=exp4", "preset=quick", "experiment.fm.images=100"], "experiment.fm.images"),
+    (["experiment=exp3", "experiment.m1_sigma=0.3"], "experiment.m1_sigma"),  # not read with the default m1_readout=centre
+    (["experiment=exp4", "experiment.noise_tests=[]", "experiment.noise_amplitude=0.3"], "experiment.noise_amplitude"),
+    (["experiment=exp5", "preset=quick", "experiment.repetitions=5"], "experiment.repetitions"),
+    (["experiment=exp2", "threads=1", "experiment.auto_threads=2"], "experiment.auto_threads"),
+]
+
+
+@pytest.mark.parametrize("over,needle", CONFIG_CASES, ids=[" ".join(o) for o, _ in CONFIG_CASES])
+def test_bad_settings_are_refused_before_any_work(tmp_path, capsys, no_training, over, needle):
+    refused(capsys, evaluating(tmp_path / "run", *over), needle)
+    assert not (tmp_path / "run").exists()  # nothing written
+
+
+def test_checkpoint_is_refused_in_training(tmp_path, capsys, no_training):
+    refused(capsys, training(tmp_path / "run", "experiment=demo", f"checkpoint={tmp_path}"), "checkpoint=")
+
+
+@pytest.mark.parametrize("over,needle", [(["experiment=demo", "experiment.stp_deg=3"], "stp_deg"),
+                                         (["experiment=demo", "seed=abc"], "seed"),
+                                         # a key that moved into a group is refused with its new place
+                                         (["experiment=exp1", "experiment.field_tau=5"], "it is experiment.field.tau now"),
+                                         (["experiment=exp2", "experiment.cluster_sigma=2"], "experiment.som.cluster_sigma"),
+                                         (["experiment=exp3", "experiment.quick_fm_images=9"], "experiment.quick.fm_images"),
+                                         (["experiment=exp4", "experiment.eta_posture=0.2"], "experiment.posture.eta")])
+def test_hydra_composition_errors_are_one_line(capsys, hydra_reporter, over, needle):
+    refused(capsys, composing(*over), needle)
+
+
+# ------------------------------------------------------------------------ the command line
+@pytest.mark.parametrize("args,needle", [(["experiment.stp_deg=1"], "stp_deg"), (["experiment.eta=nan"], "experiment.eta")])
+def test_the_command_line_prints_one_error_line(tmp_path, args, needle):
+    p = subprocess.run([sys.executable, str(ROOT / "train.py"), "experiment=demo", f"hydra.run.dir={tmp_path / 'r'}", *args],
+                       capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert p.returncode == 2, p.stderr
+    assert [ln for ln in p.stderr.splitlines() if ln.strip()] == [ln for ln in p.stderr.splitlines() if ln.startswith("error:")]
+    assert needle in p.stderr and "Traceback" not in p.stderr

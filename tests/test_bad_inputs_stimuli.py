@@ -94,3 +94,40 @@ def test_a_transparent_image_whose_shape_is_in_its_colours_is_used(tmp_path):
     rgba[0, 0, 3] = 0  # transparent in one corner
     Image.fromarray(rgba, "RGBA").save(d / "a.png")
     assert len(load_folder(d).objects) == 1
+
+
+# ------------------------------------------------------ folders: missing, empty, too few shapes
+def _png(path, image):
+    assert cv2.imwrite(str(path), image)
+
+
+def _shape_image(w=64, h=64):
+    img = np.full((h, w, 3), 255, np.uint8)
+    img[h // 4: h // 2, w // 4: 3 * w // 4] = (0, 0, 200)
+    return img
+
+
+def _whole_folder(tmp_path, kind):
+    d = tmp_path / f"stim_{kind}"
+    d.mkdir()
+    if kind == "corrupt":
+        (d / "a.png").write_bytes(os.urandom(300))
+    elif kind == "blank":
+        _png(d / "a.png", np.full((64, 64, 3), 255, np.uint8))
+    elif kind == "huge":
+        _png(d / "a.png", _shape_image(4097, 8))
+    elif kind == "one":
+        _png(d / "a.png", _shape_image())
+    elif kind == "file":
+        d.rmdir()
+        d.write_text("not a folder")
+    return d
+
+
+@pytest.mark.parametrize("exp,kind,needle", [
+    ("exp4", "empty", "no PNG or JPEG"), ("exp3", "corrupt", "a.png"), ("exp4", "blank", "no shape found"),
+    ("exp3", "huge", "4097 x 8"), ("exp1", "one", "at least 2"), ("exp2", "file", "not a folder"),
+    ("exp4", "missing", "not a folder")])
+def test_bad_stimulus_folders_are_refused_before_training(tmp_path, capsys, no_training, exp, kind, needle):
+    d = tmp_path / "nowhere" if kind == "missing" else _whole_folder(tmp_path, kind)
+    refused(capsys, evaluating(tmp_path / "run", f"experiment={exp}", "stimuli=folder", f"stimuli.path={d}"), needle)
