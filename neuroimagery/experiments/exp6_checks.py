@@ -132,9 +132,12 @@ def check_inputs(cfg) -> None:
 def _probe(e, cells) -> None:
     """Render the first training object once, in the general view; refuse when no pixel of it is
     redder than ``red_threshold``."""
+    from ..native import quiet_native_output
     from ..vision import shepard_metzler as sm
     from .exp6 import make_scene
 
+    with quiet_native_output():  # pybullet's banner on import: a refusal stays one line
+        import pybullet  # noqa: F401
     scene = make_scene(e)
     try:
         view = scene.look(sm.centred(cells), sm.pose(None, 0, e.view_tilt_deg, e.view_turn_deg))
