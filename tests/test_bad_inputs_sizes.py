@@ -37,6 +37,9 @@ SIZE_CASES = [  # the cases of the issue, then their neighbours
      "experiment.quick_fm_images=1000000000"),
     (["experiment=exp6", "participants=1", "experiment.fm_memory_mb=100000"], "experiment.fm_memory_mb=100000"),
     (["experiment=exp6", "participants=100000", "preset=quick"], "participants=100000"),
+    (["experiment=exp2", "participants=50"], "participants=50"),  # about 230 MB of weights each
+    (["experiment=exp1", "participants=500"], "participants=500"),
+    (["experiment=demo", "participants=1000000000"], "participants=1000000000"),
 ]
 
 

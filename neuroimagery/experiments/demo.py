@@ -154,3 +154,10 @@ def report(cfg, run, summary) -> None:
     r.figure(run.figures / "rt_by_disparity.png", "Mean RT against disparity", root=run.root)
     r.p(reproducibility_note(cfg.seed) + f" Runtime: {summary['runtime_s']}.")
     r.write(run.report_path)
+
+
+def memory_estimate(cfg):
+    """The weights of every participant (checks before work: neuroimagery.validation)."""
+    from .ch5_checks import weights_estimate
+
+    return weights_estimate(cfg, AngleRotationModel)

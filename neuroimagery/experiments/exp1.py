@@ -22,6 +22,7 @@ from ..thesis import EXP1 as THESIS
 from ..bounds import bounded
 from ..models.params import FieldParams, SomParams, moved_keys
 from ..models.rotation_affordance import AffordanceParams, AffordanceRotationModel
+from .ch5_checks import weights_estimate
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of,
                            record_figures_and_scalars, stimulus_set,
                            to_np, train_and_save, trials_frame)
@@ -256,3 +257,8 @@ def report(cfg, run, summary) -> None:
             "knows the two objects it was trained on: C1 and C2 associate whole edge maps with postures and "
             "images of those objects, so an unseen shape is mapped to whichever trained image it overlaps most "
             "and its 'rotation' replays the trained L. These numbers measure that limit, not a skill."))
+
+
+def memory_estimate(cfg):
+    """The weights of every participant (checks before work: neuroimagery.validation)."""
+    return weights_estimate(cfg, AffordanceRotationModel)

@@ -22,6 +22,7 @@ from ..thesis import EXP2 as THESIS
 from ..bounds import bounded, check_declared
 from ..models.params import FieldParams, SomParams, moved_keys
 from ..models.rotation_motor import ANGLES, MotorRotationModel, MotorRotationParams
+from .ch5_checks import weights_estimate
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of,
                            record_figures_and_scalars, stimulus_set, to_np,
                            train_and_save, trials_frame)
@@ -254,3 +255,8 @@ def report(cfg, run, summary) -> None:
     finish_report(r, cfg, run, summary, ("The model only knows "
             "the two trained objects: C2 can only imagine those, so a user's shape is replaced by the trained L "
             "during rotation. These numbers show that limit."))
+
+
+def memory_estimate(cfg):
+    """The weights of every participant (checks before work: neuroimagery.validation)."""
+    return weights_estimate(cfg, MotorRotationModel)
