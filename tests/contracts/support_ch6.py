@@ -22,6 +22,17 @@ def rule_rate(eta: float = 0.1, active: int = 75, n_in: int = 1024, seed: int = 
     return float((som.weight[0, 1] - w0).abs().sum() / (xs - w0).abs().sum())
 
 
+def forward_fn(trained, move: int):
+    """One forward-model step of ``trained.model`` with the same move for every row of a
+    ``(P or 1, B, units)`` batch (the shape probes of X3.7 / X4.6)."""
+    m, P = trained.model, trained.model.participants
+
+    def fn(x):
+        x = x.expand(P, -1, -1) if x.shape[0] == 1 else x
+        return m.forward_step(x, torch.full(x.shape[:2], move, dtype=torch.long))
+    return fn
+
+
 def banks_maps(bank) -> torch.Tensor:
     return bank.maps
 

@@ -2,25 +2,16 @@
 of PP_2 with PFC_1 (C7-C9)."""
 import pytest
 import torch
-from support_ch6 import forward_model_shape, item_rows
+from support_ch6 import forward_fn, forward_model_shape, item_rows
 
 from neuroimagery.vision.edges import rotate
-
-
-def _step(t, move):
-    m, P = t.model, t.model.participants
-
-    def fn(x):
-        x = x.expand(P, -1, -1) if x.shape[0] == 1 else x
-        return m.forward_step(x, torch.full(x.shape[:2], move, dtype=torch.long))
-    return fn
 
 
 def test_x3_7_forward_model_keeps_the_shape(trained3):
     e = trained3.e
     for name in (e.train_set, e.gen1_set):
         for move, sign in ((2, 1.0), (0, -1.0)):
-            r = forward_model_shape(_step(trained3, move), trained3.bank(name).maps, sign * e.step_deg, e.map_size)
+            r = forward_model_shape(forward_fn(trained3, move), trained3.bank(name).maps, sign * e.step_deg, e.map_size)
             print(f"X3.7 {name} move {move}: {r}")
             assert r[1][1] >= 0.6
             assert 0.8 <= r["ratio"] <= 1.25

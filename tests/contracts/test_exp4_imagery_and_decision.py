@@ -1,26 +1,17 @@
 """Experiment 4 contracts X4.6-X4.10 (docs/contracts.md): the forward models, the matching of
 POCp with the target and the flipped target (C10), the accumulator's gain and the time-outs."""
 import torch
-from support_ch6 import forward_model_shape, item_rows
+from support_ch6 import forward_fn, forward_model_shape, item_rows
 
 from neuroimagery.experiments import exp4
 from neuroimagery.vision.edges import iou, rotate
-
-
-def _step(t, move):
-    m, P = t.model, t.model.participants
-
-    def fn(x):
-        x = x.expand(P, -1, -1) if x.shape[0] == 1 else x
-        return m.forward_step(x, torch.full(x.shape[:2], move, dtype=torch.long))
-    return fn
 
 
 def test_x4_6_forward_models_keep_the_shape(trained4):
     e = trained4.e
     for name in (e.train_set, e.gen1_set):
         for move, angle in ((0, e.step_deg), (2, -e.step_deg)):
-            r = forward_model_shape(_step(trained4, move), trained4.bank(name).maps, angle, e.map_size)
+            r = forward_model_shape(forward_fn(trained4, move), trained4.bank(name).maps, angle, e.map_size)
             print(f"X4.6 {name} move {move}: {r}")
             assert r[1][1] >= 0.6
             assert 0.8 <= r["ratio"] <= 1.25
@@ -60,7 +51,7 @@ def test_x4_8_flipped_target_is_the_mirror(trained4):
     assert v >= 0.5 and more >= 0.9
 
 
-def test_x4_9_mean_identical_overlap_decides_within_one_step(trained4):
+def test_x4_9_mean_identical_overlap_decides_within_oneforward_fn(trained4):
     m, e = trained4.model, trained4.e
     ev = m.identical_evidence  # (P, 2) mean PFCtm / PFCfm fractions of identical 0-deg set-A pairs
     gain = m.input_gain.unsqueeze(-1)
