@@ -38,7 +38,7 @@ SETTING_CASES = [
      "pixel"),
     (["experiment=exp6", "participants=1", "experiment.cube_voxels=1000"], "experiment.cube_voxels=1000"),
     (["experiment=exp6", "participants=1", "experiment.cube_voxels=2.5"], "scale rule"),
-    (["experiment=exp6", "participants=1", "experiment.fm_memory_mb=0.01"], "experiment.fm_memory_mb=0.01"),
+    (["experiment=exp6", "participants=1", "experiment.fm.memory_mb=0.01"], "experiment.fm.memory_mb=0.01"),
     (["experiment=exp6", "participants=1", "experiment.grid=7"], "experiment.grid"),
     (["experiment=exp1", "experiment.som.method=fast"], "experiment.som.method must be one of"),
     (["experiment=exp2", "experiment.som.eta=1.5"], "experiment.som.eta must be in (0, 1]"),
@@ -72,7 +72,9 @@ def test_the_objects_the_generator_cannot_find_are_refused_before_training(tmp_p
 
 
 MESSAGE_CASES = [  # keys: misspelt, moved, or an experiment's own key with a bad value
-    (["experiment=exp6", "experiment.posture_iterations=abc"], "experiment.posture_iterations", "has moved"),
+    (["experiment=exp6", "experiment.max_steps=abc"], "experiment.max_steps", "has moved"),
+    (["experiment=exp6", "experiment.posture_iterations=5"], "experiment.posture_iterations is no longer a setting", None),
+    (["experiment=exp6", "experiment.eta_fm=0.2"], "it is experiment.fm.eta now", None),
     (["experiment=exp3", "experiment.map_sise=3"], "did you mean experiment.map_size?", None),
     (["experiment=exp3", "experiment.fm.imges=3"], "did you mean experiment.fm.images?", None),
     (["experiment=exp4", "participans=3"], "did you mean participants?", None),

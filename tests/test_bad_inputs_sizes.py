@@ -33,9 +33,9 @@ SIZE_CASES = [  # the cases of the issue, then their neighbours
     (["experiment=exp3", "participants=100000"], "participants=100000"),
     (["experiment=exp6", "preset=quick", "participants=1", "experiment.grid=400"], "experiment.grid=400"),
     (["experiment=exp6", "participants=1", "experiment.test_objects=10000000"], "experiment.test_objects=10000000"),
-    (["experiment=exp6", "preset=quick", "participants=1", "experiment.quick_fm_images=1000000000"],
-     "experiment.quick_fm_images=1000000000"),
-    (["experiment=exp6", "participants=1", "experiment.fm_memory_mb=100000"], "experiment.fm_memory_mb=100000"),
+    (["experiment=exp6", "preset=quick", "participants=1", "experiment.quick.chains=1000000000"],
+     "experiment.quick.chains=1000000000"),
+    (["experiment=exp6", "participants=1", "experiment.fm.memory_mb=100000"], "experiment.fm.memory_mb=100000"),
     (["experiment=exp6", "participants=100000", "preset=quick"], "participants=100000"),
     (["experiment=exp2", "participants=50"], "participants=50"),  # about 230 MB of weights each
     (["experiment=exp1", "participants=500"], "participants=500"),

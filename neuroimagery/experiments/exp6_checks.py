@@ -2,11 +2,11 @@
 memory its settings need (:func:`memory_estimate`) and whether the eye can see the objects and
 the map can hold them (:func:`check_inputs`).
 
-The estimate (float32, per participant times ``participants``): the forward models (7 local
-connections on the ``G^3`` voxel map, ``rotation_3d.fm_bytes``), the six posture maps (``units x
-G^3`` each), the dot images of training (3 voxel indices each, int64) and the bank of test maps
-(every test view of every test object, ``G^3`` each). It leaves out smaller arrays, so it is a
-lower bound of the peak.
+The estimate (float32): the forward models (6 local connections on the ``G^3`` voxel map per
+participant, ``rotation_3d.fm_bytes``), the chain views the completion map learns from (surface
+and whole-volume codes, once, and in each participant's order) and the bank of test images (every
+test view of every test object, ``G^3`` each, per participant). It leaves out smaller arrays, so
+it is a lower bound of the peak.
 
 Placement rules (fixed before they were checked, from the scene's geometry): the object, a ball of
 radius ``rho`` cube edges around its centre, must lie between the eye camera's clipping planes
@@ -45,35 +45,32 @@ def _test_objects(cfg) -> tuple[str, int]:
     if e.test_set == "train":
         return "experiment.train_objects", int(e.train_objects)
     if cfg.preset == "quick":
-        return "experiment.quick_objects", int(e.quick_objects)
+        return "experiment.quick.objects", int(e.quick.objects)
     return "experiment.test_objects", int(e.test_objects)
 
 
 def memory_estimate(cfg) -> list[Need]:
-    """The bytes of the forward models, posture maps, training dots and test maps."""
+    """The bytes of the forward models, the chain views and the test images."""
     from ..models.rotation_3d import fm_bytes
 
     e, P = cfg.experiment, int(cfg.participants)
     G = _grid(e)
-    if G is None:  # fm_memory_mb holds no grid: check_inputs names it
+    if G is None:  # fm.memory_mb holds no grid: check_inputs names it
         return []
     vox = float(G) ** 3
-    gkey = {"experiment.grid" if e.grid is not None else "experiment.fm_memory_mb":
-            (G, 18) if e.grid is not None else (float(e.fm_memory_mb), 24.0)}
-    nu = len(e.posture_angles)
-    n_img = int(e.quick_fm_images if cfg.preset == "quick" else e.fm_images)
-    ikey = "experiment.quick_fm_images" if cfg.preset == "quick" else "experiment.fm_images"
+    gkey = {"experiment.grid" if e.grid is not None else "experiment.fm.memory_mb":
+            (G, 18) if e.grid is not None else (float(e.fm.memory_mb), 20.0)}
+    n_chain = int(e.quick.chains if cfg.preset == "quick" else e.image.chains)
+    ckey = "experiment.quick.chains" if cfg.preset == "quick" else "experiment.image.chains"
     tkey, n_test = _test_objects(cfg)
-    views = 2 * len(e.tests) * len(e.test_angles)
+    views = 2 * len(e.tests) * max(len(e.test_angles), len(e.oblique_angles))
     who = {**gkey, "participants": (P, 10)}
     return [
-        Need(culprit(who), float(fm_bytes(G, e.step_deg)) * P, f"forward models, {P} x 7 on a {G}^3 map"),
-        Need(culprit({**who, "experiment.posture_angles": (nu, 10)}), 6.0 * P * nu * vox * FLOAT,
-             f"posture maps, {P} x 6 x {nu} units x {G}^3"),
-        Need(culprit({"participants": (P, 10), ikey: (n_img, 84000)}), 2.0 * P * n_img * 3 * 8,
-             f"training dots, {P} x {n_img} images"),
-        Need(culprit({**gkey, tkey: (n_test, 5)}), float(n_test) * views * vox * FLOAT,
-             f"test maps, {n_test} objects x {views} views x {G}^3"),
+        Need(culprit(who), float(fm_bytes(G, e.step_deg)) * P, f"forward models, {P} x 6 on a {G}^3 map"),
+        Need(culprit({**who, ckey: (n_chain, 1200)}), 4.0 * (P + 2) * n_chain * vox * FLOAT,
+             f"chain views for the completion map, {n_chain} x {G}^3, in {P} orders"),
+        Need(culprit({**who, tkey: (n_test, 5)}), float(P) * n_test * views * vox * FLOAT,
+             f"test images, {P} x {n_test} objects x {views} views x {G}^3"),
     ]
 
 
@@ -97,7 +94,7 @@ def check_inputs(cfg) -> None:
     e = cfg.experiment
     G = _grid(e)
     if G is None:
-        raise UserInputError(f"experiment.fm_memory_mb={e.fm_memory_mb:g} holds no voxel grid: the smallest "
+        raise UserInputError(f"experiment.fm.memory_mb={e.fm.memory_mb:g} holds no voxel grid: the smallest "
                              f"(8^3) needs {fm_bytes(8, e.step_deg) / 1e6:.2f} MB per participant")
     built = _objects(e)
     shown = list(built) + [np.asarray(c, float) for c in (e.test_cubes or [])]

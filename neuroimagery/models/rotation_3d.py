@@ -1,32 +1,50 @@
-"""Experiment 6 model: the Experiment 4 network (thesis 6.2, Fig. 6.7) carried into three dimensions.
+"""Experiment 6 model: search, transform, confirm (after Just & Carpenter, 1976), built from the
+maps and connections of the thesis's Experiment 4 network carried into three dimensions.
 
-Maps, batched over participants ``P`` and trials (flat rows): POCi / POCp and the per-move
-candidates (``G^3`` voxel maps), PFCt / PFCft (target and its reflection), PFCtm / PFCfm (their
-overlap with POCp), PPCp_a / PPCt_a (wrist posture per axis a = x, y, z), PPCc_a (gain fields,
-eq. 6.9), PMCm (7 moves: still, -step/+step about x, y, z; eq. 6.10-6.11), PMCd (leaky competing
-accumulator, eq. 6.12-6.13).
+Stages (docs/exp6.md):
 
-Connections: the forward models FM_m (:class:`~neuroimagery.nn.local.LocalConnection`, delta rule
-eq. 6.4), C16_a / C17_a (supervised Kohonen SOMs, eq. 6.14-6.16), C20 hard-wired (PPCc -> PMCm),
-C10 hard-wired (principal-plane reflection of the target map), the rest fixed relays.
+1. **Image** -- a view's surface map (binary voxels) is put into the graded population code
+   (:mod:`~neuroimagery.models.voxel_code`); the completion map C_fill (a connection with
+   receptive fields along the line of sight, delta rule) fills in the hidden cubes; the result is
+   centred on its centre of activity. POCi holds the comparison image, PFCt the target's.
+2. **Transform** -- six forward models FM_m (local receptive fields, delta rule on graded dots at
+   sub-voxel positions), one per move (+-step about the camera axes x, y, z); PMCm gates them.
+3. **Search** -- the rotation still required is estimated from a correspondence between the two
+   images: each image's principal axes, learnt by Sanger's rule in a fast 3x3 connection (C_axes),
+   are matched, and a coarse comparison chooses among their sign combinations
+   (``search.method='axes'``; ``'sweep'``: the best of turns about the camera axes). PPCt codes
+   the required rotation as a rotation vector, one population of units per camera axis; PPCp
+   codes the rotation done so far, integrated from each step's efference copy, and the wrist
+   signal of the proprioception conditions joins it there. Per axis a gain field PPCt x PPCp and
+   the hard-wired C20 choose the move (eq. 6.9-6.11); "still" ends the transform.
+4. **Confirm** -- once the transform stops, PMCd (leaky competing accumulator, eq. 6.12-6.13)
+   takes YES evidence from the cosine of the turned image with the target and NO evidence from
+   the largest cluster of mismatching voxels, in cubes; the cut between the two is fixed on the
+   training objects (:meth:`Rotation3D.fit_confirm`).
+
+``strategy='parity'`` (an ablation) skips the transform: the handedness of the matched principal
+axes (the best of all eight sign combinations proper or not) decides at once.
 """
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Sequence
 
 import torch
 from torch import nn
 
-from ..nn import Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM
+from ..nn import Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, Sanger
+from ..nn.connections import Connection
 from ..nn.functional import gain_field, softmax_select
 from ..nn.local import LocalConnection, offset_count
-from . import voxels
-from .rotation_embodied import check_proprioception, lca_gain  # the same evidence scale and wrist conditions as Exp 4
+from . import voxel_code as vc
+from .rotation_embodied import check_proprioception
 
 AXES = ("x", "y", "z")
 WRIST_AXIS = "z"  # the line of sight: the axis the wrist turns the held object about (as in Exp 4)
 MOVES = ("still",) + tuple(f"{a}{s}" for a in AXES for s in ("-", "+"))  # PMCm units
+SIGNS = [torch.tensor(s, dtype=torch.float64) for s in itertools.product((1.0, -1.0), repeat=3)]
 
 
 def move_angles(step: float) -> list[tuple[str | None, float]]:
@@ -40,26 +58,33 @@ def receptive_radius(side: int, step_deg: float) -> int:
     return int(math.ceil(2.0 * r * math.sin(math.radians(step_deg) / 2.0) - 1e-9))
 
 
-def fm_bytes(side: int, step_deg: float, moves: int = len(MOVES)) -> int:
+def fm_bytes(side: int, step_deg: float, moves: int = len(MOVES) - 1) -> int:
     """Bytes of the forward models of one participant (float32)."""
     return moves * side ** 3 * offset_count(receptive_radius(side, step_deg)) * 4
 
 
-def grid_for_budget(budget_mb: float, step_deg: float, moves: int = len(MOVES)) -> int:
+def grid_for_budget(budget_mb: float, step_deg: float, moves: int = len(MOVES) - 1) -> int:
     """The largest even grid side in [8, 64] whose forward models fit ``budget_mb`` per participant."""
     best = None
     for g in range(8, 65, 2):
         if fm_bytes(g, step_deg, moves) <= budget_mb * 1e6:
             best = g
     if best is None:
-        raise ValueError(f"experiment.fm_memory_mb = {budget_mb} holds no grid of side >= 8")
+        raise ValueError(f"experiment.fm.memory_mb = {budget_mb} holds no grid of side >= 8")
     return best
+
+
+def fill_offsets(depth: int) -> torch.Tensor:
+    """Receptive field of C_fill ``(K, 3)`` (z, y, x): the voxels in front of a voxel along the line of
+    sight (dz = -1 .. depth toward the eye) and their 8 lateral neighbours."""
+    r = torch.arange(-1, 2)
+    return torch.tensor([(dz, dy, dx) for dz in range(-1, depth + 1) for dy in r.tolist() for dx in r.tolist()])
 
 
 def c20_weights(units: int, axes: int = len(AXES)) -> torch.Tensor:
     """Hard-wired PPCc -> PMCm weights ``(1 + 2 axes, axes * units^2)``: per axis the upper triangle
-    (current angle larger than the target; rows = PPCt, columns = PPCp) to that axis's -step unit,
-    the lower triangle to +step, each diagonal with weight 1/axes to "still"."""
+    (done so far larger than required; rows = PPCt, columns = PPCp) to that axis's -step unit, the
+    lower triangle to +step, each diagonal with weight 1/axes to "still"."""
     r = torch.arange(units).view(units, 1).expand(units, units)
     c = torch.arange(units).view(1, units).expand(units, units)
     upper, lower, diag = (r < c).float().reshape(-1), (r > c).float().reshape(-1), (r == c).float().reshape(-1)
@@ -73,147 +98,287 @@ def c20_weights(units: int, axes: int = len(AXES)) -> torch.Tensor:
 
 
 class Rotation3D(nn.Module):
-    """The Experiment 6 network for ``P`` participants (``generators``: one per participant)."""
+    """The Experiment 6 network for ``P`` participants (``generators``: one per participant).
 
-    def __init__(self, p, side: int, generators: Sequence[torch.Generator]) -> None:
+    ``p``: the experiment config (groups ``image``, ``fm``, ``search``, ``lca``, ``confirm`` and the
+    top-level ``step_deg``, ``ppc_sigma``, ``softmax_tau``, ``max_steps``, ``proprio_gain``,
+    ``strategy``); ``cube_voxels``: voxels per cube edge (the unit of the mismatch cluster)."""
+
+    def __init__(self, p, side: int, generators: Sequence[torch.Generator], cube_voxels: float) -> None:
         super().__init__()
         self.p, self.side, self.n = p, int(side), int(side) ** 3
+        self.cube_voxels = float(cube_voxels)
         self.radius = receptive_radius(side, p.step_deg)
         self.moves = move_angles(float(p.step_deg))
-        self.fm = nn.ModuleList([LocalConnection(side, self.radius, generators, init=(0.0, p.init_high),
-                                                 rules=Delta(p.eta_fm), name=f"FM_{m}") for m in MOVES])
-        nu = len(p.posture_angles)
-        kw = dict(shape=(nu,), n_in=self.n, generators=generators, init=(0.0, p.init_high), eta=p.eta_posture,
-                  sigma=p.posture_sigma, eta_final=p.eta_posture, sigma_final=p.posture_sigma,
-                  iterations=p.posture_iterations, supervised=True, readout="dot")
-        self.c16 = nn.ModuleList([SOM(name=f"C16_{a}", **kw) for a in AXES])
-        self.c17 = nn.ModuleList([SOM(name=f"C17_{a}", **kw) for a in AXES])
-        for som in (*self.c16, *self.c17):  # eq. 6.16's unit-sum normalisation belongs to the dot read-out
-            som.rule.normalise = p.posture_readout == "dot"
-        self.ppc = PopulationMap("PPC", (nu,), 0.0, float(nu - 1), sigma=p.ppc_sigma)
+        init = (0.0, p.init_high)
+        self.fill = LocalConnection(side, 0, generators, init=init, rules=Delta(p.image.eta), name="C_fill",
+                                    offset_set=fill_offsets(p.image.fill_depth))
+        self.fm = nn.ModuleList([LocalConnection(side, self.radius, generators, init=init, rules=Delta(p.fm.eta),
+                                                 name=f"FM_{m}") for m in MOVES[1:]])
+        # initial weights of the fast principal-axes connection, one draw per participant
+        self.register_buffer("axes_init", torch.stack([torch.linalg.qr(torch.randn(3, 3, generator=g, dtype=torch.float64))[0]
+                                                       for g in generators]))
+        nu = int(round(360.0 / p.step_deg)) + 1  # units every step from -180 to 180 deg
+        self.ppc = PopulationMap("PPC", (nu,), -180.0, 180.0, sigma=p.ppc_sigma * 360.0 / (nu - 1))
         self.c20 = HardWired(c20_weights(nu), name="C20")
-        self.pmcd = LeakyCompetingAccumulator(2, k=p.lca_k, w=p.lca_w, threshold=p.lca_threshold, dt=p.lca_dt)
+        self.pmcd = LeakyCompetingAccumulator(2, k=p.lca.k, w=p.lca.w, threshold=p.lca.threshold, dt=p.lca.dt)
+        P = len(generators)
+        self.register_buffer("cut", torch.full((P,), float("nan")))  # cubes: the mismatch cluster's cut (fit_confirm)
+        self.register_buffer("match_ref", torch.full((P,), float("nan")))  # the training same pairs' mean match
 
     @property
     def participants(self) -> int:
         return self.fm[0].weight.shape[0]
 
-    # ------------------------------------------------------------------ pieces
-    def predict(self, x: torch.Tensor, move: torch.Tensor, part: torch.Tensor) -> torch.Tensor:
-        """POCi rows ``(R, n)`` -> POCp: the forward model of each row's move, units over 0.5."""
-        out = torch.zeros_like(x)
+    # ------------------------------------------------------------------ stage 1: the image
+    def encode(self, occ: torch.Tensor) -> torch.Tensor:
+        """The graded population code of binary surface maps ``(..., n)``."""
+        return vc.graded(occ, self.side, self.p.image.sigma)
+
+    def complete(self, code: torch.Tensor, part: torch.Tensor) -> torch.Tensor:
+        """C_fill on graded rows ``(R, n)``: the hidden parts filled in (activity cut to [0, 1])."""
+        if self.p.image.fill_depth < 0:
+            return code
+        return self.fill.net_rows(code, part).clamp(0.0, 1.0)
+
+    def image(self, occ: torch.Tensor, part: torch.Tensor) -> torch.Tensor:
+        """Surface maps ``(R, n)`` -> the model's image: coded, completed, centred."""
+        return vc.recentre(self.complete(self.encode(occ), part), self.side)
+
+    @torch.no_grad()
+    def fit_completion(self, surface: torch.Tensor, whole: torch.Tensor, batch: int) -> None:
+        """Delta rule of C_fill: graded surface codes ``(P, N, n)`` -> graded whole-volume codes."""
+        for s in range(0, surface.shape[1], batch):
+            self.fill.learn(pre=surface[:, s:s + batch], target=whole[:, s:s + batch])
+
+    # ------------------------------------------------------------------ stage 2: the transform
+    def step(self, x: torch.Tensor, move: torch.Tensor, part: torch.Tensor) -> torch.Tensor:
+        """One move per row of images ``(R, n)`` (0 = still: unchanged), activity cut to [0, 1]."""
+        out = x.clone()
         for m, conn in enumerate(self.fm):
-            sel = (move == m).nonzero().squeeze(-1)
+            sel = (move == m + 1).nonzero().squeeze(-1)
             if sel.numel():
-                out[sel] = (conn.net_binary(x[sel], part[sel]) + 1.0 > 1.5).float()
+                out[sel] = conn.net_rows(x[sel], part[sel]).clamp(0.0, 1.0)
         return out
 
-    def postures(self, soms, x: torch.Tensor, part: torch.Tensor) -> torch.Tensor:
-        """Winning posture unit per axis of rows ``x`` -> ``(R, axes)``: ``posture_readout='dot'`` the
-        arg-max of ``W x`` (eq. 6.14), ``'distance'`` the prototype nearest in Euclidean distance."""
+    @torch.no_grad()
+    def fit_forward_models(self, move: int, x: torch.Tensor, y: torch.Tensor) -> None:
+        """Delta rule (eq. 6.4) of forward model ``move`` (1..6, :data:`MOVES`) on one batch of
+        graded images ``x`` ``(P, B, n)`` and their turned versions ``y``."""
+        self.fm[move - 1].learn(pre=x, target=y)
+
+    # ------------------------------------------------------------------ stage 3: the search
+    def principal_axes(self, maps: torch.Tensor, part: torch.Tensor) -> torch.Tensor:
+        """Principal axes ``(R, 3, 3)`` (rows, by decreasing spread) of images ``(R, n)``, learnt by
+        Sanger's rule in a fast 3x3 connection from the images' active voxel positions. The batch
+        update over all voxels (weighted by activity) equals the update over the three columns of
+        the Cholesky factor of their second moments, which the hook is given to save work."""
+        C = vc.second_moment(maps.double(), self.side)
+        L = torch.linalg.cholesky(C + 1e-9 * torch.eye(3, dtype=C.dtype))
+        samples = (L * math.sqrt(3.0)).transpose(1, 2)  # (R, 3, 3): sum_b x_b x_b^T / 3 = C
+        conn = Connection(3, 3, self.axes_init[part].clone(), rules=Sanger(self.p.search.eta), name="C_axes")
+        conn.train()
+        for _ in range(self.p.search.iterations):
+            conn.learn(samples)
+        W = conn.weight
+        return W / W.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+
+    def coarse_points(self, maps: torch.Tensor):
+        """A coarse code of images: activity pooled over blocks of ``search.coarse`` voxels,
+        as (positions ``(c, 3)``, weights ``(R, c)``)."""
+        k, side = self.p.search.coarse, self.side
+        v = maps.double().reshape(-1, 1, side, side, side)
+        pooled = torch.nn.functional.avg_pool3d(v, k, stride=k, ceil_mode=True)
+        m = pooled.shape[-1]
+        cz = (torch.arange(m, dtype=torch.float64) * k + (min(k, side) - 1) / 2.0) - (side - 1) / 2.0
+        z, y, x = torch.meshgrid(cz, cz, cz, indexing="ij")
+        pos = torch.stack([x.reshape(-1), y.reshape(-1), z.reshape(-1)], -1)
+        return pos, pooled.reshape(maps.shape[0], -1)
+
+    def coarse_match(self, target: torch.Tensor, comp: torch.Tensor, R: torch.Tensor) -> torch.Tensor:
+        """Coarse comparison ``(R_rows,)``: overlap of the coarse target with the coarse comparison
+        image whose positions are turned by ``R`` ``(rows, 3, 3)`` (Gaussian of one cube edge)."""
+        pos, wt = self.coarse_points(target)
+        _, wc = self.coarse_points(comp)
+        s2 = 2.0 * self.cube_voxels ** 2
         out = []
-        for som in soms:
-            W = som.weight  # (P, units, n)
-            score = torch.einsum("rn,run->ru", x, W[part])
-            if self.p.posture_readout == "distance":
-                score = score - 0.5 * (W * W).sum(-1)[part]  # arg-max of x.w - |w|^2 / 2 = arg-min |x - w|
-            out.append(score.argmax(-1))
-        return torch.stack(out, -1)
+        for lo in range(0, target.shape[0], 64):
+            hi = min(lo + 64, target.shape[0])
+            turned = torch.einsum("rij,cj->rci", R[lo:hi], pos)  # (r, c, 3)
+            d2 = ((pos.view(1, -1, 1, 3) - turned.unsqueeze(1)) ** 2).sum(-1)  # (r, c_t, c_c)
+            out.append(torch.einsum("rt,rtc,rc->r", wt[lo:hi], torch.exp(-d2 / s2), wc[lo:hi]))
+        return torch.cat(out)
 
-    def ppc_code(self, units: torch.Tensor, proprioception: str = "none") -> torch.Tensor:
-        """Gaussian bumps ``(R, axes, nu)`` around the winners ``(R, axes)``, plus the wrist signal.
+    def search(self, target: torch.Tensor, comp: torch.Tensor, part: torch.Tensor, proper: bool = True):
+        """The rotation still required ``(R, 3, 3)`` (turns the comparison image onto the target)
+        and whether the best correspondence was proper (a rotation) or improper (a reflection)."""
+        if self.p.search.method == "sweep":
+            return self._sweep(target, comp), torch.ones(target.shape[0], dtype=torch.bool)
+        Et, Ec = self.principal_axes(target, part), self.principal_axes(comp, part)
+        cands, dets = [], []
+        for s in SIGNS:
+            R = Et.transpose(1, 2) @ torch.diag(s) @ Ec  # comparison coordinates -> target coordinates
+            cands.append(R)
+            dets.append(torch.linalg.det(R))
+        scores = torch.stack([self.coarse_match(target, comp, R) for R in cands], -1)  # (rows, 8)
+        det = torch.stack(dets, -1)
+        if proper:
+            scores = torch.where(det > 0, scores, torch.full_like(scores, -math.inf))
+        best = scores.argmax(-1)
+        Rb = torch.stack(cands, 1)[torch.arange(target.shape[0]), best]
+        return Rb, det[torch.arange(target.shape[0]), best] > 0
 
-        The wrist turns about the line of sight (:data:`WRIST_AXIS`), as the Exp 4 hand turns in the
-        picture plane: ``match`` adds ``proprio_gain`` times a bump on that axis's winner,
-        ``mismatch`` on the opposite unit ``nu - 1 - j``; summed with the image-derived bump, then
-        cut to [0, 1] (Exp 4's ``proprio_stage='visual'``).
-        """
+    def _sweep(self, target: torch.Tensor, comp: torch.Tensor) -> torch.Tensor:
+        """The option ``search.method='sweep'``: the best of the turns about each camera axis by each
+        multiple of the step (coarse comparison)."""
+        cands = [torch.eye(3, dtype=torch.float64)]
+        k = int(round(360.0 / self.p.step_deg))
+        for a in AXES:
+            cands += [vc.axis_rotation(a, j * self.p.step_deg) for j in range(1, k)]
+        R = torch.stack(cands)
+        scores = torch.stack([self.coarse_match(target, comp, r.expand(target.shape[0], 3, 3)) for r in R], -1)
+        return R[scores.argmax(-1)]
+
+    def ppc_code(self, vec: torch.Tensor, proprioception: str = "none", wrist: torch.Tensor | None = None) -> torch.Tensor:
+        """Population codes ``(R, 3, nu)`` of rotation vectors ``(R, 3)`` (deg per camera axis), plus
+        the wrist signal on the line-of-sight axis: ``match`` a bump on the wrist's relative
+        rotation ``wrist`` (the turn done so far), ``mismatch`` on its opposite; summed, cut to
+        [0, 1] (Exp 4's ``proprio_stage='visual'``)."""
         check_proprioception(proprioception)
-        code = self.ppc.encode(units.float())
+        code = self.ppc.encode(vec.float().clamp(-180.0, 180.0).unsqueeze(-1)).reshape(vec.shape[0], 3, -1)
         if proprioception == "none":
             return code
-        a, nu = AXES.index(WRIST_AXIS), code.shape[-1]
-        j = units[:, a] if proprioception == "match" else nu - 1 - units[:, a]
-        code[:, a] = (code[:, a] + self.p.proprio_gain * self.ppc.encode(j.float())).clamp(0.0, 1.0)
+        a = AXES.index(WRIST_AXIS)
+        w = wrist if proprioception == "match" else -wrist
+        bump = self.ppc.encode(w.float().clamp(-180.0, 180.0).unsqueeze(-1)).reshape(vec.shape[0], -1)
+        code[:, a] = (code[:, a] + self.p.proprio_gain * bump).clamp(0.0, 1.0)
         return code
 
     def select(self, ppct: torch.Tensor, ppcp: torch.Tensor, uniforms: torch.Tensor) -> torch.Tensor:
         """PMCm move per row from the per-axis gain fields (eq. 6.9-6.11)."""
         R, A, nu = ppct.shape
-        ppcc = torch.stack([gain_field(ppct[:, a], ppcp[:, a]) for a in range(A)], 1)  # (R, A, nu, nu)
+        ppcc = torch.stack([gain_field(ppct[:, a], ppcp[:, a]) for a in range(A)], 1)
         am = self.c20(ppcc.reshape(R, A * nu * nu))
         return softmax_select(am, self.p.softmax_tau, uniforms=uniforms)
 
+    # ------------------------------------------------------------------ stage 4: confirm
+    def mismatch(self, turned: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(match: cosine of the turned image with the target, largest mismatch cluster in cubes). The
+        mismatch map keeps the voxels where the two differ by more than ``confirm.level`` and that
+        lie in a fully mismatched block of ``ceil(cube_voxels - 1)`` voxels a side (an opening: a thin
+        shell of misalignment is no missing part)."""
+        diff = ((turned - target).abs() > self.p.confirm.level).float()
+        block = max(1, int(math.ceil(self.cube_voxels - 1.0)))
+        diff = vc.opening(diff, self.side, block)
+        cubes = vc.largest_cluster(diff, self.side).double() / self.cube_voxels ** 3
+        return vc.cosine(turned, target), cubes
+
+    @torch.no_grad()
+    def fit_confirm(self, cubes: torch.Tensor, match: torch.Tensor, same: torch.Tensor) -> None:
+        """The rule fixing the cut on the training objects' pairs after alignment (per participant):
+        ``cubes``, ``match`` ``(P, N)`` measured by :meth:`align`; ``same`` ``(N,)`` whether each pair
+        shows the same object. The cut is the one that puts most pairs on their side (the midpoint
+        of the widest such interval); the reference match is the same pairs' mean match."""
+        for k in range(cubes.shape[0]):
+            c = cubes[k].double()
+            vals = torch.unique(c)
+            edges = torch.cat([vals[:1] - 1.0, (vals[1:] + vals[:-1]) / 2, vals[-1:] + 1.0])
+            acc = torch.stack([((c > e) == ~same).double().mean() for e in edges])
+            best = torch.nonzero(acc == acc.max()).squeeze(-1)
+            self.cut[k] = float(edges[best].median()) if len(best) % 2 else float(edges[best[len(best) // 2 - 1: len(best) // 2 + 1]].mean())
+            self.match_ref[k] = float(match[k][same].double().mean())
+
+    def evidence(self, match: torch.Tensor, cubes: torch.Tensor, part: torch.Tensor) -> torch.Tensor:
+        """PMCd input ``(R, 2)``: YES = gain x match, NO = gain x reference match x cluster / cut."""
+        gain = lca_gain(self.p.lca)
+        no = self.match_ref[part].double() * cubes / self.cut[part].double().clamp_min(1e-6)
+        return (gain * torch.stack([match.double(), no], -1)).float()
+
     # ------------------------------------------------------------------ trials
     @torch.no_grad()
-    def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record: int = 0,
-            proprioception: str = "none") -> dict:
-        """Trials ``(P, B, n)`` of binary 3-D maps; randomness from ``generators`` (one per participant,
-        one ``(B,)`` draw per step in a fixed order, so a result does not depend on the batch).
-        ``record``: leading trials of participant 0 whose maps are returned per step;
-        ``proprioception``: the wrist signal on PPCp (:meth:`ppc_code`)."""
+    def align(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int = 0,
+              proprioception: str = "none") -> dict:
+        """Search and transform for images ``(P, B, n)`` (already coded, completed and centred):
+        the turned comparison images, steps, net rotation, the required rotation, history."""
         p = self.p
         P, B, n = target.shape
-        check_proprioception(proprioception)  # before any work
         if len(generators) != P:
             raise ValueError(f"{len(generators)} generators for {P} participants")
         Q = P * B
         part = torch.arange(P).repeat_interleave(B)
-        pfct = target.reshape(Q, n)
-        pfct_near = voxels.dilate(pfct, self.side, p.match_radius)
-        pfcft = voxels.principal_reflection(pfct, self.side)  # C10
-        pfcft_near = voxels.dilate(pfcft, self.side, p.match_radius)
-        t_count = pfct.sum(-1)
-        ppct = self.ppc_code(self.postures(self.c17, pfct, part))  # (Q, A, nu)
-        gain = lca_gain(p)
-
-        def evidence(rows, pocp):
-            tm = pocp * pfct_near[rows]
-            fm = pocp * pfcft_near[rows]
-            size = torch.maximum(t_count[rows], pocp.sum(-1)).clamp_min(1.0).unsqueeze(-1)
-            return gain * torch.stack([tm.sum(-1), fm.sum(-1)], -1) / size, tm, fm
-
-        winner = torch.full((Q,), -1, dtype=torch.long)
-        rt = torch.zeros(Q, dtype=torch.long)
+        pfct, poci = target.reshape(Q, n), comp.reshape(Q, n)
+        required, proper = self.search(pfct, poci, part, proper=p.strategy != "parity")
+        vec = vc.rotation_vector(required)  # (Q, 3) deg
+        ppct = self.ppc_code(vec)
+        done = torch.zeros(Q, 3, dtype=torch.float64)
         steps = torch.zeros(Q, dtype=torch.long)
-        turned = torch.zeros(Q, len(AXES))  # net mental rotation per axis (deg)
+        live = torch.ones(Q, dtype=torch.bool) if p.strategy == "rotate" else torch.zeros(Q, dtype=torch.bool)
         hist: list[list[dict]] = [[] for _ in range(min(record, B))]
-        # step 1: "still" on every trial
-        q = torch.arange(Q)
-        poci = rotated.reshape(Q, n)
-        pocp = self.predict(poci, torch.zeros(Q, dtype=torch.long), part)
-        ev, tm, fm = evidence(q, pocp)
-        y = self.pmcd.initial_state((Q,))
-        move = torch.zeros(Q, dtype=torch.long)
+        img = poci.clone()
+        step_rot = [None] + [(AXES.index(a), d) for a, d in self.moves[1:]]
         for s in range(p.max_steps):
-            if s > 0:
-                draws = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(Q)
-                ppcp = self.ppc_code(self.postures(self.c16, poci, part[q]), proprioception)
-                move = self.select(ppct[q], ppcp, draws[q])
-                pocp = self.predict(poci, move, part[q])
-                ev, tm, fm = evidence(q, pocp)
-                for a in range(len(AXES)):
-                    for sign, m in ((-1.0, 1 + 2 * a), (1.0, 2 + 2 * a)):
-                        turned[q, a] += sign * p.step_deg * (move == m).float()
-            dec = self.pmcd(ev, p.lca_cycles, state=y)
-            steps[q] += 1
-            rt[q] += dec.cycles
-            winner[q] = torch.where(dec.decided, dec.winner, winner[q])
-            for k in range(len(hist)):
-                hit = (q == k).nonzero()
-                if hit.numel():
-                    i = int(hit[0])
-                    maps = {"PFCt": pfct[k], "PFCft": pfcft[k], "POCi": poci[i], "POCp": pocp[i], "PFCtm": tm[i],
-                            "PFCfm": fm[i], "PMCm": torch.nn.functional.one_hot(move[i], len(MOVES)).float(),
-                            "PMCd": dec.state[i]}
-                    hist[k].append({n: m.clone() for n, m in maps.items()})  # a view would pin the batch's step
-            keep = ~dec.decided
-            q, poci, y = q[keep], pocp[keep], dec.state[keep]
+            draws = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(Q)
+            q = live.nonzero().squeeze(-1)
             if q.numel() == 0:
                 break
-        coin = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(Q)
-        timeout = winner < 0
-        answer = torch.where(timeout, (coin < 0.5).long(), winner)
+            wrist = done[q, AXES.index(WRIST_AXIS)]
+            ppcp = self.ppc_code(done[q], proprioception, wrist)
+            move = self.select(ppct[q], ppcp, draws[q])
+            img[q] = self.step(img[q], move, part[q])
+            for m in range(1, len(MOVES)):
+                a, d = step_rot[m]
+                done[q, a] += d * (move == m).double()  # the efference copy of each step
+            moving = move > 0
+            steps[q] += moving.long()
+            live[q] = moving
+            for k in range(len(hist)):
+                if bool(live[k]) or bool((q == k).any()):
+                    hist[k].append({"PFCt": pfct[k].clone(), "POCp": img[k].clone(),
+                                    "PMCm": torch.nn.functional.one_hot(move[(q == k).nonzero()[0, 0]] if (q == k).any()
+                                                                        else torch.tensor(0), len(MOVES)).float()})
+        return {"turned": img, "steps": steps, "done": done, "required": required, "proper": proper,
+                "timeout": live, "history": hist, "part": part, "target": pfct}
+
+    @torch.no_grad()
+    def run(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int = 0,
+            proprioception: str = "none") -> dict:
+        """Trials ``(P, B, n)`` of images (coded, completed, centred). Randomness from ``generators``
+        (one ``(B,)`` draw per step and one for a tie, in a fixed order, so a result does not depend
+        on the batch). RT = accumulator cycles: ``lca.cycles`` for the search, as many per step,
+        then the cycles PMCd takes to decide (at most ``lca.cycles * max_steps``)."""
+        p = self.p
+        check_proprioception(proprioception)
+        if torch.isnan(self.cut).any():
+            raise RuntimeError("Rotation3D.run: the confirm stage is not fitted (fit_confirm)")
+        P, B, n = target.shape
+        out = self.align(target, comp, generators, record, proprioception)
+        part = out["part"]
+        match, cubes = self.mismatch(out["turned"], out["target"])
+        ev = self.evidence(match, cubes, part)
+        if p.strategy == "parity":  # the handedness of the matched axes decides: a reflection is NO evidence
+            ev = torch.where(out["proper"].unsqueeze(-1), ev[:, :1].expand(-1, 2) * torch.tensor([1.0, 0.0]),
+                             ev[:, :1].expand(-1, 2) * torch.tensor([0.0, 1.0]))
+        dec = self.pmcd(ev, p.lca.cycles * p.max_steps, state=self.pmcd.initial_state((P * B,)))
+        coin = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(P * B)
+        answer = torch.where(dec.decided, dec.winner, (coin < 0.5).long())
+        rt = p.lca.cycles * (1 + out["steps"]) + dec.cycles
+        for k, h in enumerate(out["history"]):
+            if h:
+                h[-1].update({"PMCd": dec.state[k].clone(), "match": match[k].float(), "cubes": cubes[k].float()})
         sh = (P, B)
-        return {"answer": answer.reshape(sh), "rt": rt.reshape(sh), "rotation_steps": (steps - 1).reshape(sh),
-                "decided": (~timeout).reshape(sh), "turned": turned.reshape(P, B, len(AXES)), "history": hist}
+        return {"answer": answer.reshape(sh), "rt": rt.reshape(sh), "rotation_steps": out["steps"].reshape(sh),
+                "decided": dec.decided.reshape(sh), "turned": out["done"].reshape(P, B, 3).float(),
+                "required": out["required"].reshape(P, B, 3, 3), "match": match.reshape(sh).float(),
+                "cubes": cubes.reshape(sh).float(), "history": out["history"]}
+
+
+def lca_gain(g) -> float:
+    """The evidence scale of PMCd (Exp 4's rule): ``g.input_gain``, or when it is None the smallest
+    gain with which a full match (1), alone from rest, crosses the threshold within ``g.cycles``
+    Euler cycles: ``threshold k / (1 - (1 - dt k)^cycles)``."""
+    if g.input_gain is not None:
+        return float(g.input_gain)
+    k, dt, n = g.k, g.dt, g.cycles
+    if k == 0:
+        return g.threshold / (dt * n)
+    return g.threshold * k / (1.0 - (1.0 - dt * k) ** n)

@@ -27,10 +27,12 @@ def grid_coords(side: int) -> np.ndarray:
     return np.stack([x.ravel() - c, y.ravel() - c, z.ravel() - c], axis=1)
 
 
-def points_to_map(points: np.ndarray, side: int, voxel: float, extend: float = 0.0, steps: int = 0) -> torch.Tensor:
-    """Binary map ``(G^3,)`` of camera-frame points (metres), centred on their centroid and scaled by
-    ``voxel`` metres per voxel. ``extend`` > 0 (metres) also marks ``steps`` points behind each
-    point along its line of sight (away from the eye), up to ``extend`` further."""
+def points_to_map(points: np.ndarray, side: int, voxel: float, extend: float = 0.0, steps: int = 0,
+                  centre: np.ndarray | None = None) -> torch.Tensor:
+    """Binary map ``(G^3,)`` of camera-frame points (metres), centred on their centroid (or on
+    ``centre``) and scaled by ``voxel`` metres per voxel. ``extend`` > 0 (metres) also marks
+    ``steps`` points behind each point along its line of sight (away from the eye), up to
+    ``extend`` further."""
     pts = np.asarray(points, float)
     out = torch.zeros(side ** 3)
     if len(pts) == 0:
@@ -41,6 +43,8 @@ def points_to_map(points: np.ndarray, side: int, voxel: float, extend: float = 0
         centroid = np.asarray(points, float).mean(0)  # centred on what is seen
     else:
         centroid = pts.mean(0)
+    if centre is not None:
+        centroid = np.asarray(centre, float)
     v = (pts - centroid) / voxel + (side - 1) / 2.0
     idx = np.round(v).astype(int)
     ok = ((idx >= 0) & (idx < side)).all(1)

@@ -4,7 +4,7 @@ from .connections import AllToAll, Connection, GainField, HardWired, OneToOne
 from .decision import Decision, DynamicField, LeakyCompetingAccumulator
 from .functional import gain_field, gaussian_bump, softmax_probabilities, softmax_select, transfer
 from .maps import PopulationMap, population_cover
-from .rules import Delta, GatedHebbian, Hebbian, Kohonen, QLearning, Rule, SupervisedKohonen
+from .rules import Delta, GatedHebbian, Hebbian, Kohonen, QLearning, Rule, Sanger, SupervisedKohonen
 from .seeding import participant_generators
 from .som import SOM, BidirectionalSOM
 
@@ -12,6 +12,6 @@ __all__ = [
     "AllToAll", "Connection", "GainField", "HardWired", "OneToOne",
     "Decision", "DynamicField", "LeakyCompetingAccumulator",
     "gain_field", "gaussian_bump", "softmax_probabilities", "softmax_select", "transfer",
-    "PopulationMap", "population_cover", "Delta", "GatedHebbian", "Hebbian", "Kohonen", "QLearning", "Rule", "SupervisedKohonen",
+    "PopulationMap", "population_cover", "Delta", "GatedHebbian", "Hebbian", "Kohonen", "QLearning", "Rule", "Sanger", "SupervisedKohonen",
     "participant_generators", "SOM", "BidirectionalSOM",
 ]

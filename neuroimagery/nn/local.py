@@ -3,7 +3,8 @@
 Output unit ``o`` (a voxel of a ``G x G x G`` map) reads only the input voxels ``o + d`` for the
 lattice offsets ``d`` with ``|d| <= radius``; the weights are stored as ``(P, n, K)``, one row of
 ``K`` offsets per output voxel and participant, instead of the dense ``(P, n, n)``. Input voxels
-outside the grid read as zero. A local connection is the dense all-to-all connection of eq. 4.4
+outside the grid read as zero. ``offset_set`` replaces the ball by any set of offsets ``(K, 3)``
+in (z, y, x) order (e.g. a column along the line of sight). A local connection is the dense all-to-all connection of eq. 4.4
 with every weight outside the receptive fields fixed at zero.
 
 Learning goes through :meth:`LocalConnection.learn` with a :class:`~neuroimagery.nn.rules.Delta`
@@ -45,9 +46,12 @@ class LocalConnection(Connection):
     """
 
     def __init__(self, side: int, radius: float, generators: Sequence[torch.Generator],
-                 init: tuple[float, float] = (0.0, 0.01), rules: Rule | Sequence[Rule] = (), name: str = "") -> None:
+                 init: tuple[float, float] = (0.0, 0.01), rules: Rule | Sequence[Rule] = (), name: str = "",
+                 offset_set: torch.Tensor | None = None) -> None:
         n = side ** 3
-        d = offsets(radius)
+        d = offsets(radius) if offset_set is None else torch.as_tensor(offset_set, dtype=torch.long).reshape(-1, 3)
+        if offset_set is not None:  # any receptive-field shape: ``radius`` becomes the longest offset
+            radius = float((d.float() ** 2).sum(-1).sqrt().max())
         K = d.shape[0]
         w = seeding.uniform(generators, (n, K), float(init[0]), float(init[1]))
         # weight buffer (P, n, K); Connection's dense helpers are replaced below
@@ -89,23 +93,45 @@ class LocalConnection(Connection):
             out += pad[..., self.source[:, k]] * w[:, :, k].unsqueeze(1)
         return out
 
+    def net_rows(self, x: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
+        """``W x`` for any input rows ``(N, n)``, row r using participant ``group[r]``."""
+        N, n = x.shape
+        pad = torch.cat([x, x.new_zeros(N, 1)], -1)
+        out = x.new_zeros(N, n)
+        for k in range(self.K):
+            out += pad[:, self.source[:, k]] * self.weight[group, :, k]
+        return out
+
     def net_binary(self, x: torch.Tensor, group: torch.Tensor | None = None) -> torch.Tensor:
-        """``W x`` for binary ``x`` ``(N, n)`` rows, row r using participant ``group[r]`` (default: all
-        rows of participant 0 when P == 1). Cost grows with the active voxels, not the grid."""
+        """``W x`` for sparse ``x`` ``(N, n)`` rows (binary, or graded with few active units), row r
+        using participant ``group[r]`` (default: all rows of participant 0 when P == 1). Cost grows
+        with the active voxels, not the grid."""
         N, n = x.shape
         if group is None:
             if self.participants != 1:
                 raise ValueError("net_binary: give the participant of each row")
             group = torch.zeros(N, dtype=torch.long)
-        r, i = (x > 0.5).nonzero(as_tuple=True)  # sorted by row, then input voxel
+        r, i = (x != 0).nonzero(as_tuple=True)  # sorted by row, then input voxel
         out = torch.zeros(N * (n + 1), dtype=self.weight.dtype)
         if r.numel():
             o = self.target_of[i]  # (A, K) output voxel each active input reaches through offset k
             k = torch.arange(self.K).expand_as(o)
             w = self.weight[group[r].unsqueeze(1), o.clamp_max(n - 1), k]  # (A, K)
-            w = torch.where(o < n, w, torch.zeros_like(w))
+            w = torch.where(o < n, w * x[r, i].unsqueeze(1).to(w.dtype), torch.zeros_like(w))
             out.index_add_(0, (r.unsqueeze(1) * (n + 1) + o).reshape(-1), w.reshape(-1))
         return out.view(N, n + 1)[:, :n]
+
+    def net_rows(self, x: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
+        """``W x`` for any input rows ``(N, n)``, row r using participant ``group[r]`` (the sparse
+        path when at most a quarter of the units are active)."""
+        N, n = x.shape
+        if N and float((x != 0).float().mean()) <= 0.25:
+            return self.net_binary(x, group)
+        pad = torch.cat([x, x.new_zeros(N, 1)], -1)
+        out = x.new_zeros(N, n)
+        for k in range(self.K):
+            out += pad[:, self.source[:, k]] * self.weight[group, :, k]
+        return out
 
     # ------------------------------------------------------------------ learning
     def _offset(self, src: torch.Tensor, out: torch.Tensor) -> torch.Tensor:
@@ -189,7 +215,7 @@ class LocalConnection(Connection):
                        for what, x in (("pre", pre), ("target", target)))
         post = None if post is None else post.to(self.weight.dtype)
         P, B, n = pre.shape
-        binary = bool(((pre == 0) | (pre == 1)).all())
+        binary = bool(((pre == 0) | (pre == 1)).all()) or float((pre != 0).float().mean()) <= 0.25  # the sparse path
         if post is None:
             post = self.net_binary(pre.reshape(P * B, n), torch.arange(P).repeat_interleave(B)).view(P, B, n) \
                 if binary else self.net(pre)
@@ -198,10 +224,11 @@ class LocalConnection(Connection):
         for rule in self.rules:
             scale = rule.eta / B if rule.reduction == "mean" else rule.eta
             if binary:
-                p, b, i = (pre > 0.5).nonzero(as_tuple=True)
+                p, b, i = (pre != 0).nonzero(as_tuple=True)
                 o = self.target_of[i]  # (A, K)
                 k = torch.arange(self.K).expand_as(o)
                 e = torch.cat([err, err.new_zeros(P, B, 1)], -1)[p.unsqueeze(1), b.unsqueeze(1), o]  # (A, K)
+                e = e * pre[p, b, i].unsqueeze(1)  # graded input: the rule's pre factor
                 flat = ((p.unsqueeze(1) * n + o.clamp_max(n - 1)) * self.K + k)
                 delta = torch.where(o < n, scale * e, torch.zeros_like(e))
                 if total is None:

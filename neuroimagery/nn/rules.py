@@ -323,3 +323,38 @@ class QLearning(Rule):
 
 
 __all__ = ["Rule", "Hebbian", "GatedHebbian", "Delta", "Kohonen", "SupervisedKohonen", "QLearning"]
+
+
+class Sanger(Rule):
+    """Sanger's generalised Hebbian rule (Sanger, 1989): ``dW = eta (y x^T - LT[y y^T] W)`` with
+    ``y = W x`` and ``LT`` the lower triangle (diagonal included). The rows of ``W`` converge to the
+    principal directions of the inputs, in order of variance. ``sample_weight`` ``(P, B)`` weighs
+    each pattern of the batch (all 1 when None); the rate is divided by the weighted mean squared
+    norm of the batch's patterns (``normalise=True``), so the step does not depend on the inputs'
+    scale."""
+
+    def __init__(self, eta: float = 0.5, normalise: bool = True) -> None:
+        super().__init__()
+        self.eta = check_rate("eta", eta)
+        self.normalise = bool(normalise)
+
+    def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor | None = None,
+              sample_weight: torch.Tensor | None = None, **_) -> torch.Tensor:
+        P, B, n = pre.shape
+        w = pre.new_ones(P, B) if sample_weight is None else sample_weight
+        total = w.sum(-1).clamp_min(1e-12).view(P, 1, 1)
+        y = torch.bmm(pre, weight.transpose(1, 2)) if post is None else post  # (P, B, m)
+        yx = torch.einsum("pb,pbm,pbn->pmn", w, y, pre) / total
+        yy = torch.einsum("pb,pbm,pbk->pmk", w, y, y) / total
+        d = yx - torch.bmm(torch.tril(yy), weight)
+        scale = self.eta
+        if self.normalise:
+            sq = (torch.einsum("pb,pbn->p", w, pre * pre) / total.view(P)).clamp_min(1e-12)
+            return d * (scale / sq).view(P, 1, 1)
+        return d * scale
+
+    def apply_(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor | None = None, **kw) -> None:
+        weight.add_(self.delta(weight, pre, post, **kw))
+
+    def extra_repr(self) -> str:
+        return f"eta={self.eta}, normalise={self.normalise}"

@@ -180,6 +180,39 @@ def rotation_matrix(axis: str, deg: float) -> np.ndarray:
 
 
 KIND_AXIS = {"picture": "z", "depth": "y"}
+# an extra test (not one of Shepard & Metzler's): turns about an oblique axis, between all three camera axes
+OBLIQUE_AXIS = np.array([1.0, 1.0, 1.0]) / math.sqrt(3.0)
+
+
+def rotation_about(axis, deg: float) -> np.ndarray:
+    """Right-handed rotation by ``deg`` about a unit vector ``axis`` (Rodrigues)."""
+    k = np.asarray(axis, float)
+    k = k / np.linalg.norm(k)
+    t = math.radians(deg)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(t) * K + (1 - math.cos(t)) * K @ K
+
+
+def random_chains(n: int, rng: np.random.Generator, exclude=(), max_radius: float | None = None,
+                  cubes: int = 10, arms=(3, 4, 5)) -> list[np.ndarray]:
+    """``n`` random chains of ``cubes`` face-joined cubes in straight arms (the rule of
+    :func:`generate` with ``arms`` drawn from ``arms``), chiral, none equal under a rotation or a
+    reflection to an object of ``exclude``, none reaching further than ``max_radius`` cube edges
+    (cube centre plus half a diagonal) from its centroid. Draws only from ``rng``."""
+    banned = set()
+    for c in exclude:
+        banned |= _rotations(c) | _rotations(np.asarray(c) * np.array([-1, 1, 1]))
+    out = []
+    for _ in range(200 * n + 1000):
+        c = _candidate(rng, cubes, int(arms[rng.integers(len(arms))]))
+        if c is None or not is_chiral(c) or canonical(c) in banned:
+            continue
+        if max_radius is not None and np.linalg.norm(centred(c), axis=1).max() + math.sqrt(3) / 2 > max_radius:
+            continue
+        out.append(c)
+        if len(out) == n:
+            return out
+    raise ValueError(f"could not draw {n} random chains of {cubes} cubes")
 
 
 def pose(kind: str | None, deg: float, tilt_deg: float, turn_deg: float) -> np.ndarray:
@@ -187,8 +220,10 @@ def pose(kind: str | None, deg: float, tilt_deg: float, turn_deg: float) -> np.n
     r0 = rotation_matrix("y", turn_deg) @ rotation_matrix("x", tilt_deg)
     if kind is None or deg == 0:
         return r0
+    if kind == "oblique":
+        return rotation_about(OBLIQUE_AXIS, deg) @ r0
     if kind not in KIND_AXIS:
-        raise ValueError(f"rotation kind must be one of {KINDS}, got {kind!r}")
+        raise ValueError(f"rotation kind must be one of {KINDS + ('oblique',)}, got {kind!r}")
     return rotation_matrix(KIND_AXIS[kind], deg) @ r0
 
 

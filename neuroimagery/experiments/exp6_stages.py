@@ -1,0 +1,142 @@
+"""The stage contracts of Experiment 6 (docs/contracts.md, 6.1-6.4), measured on a trained model
+with held-out random chains (a stream no training uses) and the training objects. Used by the
+contract tests and written to ``summary.json`` (``stages``)."""
+from __future__ import annotations
+
+
+import torch
+
+from ..models import voxel_code as vc
+from ..nn import seeding
+from ..vision import shepard_metzler as sm
+from . import exp6_data as data
+
+HELD_OUT = 90_000  # chain streams of the held-out checks (training uses 1000 + participant id)
+
+
+def completion(model, cfg, scene, count: int = 40) -> dict:
+    """6.1: mean cosine of the completed map of a held-out chain view with its whole-volume map, per
+    participant (and the seen surface's cosine, for comparison)."""
+    e = cfg.experiment
+    s, w, _, _ = data.chain_views(scene, e, model.side, model.cube_voxels, count, cfg.seed, HELD_OUT)
+    P = model.participants
+    part = torch.arange(P).repeat_interleave(count)
+    code_s, code_w = model.encode(s), model.encode(w)
+    filled = model.complete(code_s.repeat(P, 1), part).reshape(P, count, -1)
+    cos = vc.cosine(filled, code_w.unsqueeze(0))
+    return {"cosine": [round(float(c), 4) for c in cos.mean(1)],
+            "surface_cosine": round(float(vc.cosine(code_s, code_w).mean()), 4)}
+
+
+def transform(model, cfg, scene, count: int = 20) -> dict:
+    """6.2: chained steps of each turning move on the whole-volume maps of held-out chains against the
+    one-shot turn; and how often the same chain beats its mirror (same pose) after the chain."""
+    e = cfg.experiment
+    _, w, _, _ = data.chain_views(scene, e, model.side, model.cube_voxels, count, cfg.seed, HELD_OUT + 1)
+    _, wm, _, _ = data.chain_views(scene, e, model.side, model.cube_voxels, count, cfg.seed, HELD_OUT + 1, mirror=True)
+    X = vc.recentre(model.encode(w), model.side)
+    M = vc.recentre(model.encode(wm), model.side)
+    n = int(round(180.0 / e.step_deg))
+    P = model.participants
+    part = torch.arange(P).repeat_interleave(count)
+    cos, beats = {}, []
+    for m in range(1, len(model.moves)):
+        axis, deg = model.moves[m]
+        one = vc.rotate(X, model.side, vc.axis_rotation(axis, n * deg)).repeat(P, 1)
+        x, xm = X.repeat(P, 1), M.repeat(P, 1)
+        mv = torch.full((P * count,), m)
+        for _ in range(n):
+            x, xm = model.step(x, mv, part), model.step(xm, mv, part)
+        c, cm = vc.cosine(x, one), vc.cosine(xm, one)
+        cos[f"{axis}{'+' if deg > 0 else '-'}"] = round(float(c.mean()), 4)
+        beats.append((c > cm).float())
+    return {"steps": n, "cosine": cos, "same_above_mirror": round(float(torch.cat(beats).mean()), 4)}
+
+
+def _pairs(model, cfg, scene, cells, kinds, angle_list, ids):
+    names = [f"C{i}" for i in range(len(cells))]
+    from .exp6 import pair_bank
+
+    images, index = pair_bank(model, cfg, scene, cells, names, kinds, ids, lambda k: angle_list)
+    rows = []
+    for name, c in zip(names, cells):
+        for kind in kinds:
+            for ang in angle_list:
+                for app in ("basic", "mirror"):
+                    rows.append((index[(name, None, 0.0, "basic")], index[(name, kind, float(ang), app)], kind, float(ang),
+                                 app == "basic"))
+    return images, rows
+
+
+def _true_required(kind: str, angle: float) -> torch.Tensor:
+    """The rotation that turns the comparison view back onto the target (the stimulus's inverse)."""
+    if kind == "oblique":
+        R = torch.from_numpy(sm.rotation_about(sm.OBLIQUE_AXIS, angle))
+    else:
+        R = torch.from_numpy(sm.rotation_matrix(sm.KIND_AXIS[kind], angle))
+    return R.T
+
+
+def search(model, cfg, scene, count: int = 10) -> dict:
+    """6.3: held-out chains as same pairs (general view, turned 20-180 deg in the picture plane or in
+    depth): the estimate's angle within 20 deg and, from 40 deg on, its axis within 20 deg."""
+    e = cfg.experiment
+    cells = data.chains(e, count, cfg.seed, HELD_OUT + 2)
+    angs = [a for a in e.test_angles if a > 0]
+    ids = list(range(model.participants))
+    images, rows = _pairs(model, cfg, scene, cells, sm.KINDS, angs, ids)
+    rows = [r for r in rows if r[4]]
+    out = {}
+    P = model.participants
+    for kind in sm.KINDS:
+        rk = [r for r in rows if r[2] == kind]
+        t = images[:, [r[0] for r in rk]].reshape(P * len(rk), -1)
+        c = images[:, [r[1] for r in rk]].reshape(P * len(rk), -1)
+        part = torch.arange(P).repeat_interleave(len(rk))
+        R, _ = model.search(t, c, part)
+        ax, ang = vc.axis_angle(R)
+        truth = torch.stack([_true_required(kind, r[3]) for r in rk]).repeat(P, 1, 1)
+        tax, tang = vc.axis_angle(truth)
+        ang_ok = (ang - tang).abs() <= 20.0
+        cosax = (ax * tax).sum(-1).clamp(-1, 1)
+        axis_err = torch.rad2deg(torch.arccos(cosax))
+        axis_err = torch.where(tang > 170.0, torch.minimum(axis_err, 180.0 - axis_err), axis_err)  # 180 deg: either sign
+        axis_ok = (axis_err <= 20.0) | (tang < 40.0 - 1e-6)
+        out[kind] = round(float((ang_ok & axis_ok).double().mean()), 4)
+    return out
+
+
+def confirm(model, cfg, scene, count: int = 6) -> dict:
+    """6.4: fraction of pairs the fitted cut puts on their side after the model's own search and
+    transform, on the training objects' pairs and on held-out chains' pairs."""
+    e = cfg.experiment
+    train, _, _, _ = data.objects(e)
+    held = data.chains(e, count, cfg.seed, HELD_OUT + 3)
+    out = {}
+    ids = list(range(model.participants))
+    P = model.participants
+    for label, cells in (("train", train), ("held_out", held)):
+        images, rows = _pairs(model, cfg, scene, cells, sm.KINDS, list(e.test_angles), ids)
+        gens = seeding.participant_generators(cfg.seed, ids, stream=60)
+        res = model.align(images[:, [r[0] for r in rows]], images[:, [r[1] for r in rows]], gens)
+        _, cubes = model.mismatch(res["turned"], res["target"])
+        same = torch.tensor([r[4] for r in rows]).repeat(P)
+        cut = model.cut.repeat_interleave(len(rows))
+        out[label] = round(float(((cubes > cut) == ~same).double().mean()), 4)
+        out[f"{label}_cubes_same"] = round(float(cubes[same].mean()), 3)
+        out[f"{label}_cubes_mirror"] = round(float(cubes[~same].mean()), 3)
+    out["cut_cubes"] = [round(float(c), 3) for c in model.cut]
+    return out
+
+
+def measure(model, cfg, scene) -> dict:
+    """Every stage contract's measure (small held-out sets)."""
+    return {"image": completion(model, cfg, scene), "transform": transform(model, cfg, scene),
+            "search": search(model, cfg, scene), "confirm": confirm(model, cfg, scene)}
+
+
+def angle_between(R1: torch.Tensor, R2: torch.Tensor) -> torch.Tensor:
+    """Angle (deg) of the rotation taking ``R2`` to ``R1``."""
+    return vc.axis_angle(R1 @ R2.transpose(-1, -2))[1]
+
+
