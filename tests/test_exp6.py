@@ -1,5 +1,5 @@
-"""Experiment 6: Shepard-Metzler objects, local forward models, batched == solo, label shuffling,
-an end-to-end run on a tiny grid."""
+"""Experiment 6: Shepard-Metzler objects, local connections (sparse graded path), Sanger's rule,
+batched == solo, label shuffling, the wrist signal, an end-to-end run on a tiny grid."""
 import json
 
 import numpy as np
@@ -10,15 +10,16 @@ from conftest import make_cfg
 from neuroimagery.config import validate
 from neuroimagery.experiments import exp6
 from neuroimagery.models import voxels
-from neuroimagery.models.rotation_3d import MOVES, Rotation3D, fm_bytes, grid_for_budget
-from neuroimagery.nn import Delta, seeding
+from neuroimagery.models import voxel_code as vc
+from neuroimagery.models.rotation_3d import fm_bytes, grid_for_budget
+from neuroimagery.nn import Connection, Delta, Sanger, seeding
 from neuroimagery.nn.local import LocalConnection
 from neuroimagery.run import evaluate
 from neuroimagery.vision import shepard_metzler as sm
 
-TINY = ("experiment.grid=10", "experiment.quick_fm_images=3000", "experiment.posture_iterations=100",
-        "experiment.quick_objects=1", "experiment.train_objects=1", "experiment.test_angles=[0,60,120,180]",
-        "experiment.posture_angles=[0,60,120,180]", "experiment.step_deg=30")
+TINY = ("experiment.grid=10", "experiment.quick.fm_images=16", "experiment.quick.chains=8",
+        "experiment.quick.objects=1", "experiment.train_objects=1", "experiment.test_angles=[0,60,120,180]",
+        "experiment.step_deg=30", "experiment.search.iterations=20")
 
 
 def _cfg(*overrides, quick=True):
@@ -64,15 +65,13 @@ def test_check_object_refuses_flat_and_broken_objects():
         sm.check_object([[0, 0, 0], [1, 0, 0], [3, 0, 0], [3, 1, 0]])
     with pytest.raises(ValueError, match="test_cubes"):
         exp6.Exp6Config(test_cubes=[[[0, 0, 0], [0, 0, 0], [1, 0, 0], [1, 1, 0]]])
-    with pytest.raises(ValueError, match="hidden"):
-        exp6.Exp6Config(hidden="all")
-    with pytest.raises(ValueError, match="unreachable"):
-        exp6.Exp6Config(unreachable="wrap")
+    with pytest.raises(ValueError, match="strategy"):
+        exp6.Exp6Config(strategy="guess")
 
 
 def test_grid_rule_fits_the_memory_budget():
-    g = grid_for_budget(24.0, 20.0)
-    assert g == 18 and fm_bytes(g, 20.0) <= 24e6 < fm_bytes(g + 2, 20.0)
+    g = grid_for_budget(20.0, 20.0)
+    assert g == 18 and fm_bytes(g, 20.0) <= 20e6 < fm_bytes(g + 2, 20.0)
     assert exp6.grid_side(exp6.Exp6Config()) == g
     # ten participants' forward models stay far below the 8 GB the protocol may use; a dense 24^3
     # forward model would need about 0.76 GB on its own
@@ -106,19 +105,39 @@ def test_local_connection_index_form_equals_dense_delta_rule():
     assert torch.allclose(wa, ref, atol=1e-5)
 
 
-def test_forward_model_rotates_a_held_out_dot_cloud_one_step():
-    """Trained on random 3-D dots, every forward model turns held-out dots (another stream) by one
-    step with IoU >= 0.8 against the exact warp (the stated overlap), on a 10^3 grid."""
-    e = exp6.Exp6Config(grid=10)
-    model = Rotation3D(e, 10, seeding.participant_generators(0, [0]))
-    model.train()
-    exp6.dot_training(model, seeding.participant_generators(0, [0], 1), 9000, 32)
-    x = voxels.dot_images(300, 10, torch.Generator().manual_seed(99))
-    part = torch.zeros(300, dtype=torch.long)
-    for m, (ax, deg) in enumerate(model.moves):
-        truth = voxels.warp(x, voxels.warp_index(10, ax, deg))
-        iou = float(voxels.overlap_iou(model.predict(x, torch.full((300,), m), part), truth).mean())
-        assert iou >= 0.8, (MOVES[m], iou)
+def test_sparse_graded_path_equals_the_dense_path():
+    """Graded inputs with few active units take the sparse path of a local connection: its product
+    and its delta-rule change equal the dense path's."""
+    side, P = 8, 2
+    a = LocalConnection(side, 2, seeding.participant_generators(0, P), rules=Delta(0.05))
+    b = LocalConnection(side, 2, seeding.participant_generators(0, P), rules=Delta(0.05))
+    g = torch.Generator().manual_seed(3)
+    pts = (torch.rand(P * 4, 2, 3, generator=g) - 0.5) * 4
+    x = vc.blobs(pts, side, 0.7).reshape(P, 4, -1)
+    assert 0 < float((x != 0).float().mean()) <= 0.25 and ((x > 0) & (x < 1)).any()
+    y = vc.blobs(pts + 0.5, side, 0.7).reshape(P, 4, -1)
+    part = torch.arange(P).repeat_interleave(4)
+    dense = a.net(x).reshape(P * 4, -1)
+    assert torch.allclose(a.net_rows(x.reshape(P * 4, -1), part), dense, atol=1e-5)
+    a.learn(pre=x, target=y)  # sparse path
+    W0 = b.weight.clone()
+    err = y - b.net(x)
+    pad = torch.cat([x, x.new_zeros(P, 4, 1)], -1)
+    want = W0 + 0.05 * torch.stack([(err * pad[..., b.source[:, k]]).sum(1) for k in range(b.K)], -1) * (b.source < side ** 3)
+    assert torch.allclose(a.weight, want, atol=1e-5) and not torch.allclose(a.weight, W0)
+
+
+def test_sanger_rule_learns_the_principal_axes_in_order():
+    g = torch.Generator().manual_seed(0)
+    Q = vc.random_rotations(1, g)[0]
+    X = (torch.randn(1, 400, 3, generator=g, dtype=torch.float64) * torch.tensor([3.0, 2.0, 0.7], dtype=torch.float64)) @ Q.T
+    conn = Connection(3, 3, torch.linalg.qr(torch.randn(1, 3, 3, generator=g, dtype=torch.float64))[0], rules=Sanger(0.5))
+    conn.train()
+    for _ in range(300):
+        conn.learn(X)
+    W = conn.weight[0] / conn.weight[0].norm(dim=-1, keepdim=True)
+    _, vec = torch.linalg.eigh(X[0].T @ X[0])  # the sample's principal axes, by increasing spread
+    assert torch.allclose((W @ vec.flip(-1)).abs(), torch.eye(3, dtype=torch.float64), atol=0.02)
 
 
 def test_views_are_3d_maps_and_the_mirror_looks_different():
@@ -138,8 +157,7 @@ def test_batched_participants_equal_solo_runs():
     cfg = _cfg("participants=2", *TINY)
     both = exp6.train_model(cfg, [0, 1])
     solo = exp6.train_model(cfg, [1])
-    assert torch.allclose(both.fm[2].weight[1], solo.fm[2].weight[0], atol=1e-6)
-    assert torch.allclose(both.c16[1].weight[1], solo.c16[1].weight[0], atol=1e-5)
+    assert torch.allclose(both.cut[1], solo.cut[0])
     db, _, _ = exp6.run_tests(cfg, both)
     ds, _, _ = exp6.run_tests(cfg, solo)
     b1 = db[db["participant"] == 1].reset_index(drop=True)
@@ -173,20 +191,20 @@ def test_end_to_end_quick_run_writes_results(tmp_path):
     assert set(s["headline"]["goals"]) and "Shepard" in (tmp_path / "report.md").read_text()
 
 
-def test_wrist_signal_joins_the_line_of_sight_posture_map_only():
+def test_wrist_signal_joins_the_line_of_sight_rotation_code_only():
     cfg = _cfg("participants=1", *TINY)
     model = exp6.train_model(cfg, [0])
-    units = torch.tensor([[0, 1, 1], [2, 3, 0]])  # (rows, axes x y z)
-    still = model.ppc_code(units)
+    done = torch.tensor([[0.0, 30.0, 60.0], [30.0, 0.0, -90.0]])
+    still = model.ppc_code(done)
     z = 2  # WRIST_AXIS
-    for cond, j in (("match", units[:, z]), ("mismatch", 3 - units[:, z])):
-        code = model.ppc_code(units, cond)
-        assert torch.equal(code[:, :z], still[:, :z])  # the other axes' maps are untouched
-        want = (still[:, z] + cfg.experiment.proprio_gain * model.ppc.encode(j.float())).clamp(0, 1)
+    for cond, w in (("match", done[:, z]), ("mismatch", -done[:, z])):
+        code = model.ppc_code(done, cond, done[:, z])
+        assert torch.equal(code[:, :z], still[:, :z])  # the other axes' codes are untouched
+        want = (still[:, z] + cfg.experiment.proprio_gain * model.ppc.encode(w.unsqueeze(-1)).reshape(2, -1)).clamp(0, 1)
         assert torch.allclose(code[:, z], want)
-    assert not torch.equal(model.ppc_code(units, "mismatch"), still)
+    assert not torch.equal(model.ppc_code(done, "mismatch", done[:, z]), still)
     with pytest.raises(ValueError, match="proprioception"):
-        model.ppc_code(units, "other")
+        model.ppc_code(done, "other")
 
 
 def test_wrist_conditions_leave_the_still_condition_unchanged():
@@ -209,11 +227,20 @@ BAD = [
     (["experiment.conditions=[match]"], "experiment.conditions"),
     (["experiment.conditions=[none,none]"], "experiment.conditions"),
     (["experiment.test_cubes=[[[0,0,0],[1,0,0],[2,0,0],[2,1,0]]]"], "experiment.test_cubes[0]"),
-    (["experiment.hidden=all"], "experiment.hidden"),
-    (["experiment.fm_memory_mb=nan"], "experiment.fm_memory_mb"),
+    (["experiment.fm.memory_mb=nan"], "experiment.fm.memory_mb"),
     (["experiment.grid=9"], "experiment.grid"),
-    (["preset=quick", "experiment.fm_images=100"], "experiment.fm_images"),
-    (["experiment.grid=12", "experiment.fm_memory_mb=5"], "experiment.fm_memory_mb"),
+    (["preset=quick", "experiment.fm.images=100"], "experiment.fm.images"),
+    (["experiment.grid=12", "experiment.fm.memory_mb=5"], "experiment.fm.memory_mb"),
+    (["experiment.strategy=guess"], "experiment.strategy"),
+    (["experiment.search.method=random"], "experiment.search.method"),
+    (["experiment.search.iterations=0"], "experiment.search.iterations"),
+    (["experiment.image.sigma=-1"], "experiment.image.sigma"),
+    (["experiment.image.fill_depth=-2"], "experiment.image.fill_depth"),
+    (["experiment.fm.dots=0"], "experiment.fm.dots"),
+    (["experiment.confirm.level=1.5"], "experiment.confirm.level"),
+    (["experiment.lca.dt=2"], "experiment.lca.dt"),
+    (["experiment.step_deg=25"], "experiment.step_deg"),
+    (["experiment.tests=[picture,sideways]"], "experiment.tests"),
 ]
 
 
@@ -230,3 +257,11 @@ def test_bad_settings_are_refused_before_any_work(tmp_path, capsys, monkeypatch,
     err = capsys.readouterr().err
     lines = [ln for ln in err.splitlines() if ln.startswith("error:")]
     assert ex.value.code == 2 and len(lines) == 1 and needle in lines[0], err
+
+
+def test_old_keys_name_their_new_place_or_why_they_went():
+    from neuroimagery.config import moved_message
+
+    assert "experiment.fm.eta" in moved_message("experiment.eta_fm", "exp6")
+    assert "experiment.lca.threshold" in moved_message("experiment.lca_threshold", "exp6")
+    assert "no longer a setting" in moved_message("experiment.posture_readout", "exp6")

@@ -36,6 +36,7 @@ class ImageParams:
     sigma: float = 0.7  # tuning width of a voxel unit (voxels)
     # C_fill reads this many voxels toward the eye (and one behind); -1 = no completion (the seen surface alone)
     fill_depth: int = 9
+    lateral: int = 1  # ... and the voxels up to this far beside that line
     eta: float = 0.002  # delta-rule rate of C_fill (with the batch: a stable step for receptive fields of ~50 active units)
     chains: int = 150  # views of random cube chains (random poses) per participant
     batch: int = 8  # views per delta-rule update
@@ -43,6 +44,8 @@ class ImageParams:
     def __post_init__(self) -> None:
         _positive("image.", self, ("sigma", "eta"))
         _at_least_one("image.", self, ("chains", "batch"))
+        if self.lateral < 0:
+            raise ValueError(f"experiment.image.lateral must be >= 0, got {self.lateral!r}")
         if self.fill_depth < -1:
             raise ValueError(f"experiment.image.fill_depth must be >= -1, got {self.fill_depth!r}")
         if self.eta > 1:
@@ -72,8 +75,8 @@ class SearchParams:
 
     method: str = "axes"  # 'axes' = principal axes (Sanger's rule) + coarse comparison | 'sweep' = turns about x, y, z
     eta: float = 0.5  # Sanger's rule, rate per update (divided by the inputs' mean squared norm)
-    iterations: int = 200  # updates of the fast principal-axes connection per image
-    coarse: int = 3  # the coarse comparison pools blocks of coarse^3 voxels
+    iterations: int = 2000  # updates of the fast principal-axes connection per image (near-equal spreads converge slowly)
+    coarse: int = 2  # the coarse comparison pools blocks of coarse^3 voxels
 
     def __post_init__(self) -> None:
         if self.method not in ("axes", "sweep"):

@@ -102,24 +102,6 @@ def headline(tests: dict, df: pd.DataFrame) -> dict:
     return h
 
 
-def forward_model_overlap(model, seed: int, count: int = 500) -> dict:
-    """IoU of one forward-model step on held-out dot images (drawn from a stream training never
-    uses) with their true warp, per move, mean over participants."""
-    from ..models import voxels
-
-    g = seeding.participant_generators(seed, [0], stream=999)[0]
-    x = voxels.dot_images(count, model.side, g)
-    out = {}
-    for m, (ax, deg) in enumerate(model.moves):
-        truth = voxels.warp(x, voxels.warp_index(model.side, ax, deg))
-        vals = []
-        for p in range(model.participants):
-            part = torch.full((count,), p, dtype=torch.long)
-            vals.append(float(voxels.overlap_iou(model.predict(x, torch.full((count,), m), part), truth).mean()))
-        out[f"{ax or 'still'}{'' if ax is None else ('+' if deg > 0 else '-')}"] = round(float(np.mean(vals)), 4)
-    return out
-
-
 def evaluate(cfg, run, trained) -> dict:
     e = cfg.experiment
     scene = exp6.make_scene(e)
@@ -143,19 +125,20 @@ def evaluate(cfg, run, trained) -> dict:
         v["rt_intercept"] = _fit(g.index, g.values)["intercept"]
         v["same_pairs"] = same_pair_rt(d)
         v["mirror_different_rate"] = round(float((d[~d["same"].astype(bool)]["answer"] == "no").mean()), 4)
-    limits = exp6.wrist_limits()
     side = trained.side
+    from . import exp6_stages
+
+    scene = exp6.make_scene(e)
+    try:
+        stages = exp6_stages.measure(trained, cfg, scene)
+    finally:
+        scene.close()
+    shepard = {k: v for k, v in tests.items() if k.split("/")[0] in ("picture", "depth") and k.endswith("/none")}
     summary = {"experiment": "exp6", "participants": int(df["participant"].nunique()), "tests": tests,
-               "targets": {k: {"rt_r": HUMAN["rt_r"]} for k in tests},  # Shepard & Metzler's r, each kind of rotation
-               "headline": headline({k: v for k, v in tests.items() if k.endswith("/none")}, still),
-               "effects": effects(df), "human": HUMAN, "goals": GOALS,
-               "forward_model_overlap": forward_model_overlap(trained, cfg.seed),
-               "grid": {"side": side, "receptive_radius": trained.radius, "offsets": trained.fm[0].K,
-                        "cube_voxels": round(exp6.cube_voxels(e, side), 4),
-                        "fm_mb_per_participant": round(sum(c.weight[0].numel() for c in trained.fm) * 4 / 1e6, 2)},
-               "wrist": {a: {"joint": exp6.WRIST_JOINTS[a], "limits_deg": [round(limits[a][0], 1), round(limits[a][1], 1)],
-                             "reachable_units": [u for u in e.posture_angles if limits[a][0] <= u <= limits[a][1]]}
-                         for a in ("x", "y", "z")}}
+               "targets": {k: {"rt_r": HUMAN["rt_r"]} for k in shepard},  # Shepard & Metzler's r, each kind of rotation
+               "headline": headline(shepard, still[still["test"].isin(["picture", "depth"])]),
+               "effects": effects(df), "human": HUMAN, "goals": GOALS, "stages": stages,
+               "grid": trained.describe()}
     for key, hist in histories.items():
         log_history(run.logger, hist, key, side)
     for key, v in tests.items():
@@ -164,7 +147,7 @@ def evaluate(cfg, run, trained) -> dict:
     return summary
 
 
-def _projections(step: dict, side: int, names=("PFCt", "PFCft", "POCi", "POCp", "PFCtm", "PFCfm")) -> dict:
+def _projections(step: dict, side: int, names=("PFCt", "POCp")) -> dict:
     from ..models import voxels
 
     out = {}
@@ -179,7 +162,9 @@ def log_history(logger, history, prefix: str, side: int) -> None:
     for k, steps in enumerate(history):
         for s, st in enumerate(steps):
             maps = _projections(st, side)
-            maps["PMCm"], maps["PMCd"] = st["PMCm"], st["PMCd"]
+            maps["PMCm"] = st["PMCm"]
+            if "PMCd" in st:
+                maps["PMCd"] = st["PMCd"]
             logger.maps(maps, step=s + 1, prefix=f"{prefix}/trial{k}/")
 
 
@@ -217,12 +202,12 @@ def _figures(run, df, histories, side) -> None:
     _fig2(df, f / "exp6_fig2_rt.png", tests)
     figures.rate_by_disparity(df.assign(kind=np.where(df["same"], "same", "mirror")), f / "exp6_error.png",
                               groups=("test", "kind"), title="error rate by angle")
-    keep = ("PFCt_front", "PFCft_front", "POCp_front", "POCp_top", "POCp_side")
+    keep = ("PFCt_front", "PFCt_top", "POCp_front", "POCp_top", "POCp_side")
     for key, hist in histories.items():
         if hist and hist[0]:
             n = len(hist[0])
             rows = sorted({int(round(i)) for i in np.linspace(0, n - 1, min(n, 8))})  # at most 8 steps, the last one kept
-            steps = [{k: v.numpy() for k, v in _projections(hist[0][i], side, ("PFCt", "PFCft", "POCp")).items() if k in keep}
+            steps = [{k: v.numpy() for k, v in _projections(hist[0][i], side).items() if k in keep}
                      for i in rows]
             test, cond = key.split("/")
             figures.map_panels(steps, f / f"exp6_maps_{test}{'' if cond == 'none' else '_' + cond}.png",
@@ -260,8 +245,9 @@ def report(cfg, run, summary) -> None:
     r.h("Effects, the participant as the unit")
     r.effects(summary.get("effects", []))
     if set(e.conditions) - {"none"}:
-        r.p("Wrist conditions (Exp 4's, carried over): the wrist signal joins the line-of-sight posture map of "
-            "the mental image, on its winner (`match`) or on the opposite unit (`mismatch`); as in Exp 4, a "
+        r.p("Wrist conditions (Exp 4's, carried over): the wrist signal, the rotation it has done about the line of "
+            "sight (relative, as in Wexler et al. 1998), joins PPCp, on the value the mental rotation has reached (`match`) "
+            "or on its opposite (`mismatch`); as in Exp 4, a "
             "congruent signal is expected to shorten and an incongruent one to lengthen the RT (rows 'match "
             "minus none' and 'mismatch minus none' above; the measures beside Shepard & Metzler use `none`).")
     r.h("All tests")
@@ -272,29 +258,30 @@ def report(cfg, run, summary) -> None:
     angles = sorted({int(a) for v in t.values() for a in v["same_pairs"]["correct"]["rt_by_angle"]})
     r.table(["test"] + [str(a) for a in angles],
             [[k] + [v["same_pairs"]["correct"]["rt_by_angle"].get(str(a), "-") for a in angles] for k, v in t.items()])
-    r.h("The model")
-    gr = summary["grid"]
+    r.h("The model: each stage against its contract (docs/contracts.md)")
+    gr, st = summary["grid"], summary["stages"]
     r.bullets([
-        f"3-D map {gr['side']}^3 voxels (grid rule, `fm_memory_mb`), {gr['cube_voxels']:.3g} voxels per cube edge; forward "
+        f"3-D map {gr['side']}^3 voxels (grid rule, `fm.memory_mb`), {gr['cube_voxels']:.3g} voxels per cube edge; forward "
         f"models with receptive-field radius {gr['receptive_radius']} ({gr['offsets']} weights per voxel, "
-        f"{gr['fm_mb_per_participant']} MB per participant for the 7 models).",
-        "One forward-model step on held-out dot images, IoU with the true warp: "
-        + ", ".join(f"{k} {v:.3f}" for k, v in summary["forward_model_overlap"].items()) + ".",
-        f"Hidden parts: `hidden` = {e.hidden}; wrist limits: `unreachable` = {e.unreachable}; reachable posture units "
-        + "; ".join(f"{a} ({w['joint']} {w['limits_deg'][0]}..{w['limits_deg'][1]} deg): {w['reachable_units']}"
-                    for a, w in summary["wrist"].items()) + ".",
-        f"Posture read-out `{e.posture_readout}`; matching radius {e.match_radius} voxel(s); the axis and direction of every "
-        "step come from the posture maps of the two images (no trial label reaches the model).",
+        f"{gr['fm_mb_per_participant']} MB per participant for the {gr['moves']} models). Strategy `{e.strategy}`, "
+        f"search `{e.search.method}`.",
+        f"6.1 image: completed map of held-out chains against the whole volume, cosine {st['image']['cosine']} "
+        f"(the seen surface alone {st['image']['surface_cosine']}; contract >= 0.85).",
+        f"6.2 transform: {st['transform']['steps']} chained steps against one turn, cosine "
+        + ", ".join(f"{k} {v:.3f}" for k, v in st["transform"]["cosine"].items())
+        + f" (contract >= 0.8); same above mirror in {100 * st['transform']['same_above_mirror']:.0f} % (contract >= 90 %).",
+        f"6.3 search: rotation within 20 deg in {100 * st['search']['picture']:.0f} % of picture-plane and "
+        f"{100 * st['search']['depth']:.0f} % of depth pairs of held-out chains (contract >= 95 % / >= 85 %).",
+        f"6.4 confirm: the cut ({st['confirm']['cut_cubes']} cubes) puts {100 * st['confirm']['train']:.0f} % of the training "
+        f"objects' pairs and {100 * st['confirm']['held_out']:.0f} % of held-out chains' pairs on their side (contract >= 90 % each).",
+        "The rotation required, each step and the answer come from the two images alone (no trial label reaches the model).",
     ])
     r.h("Why the numbers differ from the human data")
     r.bullets([
-        "One view gives a surface: after a large depth rotation the mental image carries the seen surface to where "
-        "the target shows other faces, so the overlap at alignment is smaller in depth than in the picture plane.",
-        "The posture maps are trained on other objects (the test objects are new); where they misread an "
-        "orientation the model turns about a wrong axis or stops early, which flattens the RT-angle line and costs "
-        "correct answers.",
-        "A Shepard-Metzler object and its mirror share most of their cubes; the matching counts voxel overlap with "
-        "the target and with its reflection, so the two accumulators receive similar evidence.",
+        "One view gives a surface; the completion map fills in hidden cubes only as far as chains taught it, so depth "
+        "pairs, whose two views show different faces, start from less alike images than picture-plane pairs.",
+        "The transform turns about the camera axes in steps of a fixed size; the last step leaves up to half a step, and "
+        "the chained steps blur the image, which the mismatch cluster must tolerate.",
         "RT is counted in accumulator cycles; Shepard & Metzler's seconds include encoding and response time.",
     ])
     r.h("Figures")

@@ -44,6 +44,7 @@ from .rotation_embodied import check_proprioception
 AXES = ("x", "y", "z")
 WRIST_AXIS = "z"  # the line of sight: the axis the wrist turns the held object about (as in Exp 4)
 MOVES = ("still",) + tuple(f"{a}{s}" for a in AXES for s in ("-", "+"))  # PMCm units
+COARSE_UNITS = 128  # blocks of a coarse image the search compares (the most active ones)
 SIGNS = [torch.tensor(s, dtype=torch.float64) for s in itertools.product((1.0, -1.0), repeat=3)]
 
 
@@ -74,10 +75,10 @@ def grid_for_budget(budget_mb: float, step_deg: float, moves: int = len(MOVES) -
     return best
 
 
-def fill_offsets(depth: int) -> torch.Tensor:
+def fill_offsets(depth: int, lateral: int = 1) -> torch.Tensor:
     """Receptive field of C_fill ``(K, 3)`` (z, y, x): the voxels in front of a voxel along the line of
-    sight (dz = -1 .. depth toward the eye) and their 8 lateral neighbours."""
-    r = torch.arange(-1, 2)
+    sight (dz = -1 .. depth toward the eye) and their lateral neighbours up to ``lateral`` voxels."""
+    r = torch.arange(-lateral, lateral + 1)
     return torch.tensor([(dz, dy, dx) for dz in range(-1, depth + 1) for dy in r.tolist() for dx in r.tolist()])
 
 
@@ -112,7 +113,7 @@ class Rotation3D(nn.Module):
         self.moves = move_angles(float(p.step_deg))
         init = (0.0, p.init_high)
         self.fill = LocalConnection(side, 0, generators, init=init, rules=Delta(p.image.eta), name="C_fill",
-                                    offset_set=fill_offsets(p.image.fill_depth))
+                                    offset_set=fill_offsets(p.image.fill_depth, p.image.lateral))
         self.fm = nn.ModuleList([LocalConnection(side, self.radius, generators, init=init, rules=Delta(p.fm.eta),
                                                  name=f"FM_{m}") for m in MOVES[1:]])
         # initial weights of the fast principal-axes connection, one draw per participant
@@ -129,6 +130,12 @@ class Rotation3D(nn.Module):
     @property
     def participants(self) -> int:
         return self.fm[0].weight.shape[0]
+
+    def describe(self) -> dict:
+        """Sizes of the network (for the report)."""
+        return {"side": self.side, "receptive_radius": self.radius, "offsets": self.fm[0].K, "moves": len(self.fm),
+                "cube_voxels": round(self.cube_voxels, 4), "fill_offsets": self.fill.K,
+                "fm_mb_per_participant": round(sum(c.weight[0].numel() for c in self.fm) * 4 / 1e6, 2)}
 
     # ------------------------------------------------------------------ stage 1: the image
     def encode(self, occ: torch.Tensor) -> torch.Tensor:
@@ -196,18 +203,18 @@ class Rotation3D(nn.Module):
         return pos, pooled.reshape(maps.shape[0], -1)
 
     def coarse_match(self, target: torch.Tensor, comp: torch.Tensor, R: torch.Tensor) -> torch.Tensor:
-        """Coarse comparison ``(R_rows,)``: overlap of the coarse target with the coarse comparison
-        image whose positions are turned by ``R`` ``(rows, 3, 3)`` (Gaussian of one cube edge)."""
+        """Coarse comparison ``(rows,)``: overlap of the coarse target with the coarse comparison
+        image whose positions are turned by ``R`` ``(rows, 3, 3)`` (Gaussian of one cube edge); each
+        coarse image keeps its :data:`COARSE_UNITS` most active blocks."""
         pos, wt = self.coarse_points(target)
         _, wc = self.coarse_points(comp)
-        s2 = 2.0 * self.cube_voxels ** 2
-        out = []
-        for lo in range(0, target.shape[0], 64):
-            hi = min(lo + 64, target.shape[0])
-            turned = torch.einsum("rij,cj->rci", R[lo:hi], pos)  # (r, c, 3)
-            d2 = ((pos.view(1, -1, 1, 3) - turned.unsqueeze(1)) ** 2).sum(-1)  # (r, c_t, c_c)
-            out.append(torch.einsum("rt,rtc,rc->r", wt[lo:hi], torch.exp(-d2 / s2), wc[lo:hi]))
-        return torch.cat(out)
+        k = min(COARSE_UNITS, wt.shape[1])
+        wt, it = wt.topk(k, -1)
+        wc, ic = wc.topk(k, -1)
+        pt, pc = pos[it], pos[ic]  # (rows, k, 3)
+        turned = torch.einsum("rij,rcj->rci", R, pc)
+        d2 = ((pt.unsqueeze(2) - turned.unsqueeze(1)) ** 2).sum(-1)  # (rows, k_t, k_c)
+        return torch.einsum("rt,rtc,rc->r", wt, torch.exp(-d2 / (2.0 * self.cube_voxels ** 2)), wc)
 
     def search(self, target: torch.Tensor, comp: torch.Tensor, part: torch.Tensor, proper: bool = True):
         """The rotation still required ``(R, 3, 3)`` (turns the comparison image onto the target)
@@ -263,13 +270,14 @@ class Rotation3D(nn.Module):
 
     # ------------------------------------------------------------------ stage 4: confirm
     def mismatch(self, turned: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(match: cosine of the turned image with the target, largest mismatch cluster in cubes). The
-        mismatch map keeps the voxels where the two differ by more than ``confirm.level`` and that
-        lie in a fully mismatched block of ``ceil(cube_voxels - 1)`` voxels a side (an opening: a thin
-        shell of misalignment is no missing part)."""
-        diff = ((turned - target).abs() > self.p.confirm.level).float()
-        block = max(1, int(math.ceil(self.cube_voxels - 1.0)))
-        diff = vc.opening(diff, self.side, block)
+        """(match: cosine of the turned image with the target, largest mismatch cluster in cubes). A
+        voxel mismatches when one image is above ``confirm.level`` there and the other is not; the
+        mismatch map keeps only voxels of fully mismatched blocks of ``max(2, round(cube_voxels))``
+        voxels a side (an opening: the thin shell that blur and misalignment leave is no missing
+        part), and its largest 26-connected cluster is counted in cubes."""
+        lv = self.p.confirm.level
+        diff = ((turned > lv) != (target > lv)).float()
+        diff = vc.opening(diff, self.side, max(2, int(round(self.cube_voxels))))
         cubes = vc.largest_cluster(diff, self.side).double() / self.cube_voxels ** 3
         return vc.cosine(turned, target), cubes
 

@@ -1,0 +1,24 @@
+"""One Experiment 6 participant trained as the protocol trains it (full sizes, one participant),
+shared by the stage-contract tests of tests/contracts/test_exp6_*.py."""
+from functools import lru_cache
+
+from conftest import make_cfg
+
+from neuroimagery.config import validate
+
+
+def cfg_for(*overrides):
+    cfg = validate(make_cfg("experiment=exp6", "logger=none", "participants=1", *overrides))
+    cfg.preset = "full"
+    return cfg
+
+
+@lru_cache(maxsize=1)
+def trained():
+    """(config, model, scene) of one participant at seed 0."""
+    from neuroimagery.experiments import exp6
+
+    cfg = cfg_for()
+    scene = exp6.make_scene(cfg.experiment)
+    model = exp6.train_model(cfg, [0], scene)
+    return cfg, model, scene
