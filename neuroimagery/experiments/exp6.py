@@ -61,16 +61,14 @@ def _model(cfg, ids):
 
 
 def train_completion(model, cfg, ids, scene) -> None:
-    """C_fill: each participant sees its own random chains in random poses (never a built-in object)."""
+    """C_fill: random chains in random poses (never a built-in object), seen by the eye once per run;
+    each participant learns from them in its own order."""
     e = cfg.experiment
     n = e.quick.chains if cfg.preset == "quick" else e.image.chains
-    scale = model.cube_voxels
-    surf, whole = [], []
-    for pid in progress.bar(ids, what="completion map: chain views", unit="participant"):
-        s, w, _, _ = data.chain_views(scene, e, model.side, scale, n, cfg.seed, 1000 + int(pid))
-        surf.append(model.encode(s))
-        whole.append(model.encode(w))
-    model.fit_completion(torch.stack(surf), torch.stack(whole), e.image.batch)
+    s, w, _, _ = data.chain_views(scene, e, model.side, model.cube_voxels, n, cfg.seed, 1000)
+    code_s, code_w = model.encode(s), model.encode(w)
+    order = torch.stack([torch.randperm(n, generator=g) for g in seeding.participant_generators(cfg.seed, ids, stream=9)])
+    model.fit_completion(code_s[order], code_w[order], e.image.batch)
 
 
 def train_forward_models(model, cfg, ids) -> None:

@@ -38,7 +38,7 @@ class ImageParams:
     fill_depth: int = 9
     lateral: int = 1  # ... and the voxels up to this far beside that line
     eta: float = 0.002  # delta-rule rate of C_fill (with the batch: a stable step for receptive fields of ~50 active units)
-    chains: int = 150  # views of random cube chains (random poses) per participant
+    chains: int = 1200  # views of random cube chains in random poses (one set per run, each participant its own order)
     batch: int = 8  # views per delta-rule update
 
     def __post_init__(self) -> None:
@@ -127,7 +127,7 @@ class QuickParams:
 
     objects: int = 2  # test objects
     fm_images: int = 100  # forward-model images per move
-    chains: int = 80  # chain views for C_fill
+    chains: int = 300  # chain views for C_fill
 
     def __post_init__(self) -> None:
         _at_least_one("quick.", self, ("objects", "fm_images", "chains"))

@@ -11,7 +11,7 @@ from ..nn import seeding
 from ..vision import shepard_metzler as sm
 from . import exp6_data as data
 
-HELD_OUT = 90_000  # chain streams of the held-out checks (training uses 1000 + participant id)
+HELD_OUT = 90_000  # chain streams of the held-out checks (training uses stream 1000)
 
 
 def completion(model, cfg, scene, count: int = 40) -> dict:
