@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-import torch
 from scipy import stats
 
 from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import effect, holm, one_sample, paired_by_participant, slope_by_participant, summarise_trials
-from ..nn import seeding
 from . import exp6
 
 # Shepard & Metzler (1971), Fig. 2 and text: same-pair RT linear in angle, r about 0.97 in both

@@ -1,6 +1,6 @@
-"""3-D population maps (voxel grids) for Experiment 6: from seen points to a map, random 3-D dot
-images, rotations of maps by a 3-D affine warp, the reflection of a map through its own principal
-plane, neighbourhood dilation and orthogonal projections.
+"""3-D voxel maps for Experiment 6: from seen points to a binary map, random 3-D dots, rotations of
+maps by a nearest-neighbour 3-D warp, blur and orthogonal projections (the graded code built on
+them is :mod:`neuroimagery.models.voxel_code`).
 
 A map is a flat tensor ``(..., G^3)``; voxel ``(z, y, x)`` is index ``(z G + y) G + x``, with the
 camera axes x right, y up, z toward the eye. The map centre is ``(G - 1) / 2`` on each axis.
@@ -79,47 +79,6 @@ def warp(maps: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
     """Apply a :func:`warp_index` to maps ``(..., G^3)``."""
     pad = torch.cat([maps, maps.new_zeros(*maps.shape[:-1], 1)], -1)
     return pad[..., index]
-
-
-def dot_images(n: int, side: int, generator: torch.Generator, dots: int = 3) -> torch.Tensor:
-    """``n`` binary maps ``(n, G^3)`` with ``dots`` single-voxel dots drawn uniformly from the dot ball
-    (:func:`dot_ball`); dots may coincide. Draws only from ``generator``."""
-    pick = dot_indices(n, side, generator, dots)
-    out = torch.zeros(n, side ** 3)
-    out.scatter_(1, pick, 1.0)
-    return out
-
-
-def principal_reflection(maps: torch.Tensor, side: int) -> torch.Tensor:
-    """Each binary map ``(..., G^3)`` reflected through the plane of its two main principal axes
-    (along the eigenvector of least second moment of its active voxels, through their centroid);
-    nearest-neighbour, sources outside stay 0, an empty map stays empty."""
-    shape = maps.shape
-    x = maps.reshape(-1, side ** 3).double()
-    g = torch.from_numpy(grid_coords(side))  # (n, 3)
-    m = x.sum(-1, keepdim=True).clamp_min(1.0)
-    c = (x @ g) / m  # (N, 3)
-    d = g.unsqueeze(0) - c.unsqueeze(1)  # (N, n, 3)
-    cov = torch.einsum("bn,bni,bnj->bij", x, d, d)
-    _, vec = torch.linalg.eigh(cov)
-    nrm = vec[..., 0]  # (N, 3) least spread
-    src = g.unsqueeze(0) - 2.0 * (d * nrm.unsqueeze(1)).sum(-1, keepdim=True) * nrm.unsqueeze(1)  # reflection is its own inverse
-    idx = torch.round(src + (side - 1) / 2.0).long()
-    ok = ((idx >= 0) & (idx < side)).all(-1)
-    flat = (idx[..., 2] * side + idx[..., 1]) * side + idx[..., 0]
-    flat = torch.where(ok, flat, torch.full_like(flat, side ** 3))
-    pad = torch.cat([x, x.new_zeros(x.shape[0], 1)], -1)
-    return torch.gather(pad, 1, flat).to(maps.dtype).reshape(shape)
-
-
-def dilate(maps: torch.Tensor, side: int, radius: int) -> torch.Tensor:
-    """Binary maps ``(..., G^3)`` dilated by the ``(2r+1)^3`` cube (a 3-D max-pool, stride 1)."""
-    if radius <= 0:
-        return maps
-    shape = maps.shape
-    v = maps.reshape(-1, 1, side, side, side)
-    out = torch.nn.functional.max_pool3d(v, 2 * radius + 1, stride=1, padding=radius)
-    return out.reshape(shape)
 
 
 def projections(m: torch.Tensor, side: int) -> dict:
