@@ -183,7 +183,7 @@ def _fig2(df: pd.DataFrame, path, tests) -> None:
             ax.plot(xs, f["intercept"] + f["slope"] * xs, "--", color="grey",
                     label=f"{f['slope']:.3g} cycles/deg, r = {f['r'] if f['r'] is not None else '-'}")
             ax.legend(fontsize=8, loc="upper left")
-        ax.set_title({"picture": "picture-plane pairs", "depth": "depth pairs"}[test])
+        ax.set_title({"picture": "picture-plane pairs", "depth": "depth pairs"}.get(test, f"{test} pairs"))
         ax.set_xlabel("angle of rotation (deg)")
         ax.set_xticks(range(0, 181, 40))
         ax.grid(alpha=0.3)

@@ -11,5 +11,6 @@ from neuroimagery.experiments import exp6_stages
 def test_mismatch_cluster_separates_training_and_held_out_pairs():
     cfg, model, scene = trained()
     out = exp6_stages.confirm(model, cfg, scene, count=4)
+    print(out)
     assert out["train"] >= 0.9, out
     assert out["held_out"] >= 0.9, out

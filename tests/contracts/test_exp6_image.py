@@ -7,4 +7,5 @@ from neuroimagery.experiments import exp6_stages
 def test_completed_map_matches_the_whole_volume_of_held_out_chains():
     cfg, model, scene = trained()
     out = exp6_stages.completion(model, cfg, scene, count=20)
+    print(out)
     assert min(out["cosine"]) >= 0.85, out

@@ -7,5 +7,6 @@ from neuroimagery.experiments import exp6_stages
 def test_search_finds_axis_and_angle_of_held_out_same_pairs():
     cfg, model, scene = trained()
     out = exp6_stages.search(model, cfg, scene, count=6)
+    print(out)
     assert out["picture"] >= 0.95, out
     assert out["depth"] >= 0.85, out
