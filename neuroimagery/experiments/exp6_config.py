@@ -5,10 +5,10 @@ and ``quick``; the top-level ``step_deg``, ``ppc_sigma``, ``softmax_tau``, ``max
 ``proprio_gain`` and ``conditions`` mean what they mean there."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any, List, Optional
 
+from ..bounds import bounded, check_declared
 from ..models.rotation_embodied import PROPRIOCEPTION
 from ..vision import shepard_metzler as sm
 
@@ -16,75 +16,47 @@ TESTS = sm.KINDS + ("oblique",)  # picture, depth, and the extra test about an o
 CONDITIONS = PROPRIOCEPTION
 
 
-def _positive(group: str, obj, keys) -> None:
-    for k in keys:
-        v = getattr(obj, k)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ValueError(f"experiment.{group}{k} must be > 0, got {v!r}")
-
-
-def _at_least_one(group: str, obj, keys) -> None:
-    for k in keys:
-        if int(getattr(obj, k)) < 1:
-            raise ValueError(f"experiment.{group}{k} must be >= 1, got {getattr(obj, k)!r}")
-
-
 @dataclass
 class ImageParams:
     """Stage 1 (``experiment.image``): the graded code and the completion map C_fill."""
 
-    sigma: float = 0.7  # tuning width of a voxel unit (voxels)
+    sigma: float = bounded(0.7, gt=0)  # tuning width of a voxel unit (voxels)
     # C_fill reads this many voxels toward the eye (and one behind); -1 = no completion (the seen surface alone)
-    fill_depth: int = 9
-    lateral: int = 1  # ... and the voxels up to this far beside that line
-    eta: float = 0.002  # delta-rule rate of C_fill (with the batch: a stable step for receptive fields of ~50 active units)
-    chains: int = 1200  # views of random cube chains in random poses (one set per run, each participant its own order)
-    batch: int = 8  # views per delta-rule update
+    fill_depth: int = bounded(9, ge=-1)
+    lateral: int = bounded(1, ge=0)  # ... and the voxels up to this far beside that line
+    eta: float = bounded(0.002, gt=0, le=1)  # delta-rule rate of C_fill (with the batch: a stable step for receptive fields of ~50 active units)
+    chains: int = bounded(1200, ge=1)  # views of random cube chains in random poses (one set per run, each participant its own order)
+    batch: int = bounded(8, ge=1)  # views per delta-rule update
 
     def __post_init__(self) -> None:
-        _positive("image.", self, ("sigma", "eta"))
-        _at_least_one("image.", self, ("chains", "batch"))
-        if self.lateral < 0:
-            raise ValueError(f"experiment.image.lateral must be >= 0, got {self.lateral!r}")
-        if self.fill_depth < -1:
-            raise ValueError(f"experiment.image.fill_depth must be >= -1, got {self.fill_depth!r}")
-        if self.eta > 1:
-            raise ValueError(f"experiment.image.eta must be <= 1, got {self.eta!r}")
+        check_declared(self, "experiment.image.")
 
 
 @dataclass
 class FMParams:
     """Stage 2 (``experiment.fm``): the forward models (delta rule, eq. 6.4) on graded dots."""
 
-    eta: float = 0.1  # thesis 0.1
-    images: int = 200  # training images per move and participant
-    batch: int = 4  # images per delta-rule update
-    dots: int = 24  # graded dots at sub-voxel positions per image, uniform in the dot ball
-    memory_mb: float = 20.0  # the forward models of one participant: the grid rule (docs/exp6.md)
+    eta: float = bounded(0.1, gt=0, le=1)  # thesis 0.1
+    images: int = bounded(200, ge=1)  # training images per move and participant
+    batch: int = bounded(4, ge=1)  # images per delta-rule update
+    dots: int = bounded(24, ge=1)  # graded dots at sub-voxel positions per image, uniform in the dot ball
+    memory_mb: float = bounded(20.0, gt=0)  # the forward models of one participant: the grid rule (docs/exp6.md)
 
     def __post_init__(self) -> None:
-        _positive("fm.", self, ("eta", "memory_mb"))
-        _at_least_one("fm.", self, ("images", "batch", "dots"))
-        if self.eta > 1:
-            raise ValueError(f"experiment.fm.eta must be <= 1, got {self.eta!r}")
+        check_declared(self, "experiment.fm.")
 
 
 @dataclass
 class SearchParams:
     """Stage 3 (``experiment.search``): the correspondence that estimates the rotation required."""
 
-    method: str = "axes"  # 'axes' = principal axes (Sanger's rule) + coarse comparison | 'sweep' = turns about x, y, z
-    eta: float = 0.5  # Sanger's rule, rate per update (divided by the inputs' mean squared norm)
-    iterations: int = 2000  # updates of the fast principal-axes connection per image (near-equal spreads converge slowly)
-    coarse: int = 2  # the coarse comparison pools blocks of coarse^3 voxels
+    method: str = bounded("axes", choices=("axes", "sweep"))  # 'axes' = principal axes (Sanger's rule) + coarse comparison | 'sweep' = turns about x, y, z
+    eta: float = bounded(0.5, gt=0, le=1)  # Sanger's rule, rate per update (divided by the inputs' mean squared norm)
+    iterations: int = bounded(2000, ge=1)  # updates of the fast principal-axes connection per image (near-equal spreads converge slowly)
+    coarse: int = bounded(2, ge=1)  # the coarse comparison pools blocks of coarse^3 voxels
 
     def __post_init__(self) -> None:
-        if self.method not in ("axes", "sweep"):
-            raise ValueError(f"experiment.search.method must be 'axes' or 'sweep', got {self.method!r}")
-        _positive("search.", self, ("eta",))
-        _at_least_one("search.", self, ("iterations", "coarse"))
-        if self.eta > 1:
-            raise ValueError(f"experiment.search.eta must be <= 1, got {self.eta!r}")
+        check_declared(self, "experiment.search.")
 
 
 @dataclass
@@ -95,8 +67,8 @@ class LcaParams:
     w: float = 0.5  # mutual inhibition (thesis 0.5)
     threshold: float = 1.2  # thesis 1.2
     dt: float = 0.1
-    cycles: int = 10  # cycles per rotation step (thesis 10); the search takes as many
-    input_gain: Optional[float] = None  # None = Exp 4's rule (a full match decides within one step's cycles)
+    cycles: int = bounded(10, ge=1)  # cycles per rotation step (thesis 10); the search takes as many
+    input_gain: Optional[float] = bounded(None, gt=0)  # None = Exp 4's rule (a full match decides within one step's cycles)
 
     def __post_init__(self) -> None:
         from ..nn.decision import LeakyCompetingAccumulator
@@ -105,32 +77,29 @@ class LcaParams:
         keys = ("k", "w", "threshold", "dt")
         check_bounds({k: LeakyCompetingAccumulator.BOUNDS[k] for k in keys}, {k: getattr(self, k) for k in keys},
                      {k: f"experiment.lca.{k}" for k in keys})
-        _at_least_one("lca.", self, ("cycles",))
-        if self.input_gain is not None:
-            _positive("lca.", self, ("input_gain",))
+        check_declared(self, "experiment.lca.")
 
 
 @dataclass
 class ConfirmParams:
     """Stage 4 (``experiment.confirm``): the mismatch after the transform."""
 
-    level: float = 0.5  # a voxel mismatches when the turned image and the target differ by more than this
+    level: float = bounded(0.5, gt=0, lt=1)  # a voxel mismatches when the turned image and the target differ by more than this
 
     def __post_init__(self) -> None:
-        if not 0 < self.level < 1:
-            raise ValueError(f"experiment.confirm.level must lie in (0, 1), got {self.level!r}")
+        check_declared(self, "experiment.confirm.")
 
 
 @dataclass
 class QuickParams:
     """``preset=quick``: a first look (``experiment.quick``)."""
 
-    objects: int = 2  # test objects
-    fm_images: int = 100  # forward-model images per move
-    chains: int = 300  # chain views for C_fill
+    objects: int = bounded(2, ge=1)  # test objects
+    fm_images: int = bounded(100, ge=1)  # forward-model images per move
+    chains: int = bounded(300, ge=1)  # chain views for C_fill
 
     def __post_init__(self) -> None:
-        _at_least_one("quick.", self, ("objects", "fm_images", "chains"))
+        check_declared(self, "experiment.quick.")
 
 
 @dataclass
@@ -156,21 +125,21 @@ class Exp6Config:
     fov_deg: float = 30.0
     red_threshold: float = 60.0  # R - max(G, B) for a pixel to count as the object
     # --- the model ---------------------------------------------------------------------------
-    strategy: str = "rotate"  # 'rotate' = search, transform, confirm | 'parity' = handedness of matched axes, no transform
+    strategy: str = bounded("rotate", choices=("rotate", "parity"))  # 'rotate' = search, transform, confirm | 'parity' = handedness of matched axes, no transform
     step_deg: float = 20.0  # one forward-model step
     grid: Optional[int] = None  # side of the voxel map; None = the grid rule (fm.memory_mb)
     cube_voxels: Optional[float] = None  # voxels per cube edge; None = the scale rule
-    init_high: float = 0.01  # initial weights U[0, init_high] (as Exp 4)
+    init_high: float = bounded(0.01, gt=0)  # initial weights U[0, init_high] (as Exp 4)
     image: ImageParams = field(default_factory=ImageParams)
     fm: FMParams = field(default_factory=FMParams)
     search: SearchParams = field(default_factory=SearchParams)
-    ppc_sigma: float = 0.5  # bump width of PPCt / PPCp, in units (as Exp 4)
-    softmax_tau: float = 0.1  # thesis 0.1
-    max_steps: int = 20  # thesis 20
-    proprio_gain: float = 1.0  # wrist signal strength (as Exp 4)
+    ppc_sigma: float = bounded(0.5, gt=0)  # bump width of PPCt / PPCp, in units (as Exp 4)
+    softmax_tau: float = bounded(0.1, gt=0)  # thesis 0.1
+    max_steps: int = bounded(20, ge=1)  # thesis 20
+    proprio_gain: float = bounded(1.0, gt=0)  # wrist signal strength (as Exp 4)
     lca: LcaParams = field(default_factory=LcaParams)
     confirm: ConfirmParams = field(default_factory=ConfirmParams)
-    train_threads: int = 1  # torch threads while the model learns (speed only)
+    train_threads: int = bounded(1, ge=1)  # torch threads while the model learns (speed only)
     quick: QuickParams = field(default_factory=QuickParams)
 
     def __post_init__(self) -> None:
@@ -181,15 +150,17 @@ class Exp6Config:
                 any(c not in CONDITIONS for c in self.conditions) or "none" not in self.conditions:
             raise ValueError(f"experiment.conditions must be distinct names of {list(CONDITIONS)}, 'none' among them, "
                              f"got {self.conditions!r}")
-        _positive("", self, ("proprio_gain", "cube_edge", "object_distance", "fov_deg", "step_deg", "init_high",
-                             "ppc_sigma", "softmax_tau", "red_threshold"))
+        check_declared(self, "experiment.", recursive=False)
+        for k in ("cube_edge", "object_distance", "fov_deg", "step_deg", "red_threshold"):
+            if not getattr(self, k) > 0:
+                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
         if self.object_seed < 0:
             raise ValueError(f"experiment.object_seed must be >= 0, got {self.object_seed!r}")
-        _at_least_one("", self, ("train_objects", "test_objects", "train_threads", "max_steps"))
+        for k in ("train_objects", "test_objects"):
+            if int(getattr(self, k)) < 1:
+                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
         if not 0 < self.step_deg <= 90 or abs(180.0 / self.step_deg - round(180.0 / self.step_deg)) > 1e-6:
             raise ValueError(f"experiment.step_deg must divide 180 and lie in (0, 90], got {self.step_deg}")
-        if self.strategy not in ("rotate", "parity"):
-            raise ValueError(f"experiment.strategy must be 'rotate' or 'parity', got {self.strategy!r}")
         if self.eye not in ("left", "right"):
             raise ValueError(f"experiment.eye must be 'left' or 'right', got {self.eye!r}")
         if not (64 <= self.image_width <= 2048 and 48 <= self.image_height <= 2048):
