@@ -32,7 +32,10 @@ def pair(shape, n_in, cutoff=None, **kw):
 
 
 def kernel(som, X, order, labels=None, fold=True, chunk=som_online.CHUNK):
+    """The trainer as SOM.fit calls it: on the patterns its rule has scaled (a supervised map
+    whose weights sum to 1 divides each input by its sum, as SOM.step does)."""
     P = som.participants
+    X = som.rule.scale_input(X)
     X = X.unsqueeze(0).expand(P, -1, -1) if X.dim() == 2 else X
     lab = None if labels is None else labels.unsqueeze(0).expand(P, -1)
     return som_online.fit_online(som, X, order, lab, fold=fold, chunk=chunk)
