@@ -139,11 +139,21 @@ def _changed(root, files: Mapping[str, str], only: tuple[str, ...] | None = None
     return None
 
 
+def verify_files(root, manifest: Mapping[str, Any], use: str) -> None:
+    """Refuse a complete run whose files are not those it finished with (``files`` hashes)."""
+    from .errors import UserInputError
+
+    files = manifest.get("files") if isinstance(manifest.get("files"), dict) else {}
+    bad = _changed(root, files)
+    if bad:
+        raise UserInputError(f"{use}: {bad}")
+
+
 def require_complete(root, manifest: Mapping[str, Any], use: str, trained_enough: bool = False) -> str | None:
-    """Refuse (``UserInputError``, ``use`` says for what) a run directory that is not complete,
-    or whose files are not those it finished with. ``trained_enough``: a run whose training
-    finished (``trained``) suffices; its checkpoints are then checked by the hash of their
-    tensors (neuroimagery/checkpoints.py), not here. Returns a ``note`` for a run
+    """Refuse (``UserInputError``, ``use`` says for what) a run directory that is not complete.
+    ``trained_enough``: a run whose training
+    finished (``trained``) suffices. The files are checked by :func:`verify_files` (pooling) or
+    by the hash of the tensors (checkpoints.py). Returns a ``note`` for a run
     written before runs recorded their state (the caller has checked its files), else None."""
     from pathlib import Path
 
@@ -155,11 +165,7 @@ def require_complete(root, manifest: Mapping[str, Any], use: str, trained_enough
     if state is None:
         return (f"{root}: written before runs recorded their state (version {manifest.get('package')}); "
                 "accepted as its files agree with its manifest")
-    files = manifest.get("files") if isinstance(manifest.get("files"), dict) else {}
     if state == "complete" or (trained_enough and manifest.get("trained") is True):
-        bad = None if trained_enough else _changed(root, files)
-        if bad:
-            raise UserInputError(f"{use}: {bad}")
         return None
     if state == "running":
         holder = lock.read(root)
