@@ -32,13 +32,16 @@ def unlink_quietly(path: Path) -> None:
 
 def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
     """``write(tmp)`` into this process's temporary name, then rename it to ``path``. The temporary
-    file is removed if anything goes wrong (an interrupt included); the error is raised as it came
-    (callers name the file to the user)."""
+    file is removed if anything goes wrong (an interrupt included); an ``OSError`` is raised
+    naming ``path`` (not the temporary name), any other error as it came."""
     path = Path(path)
     tmp = tmp_path(path)
     try:
         write(tmp)
         os.replace(tmp, path)
+    except OSError as err:
+        unlink_quietly(tmp)
+        raise OSError(err.errno, err.strerror or str(err), str(path)) from None
     except BaseException:
         unlink_quietly(tmp)
         raise

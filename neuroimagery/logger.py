@@ -92,15 +92,21 @@ class NullLogger:
         pass
 
 
-_previous_hook = threading.excepthook
-
-
-def _quiet_writer_thread(args) -> None:
+def _quiet_writer_thread() -> None:
     """TensorBoard's writer thread re-raises a failed write (a full disk) after handing it to the
-    writer, whose next call raises it in the run's own thread; its traceback is not printed twice."""
-    if type(args.thread).__name__ == "_AsyncWriterThread" and isinstance(args.exc_value, OSError):
+    writer, whose next call raises it in the run's own thread: its traceback is not printed (the
+    hook in place is wrapped once; other threads' errors go to it as before)."""
+    previous = threading.excepthook
+    if getattr(previous, "quiet_tensorboard", False):
         return
-    _previous_hook(args)
+
+    def hook(args) -> None:
+        if type(args.thread).__name__ == "_AsyncWriterThread" and isinstance(args.exc_value, OSError):
+            return
+        previous(args)
+
+    hook.quiet_tensorboard = True
+    threading.excepthook = hook
 
 
 def _naming(method):
@@ -127,14 +133,18 @@ class TensorBoardLogger(NullLogger):
     def __init__(self, root: str | Path, map_images: bool = True) -> None:
         from torch.utils.tensorboard import SummaryWriter
 
-        if threading.excepthook is not _quiet_writer_thread:
-            threading.excepthook = _quiet_writer_thread
+        _quiet_writer_thread()
         root = Path(root)
         for old in root.glob("events.out.tfevents.*"):
             old.unlink()
         self.failed = False
-        self.writer = SummaryWriter(log_dir=str(root))
-        self.event_file = Path(self.writer._get_file_writer().event_writer._file_name)
+        try:
+            self.writer = SummaryWriter(log_dir=str(root))
+            self.event_file = Path(self.writer._get_file_writer().event_writer._file_name)
+        except OSError as err:
+            made = sorted(root.glob("events.out.tfevents.*"))
+            raise OSError(err.errno, f"{err.strerror or err} (TensorBoard's event file)",
+                          str(made[-1] if made else root)) from None
         self.map_images = map_images
         self._first: dict[str, tuple[float, int, float]] = {}  # tag -> its one point so far (value, step, time)
         self._curves: set[str] = set()  # tags with two points or more, written as they come

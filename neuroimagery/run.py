@@ -96,14 +96,18 @@ class RunDir:
             raise UserInputError(f"cannot create the run directory {self.root}: {err.strerror or err}") from None
         if manifest is not None:
             self._write_state("running")
-        if raw is not None:  # Hydra's record, written once the directory is ours (hydra.output_subdir is null)
-            hydra_dir = self.root / ".hydra"
-            hydra_dir.mkdir(exist_ok=True)
-            self._atomic(hydra_dir / "config.yaml", lambda p: p.write_text(OmegaConf.to_yaml(raw, resolve=True)))
-            overrides = _hydra_overrides()
-            if overrides is not None:
-                self._atomic(hydra_dir / "overrides.yaml", lambda p: p.write_text(OmegaConf.to_yaml(overrides)))
-        self.logger = make_logger(cfg, self.tb)
+        try:
+            if raw is not None:  # Hydra's record, written once the directory is ours (hydra.output_subdir is null)
+                hydra_dir = self.root / ".hydra"
+                hydra_dir.mkdir(exist_ok=True)
+                self._atomic(hydra_dir / "config.yaml", lambda p: p.write_text(OmegaConf.to_yaml(raw, resolve=True)))
+                overrides = _hydra_overrides()
+                if overrides is not None:
+                    self._atomic(hydra_dir / "overrides.yaml", lambda p: p.write_text(OmegaConf.to_yaml(overrides)))
+            self.logger = make_logger(cfg, self.tb)
+        except BaseException as err:
+            self.close(ok=False, stopped=stopped_by(err, "starting"))
+            raise
 
     def _check_claim(self, manifest: dict, overwrite: bool) -> None:
         """Refuse a directory that holds another run (unless ``overwrite``)."""
@@ -278,6 +282,9 @@ def _recorded(run: RunDir):
         yield
     except BaseException as err:
         run.close(ok=False, stopped=stopped_by(err, run.phase))
+        if isinstance(err, OSError) and run.trained:  # a full disk while testing: say where the model is
+            raise UserInputError(f"cannot write {err.filename or run.root}: {err.strerror or err}; the trained model is "
+                                 f"whole in {run.checkpoints}") from None
         raise
     run.close(ok=True)
 
