@@ -56,8 +56,11 @@ def safe_load(path: str | Path) -> Any:
             AttributeError, ImportError, IndexError, KeyError) as err:
         raise UserInputError(f"checkpoint {path}: not a checkpoint this package wrote, or corrupt; "
                              f"nothing in it was run ({_reason(err)})") from None
-    except OSError as err:
+    except (FileNotFoundError, PermissionError, IsADirectoryError) as err:
         raise UserInputError(f"checkpoint {path}: cannot be read ({err.strerror or err})") from None
+    except OSError as err:  # torch reading a cut or foreign file
+        raise UserInputError(f"checkpoint {path}: not a checkpoint this package wrote, or corrupt; "
+                             f"nothing in it was run ({err.strerror or _reason(err)})") from None
 
 
 def checkpoint_file(checkpoint: str | Path, name: str, experiment: str) -> Path:

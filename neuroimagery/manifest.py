@@ -165,7 +165,7 @@ def require_complete(root, manifest: Mapping[str, Any], use: str, trained_enough
     if state is None:
         return (f"{root}: written before runs recorded their state (version {manifest.get('package')}); "
                 "accepted as its files agree with its manifest")
-    if state == "complete" or (trained_enough and manifest.get("trained") is True):
+    if state == "complete" or (trained_enough and state in STATES and manifest.get("trained") is True):
         return None
     if state == "running":
         holder = lock.read(root)
