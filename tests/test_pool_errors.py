@@ -74,8 +74,8 @@ YAML_CASES = {
     "python tag": ("experiment: !!python/object/apply:os.system ['touch {marker}']\nseed: 0\n",
                    "not a configuration this package wrote"),
     "python name tag": ("experiment:\n  name: !!python/name:os.system\nseed: 0\n", "not a configuration this package wrote"),
-    "unknown resolver": ("experiment:\n  name: exp5\n  x: ${{nosuch:1}}\nseed: 0\n", "cannot be resolved"),
-    "broken interpolation": ("experiment:\n  name: exp5\n  x: ${{nowhere.key}}\nseed: 0\n", "cannot be resolved"),
+    "unknown resolver": ("experiment:\n  name: exp5\n  x: ${nosuch:1}\nseed: 0\n", "cannot be resolved"),
+    "broken interpolation": ("experiment:\n  name: exp5\n  x: ${nowhere.key}\nseed: 0\n", "cannot be resolved"),
     "a list": ("- 1\n- 2\n", "cannot be read"),
     "binary": ("\udcff", "cannot be read"),
     "experiment not a mapping": ("experiment: 3\nseed: 0\n", "'experiment' is not a mapping"),
@@ -87,7 +87,7 @@ YAML_CASES = {
 def test_a_saved_configuration_that_cannot_be_read_is_one_line_and_runs_nothing(tmp_path, case):
     text, why = YAML_CASES[case]
     marker = tmp_path / "ran"
-    text = text.format(marker=marker)
+    text = text.replace("{marker}", str(marker))
     if case == "binary":
         d = _exp5_dir(tmp_path, "")
         (d / ".hydra" / "config.yaml").write_bytes(b"\xff\xfe\x00bad")
