@@ -119,6 +119,10 @@ class RunDir:
                                      "run of version 0.1.0, before runs had manifests, or not a run): choose another "
                                      "directory or set overwrite=true")
             old = read_json(path, "run manifest")
+            if held == ["manifest.json"] and old.get("state") in ("running", "interrupted"):
+                console.note(f"{self.root} holds a run that stopped before it wrote any result "
+                             f"({old.get('stopped') or 'killed'}): replacing it")
+                return
             diff = mf.differences(manifest["settings"], old.get("settings", {}))
             if old.get("experiment") != manifest["experiment"]:
                 diff.insert(0, f"experiment {old.get('experiment')!r} (stored) vs {manifest['experiment']!r} (this run)")

@@ -204,3 +204,16 @@ def test_a_phase_that_stops_does_not_log_done(tmp_path, monkeypatch, caplog):
     test_lines = [ln for ln in lines if ln.startswith("demo test")]
     assert test_lines and all("done" not in ln for ln in test_lines), lines
     assert "interrupted" in test_lines[0] and "not finished" in test_lines[0]
+
+
+def test_a_run_that_stopped_before_any_result_does_not_block_the_next(tmp_path, monkeypatch, capsys):
+    d = tmp_path / "r"
+    _interrupt_in(monkeypatch, "train")
+    with pytest.raises(KeyboardInterrupt):
+        evaluate(_demo("experiment.eta=0.3"), out_dir=d)
+    monkeypatch.undo()
+    assert _manifest(d)["state"] == "interrupted"
+    capsys.readouterr()
+    evaluate(_demo(), out_dir=d)  # other settings, no overwrite=true: nothing of the stopped run is lost
+    assert "holds a run that stopped before it wrote any result" in capsys.readouterr().err
+    assert _manifest(d)["state"] == "complete"
