@@ -165,3 +165,42 @@ def test_a_full_disk_under_tensorboard_is_one_line_naming_the_event_file(tmp_pat
     assert lines[0].startswith(f"error: {d / 'tb'}")  # the event file, or its folder where none was made yet
     assert not any(isinstance(a.exc_value, OSError) for a in seen)  # the writer thread printed nothing
     assert json.loads((d / "manifest.json").read_text())["state"] == "interrupted"
+
+
+def test_a_full_disk_inside_torch_save_is_an_oserror_naming_the_checkpoint(tmp_path, monkeypatch, capsys):
+    """ENOSPC from the file's own write (where torch writing a file itself reported "unexpected pos")."""
+    real_open = open
+    run_dir = tmp_path / "run"
+
+    class Full:
+        def __init__(self, f):
+            self.f = f
+
+        def write(self, data):  # as a full disk answers: part written, the rest refused at the flush
+            data = bytes(data)
+            self.f.write(data[: len(data) // 2])
+            return len(data) // 2
+
+        def flush(self):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        def __getattr__(self, name):
+            return getattr(self.f, name)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+    def fake_open(path, mode="r", *a, **k):
+        f = real_open(path, mode, *a, **k)
+        return Full(f) if "w" in mode and str(path).startswith(str(run_dir)) else f
+
+    monkeypatch.setattr(files, "open", fake_open, raising=False)
+    line = _refused(capsys, train, _demo("logger=none"), out_dir=run_dir)
+    assert line.startswith(f"error: cannot write {run_dir / 'checkpoints' / 'model.pt'}: No space left on device; "
+                           "kept in "), line
+    spare = Path(line.split("; kept in ")[1])
+    assert torch.load(spare, weights_only=True)["manifest"]["experiment"] == "demo"
+    assert not files.stale_temporaries(run_dir)
