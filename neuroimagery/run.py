@@ -155,10 +155,10 @@ class RunDir:
         try:
             return write_atomic(path, write)
         except OSError as err:
-            kept = self._rescue(path, write)
+            model = ""
             if self.trained and path.parent != self.checkpoints and path.name != "manifest.json":
-                kept += f"; the trained model is whole in {self.checkpoints}"
-            raise UserInputError(f"cannot write {path}: {err.strerror or err}{kept}") from None
+                model = f"; the trained model is whole in {self.checkpoints}"
+            raise UserInputError(f"cannot write {path}: {err.strerror or err}{model}{self._rescue(path, write)}") from None
 
     @staticmethod
     def _rescue(path: Path, write) -> str:
