@@ -217,3 +217,28 @@ def test_a_run_that_stopped_before_any_result_does_not_block_the_next(tmp_path, 
     evaluate(_demo(), out_dir=d)  # other settings, no overwrite=true: nothing of the stopped run is lost
     assert "holds a run that stopped before it wrote any result" in capsys.readouterr().err
     assert _manifest(d)["state"] == "complete"
+
+
+def test_sigterm_during_an_overwrite_leaves_it_interrupted_and_pool_refuses_it(runs, tmp_path, capsys):
+    """A real SIGTERM (sent by the process to itself once testing starts, as a cluster's scheduler
+    would send it) into a directory holding a finished run with other settings, overwrite=true."""
+    import shutil
+
+    d = tmp_path / "over"
+    shutil.copytree(runs / "s1", d)  # the earlier run: 2 participants
+    code = ("import os, signal, sys, runpy\n"
+            "import neuroimagery.experiments.demo as demo\n"
+            "demo.evaluate = lambda *a, **k: os.kill(os.getpid(), signal.SIGTERM) or __import__('time').sleep(30)\n"
+            f"sys.argv = ['evaluate.py', 'experiment=demo', 'logger=none', 'progress=false', 'seed=1', "
+            f"'participants=3', 'overwrite=true', 'hydra.run.dir={d}']\n"
+            f"runpy.run_path({str(ROOT / 'evaluate.py')!r}, run_name='__main__')\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert p.returncode == 130, p.stderr
+    assert p.stderr.strip().splitlines()[-1].startswith("interrupted: "), p.stderr
+    assert "Traceback" not in p.stderr
+    m = _manifest(d)
+    assert m["participants"] == 3 and m["state"] == "interrupted" and "while testing" in m["stopped"]
+    line = _refused(capsys, _pool, runs / "s0", d)
+    assert f"{d} is not a complete run: interrupted" in line
+    log = (d / "evaluate.log").read_text()
+    assert "demo test: interrupted" in log and "demo test: done" not in log
