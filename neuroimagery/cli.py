@@ -99,7 +99,9 @@ def friendly_errors(fn):
             release_unclaimed_dir()
             sys.exit(2)
         except OSError as e:
-            _fail(os_error_message(e))
+            console.error(os_error_message(e))
+            release_unclaimed_dir()
+            sys.exit(2)
         except KeyboardInterrupt:
             console.interrupted("interrupted: files already written in the run directory are kept")
             sys.exit(130)
