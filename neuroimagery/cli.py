@@ -12,6 +12,7 @@ import re
 import signal
 import sys
 import threading
+from pathlib import Path
 
 from . import console
 from .errors import UserInputError
@@ -30,6 +31,49 @@ def _fail(message: str, log: bool = True) -> None:
 def os_error_message(err: OSError) -> str:
     where = f"{err.filename}: " if getattr(err, "filename", None) else ""
     return f"{where}{err.strerror or err}"
+
+
+# run directories that Hydra made for this process's jobs (absolute path -> made by this job)
+_MADE_BY_HYDRA: dict[str, bool] = {}
+
+
+def _job_dir() -> Path | None:
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        return Path(HydraConfig.get().runtime.output_dir)
+    except Exception:  # not under @hydra.main
+        return None
+
+
+def release_unclaimed_dir() -> None:
+    """After a refusal: remove the run directory Hydra made for this job if the run never claimed
+    it, i.e. it holds nothing but the job log and empty folders (the ``error:`` line on stderr is
+    the record). A directory that existed before the job is left as it was."""
+    d = _job_dir()
+    if d is None or not _MADE_BY_HYDRA.get(os.path.abspath(d)):
+        return
+    try:
+        entries = list(d.rglob("*"))
+    except OSError:
+        return
+    logs = [p for p in entries if p.is_file() and p.parent == d and p.suffix == ".log"]
+    if any(p.is_symlink() or (p.is_file() and p not in logs) for p in entries):
+        return
+    import logging
+
+    for h in list(logging.getLogger().handlers):  # the job log's handler holds the file open
+        if isinstance(h, logging.FileHandler) and Path(h.baseFilename).parent == d:
+            h.close()
+            logging.getLogger().removeHandler(h)
+    try:
+        for p in logs:
+            p.unlink()
+        for p in sorted((p for p in entries if p.is_dir()), key=lambda p: len(p.parts), reverse=True):
+            p.rmdir()
+        d.rmdir()
+    except OSError:
+        pass
 
 
 def _terminate_as_interrupt(signum, frame):
@@ -51,9 +95,13 @@ def friendly_errors(fn):
         try:
             return fn(*args, **kwargs)
         except UserInputError as e:
-            _fail(str(e))
+            console.error(str(e))
+            release_unclaimed_dir()
+            sys.exit(2)
         except OSError as e:
-            _fail(os_error_message(e))
+            console.error(os_error_message(e))
+            release_unclaimed_dir()
+            sys.exit(2)
         except KeyboardInterrupt:
             console.interrupted("interrupted: files already written in the run directory are kept")
             sys.exit(130)
@@ -141,3 +189,30 @@ def plain_hydra_errors() -> None:
             return original(again)
 
     hydra_utils.run_and_report = run_and_report
+    _note_made_dirs()
+
+
+def _note_made_dirs() -> None:
+    """Record, before Hydra makes a job's run directory, whether it exists already
+    (:func:`release_unclaimed_dir` removes only a directory made for the job)."""
+    from hydra._internal import hydra as hydra_main
+    from hydra._internal.core_plugins import basic_launcher
+    from hydra.core import utils as hydra_core
+    from omegaconf import OmegaConf
+
+    original = getattr(hydra_core.run_job, "__wrapped__", hydra_core.run_job)
+
+    @functools.wraps(original)
+    def run_job(task_function, config, job_dir_key, job_subdir_key, *args, **kwargs):
+        try:
+            out = str(OmegaConf.select(config, job_dir_key))
+            if job_subdir_key is not None:
+                out = os.path.join(out, str(OmegaConf.select(config, job_subdir_key)))
+            _MADE_BY_HYDRA[os.path.abspath(out)] = not os.path.exists(out)
+        except Exception:  # unknown: the directory is then never removed
+            pass
+        return original(task_function, config, job_dir_key, job_subdir_key, *args, **kwargs)
+
+    for mod in (hydra_core, hydra_main, basic_launcher):
+        if getattr(mod, "run_job", None) is not None:
+            mod.run_job = run_job

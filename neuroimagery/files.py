@@ -1,14 +1,20 @@
 """Writing a result file atomically: into a temporary name of the writing process, then renamed
 over the target, so a reader never sees half a file and two writers (a run and its rerun, two
-workers) never share a temporary name. Used by the run directory (``neuroimagery.run.RunDir``) and
-by Experiment 5's task files."""
+workers) never share a temporary name. A process killed mid-write leaves only its temporary file
+(``<name>.<pid>.tmp``), which the next run into that directory removes
+(:func:`remove_stale_temporaries`). Used by the run directory (``neuroimagery.run.RunDir``), the
+figures, the reports, pooling, babbling and Experiment 5's task files."""
 from __future__ import annotations
 
+import io
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 
 import torch
+
+_TMP = re.compile(r"\.\d+\.tmp$")
 
 
 def tmp_path(path: str | Path) -> Path:
@@ -26,23 +32,63 @@ def unlink_quietly(path: Path) -> None:
 
 def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
     """``write(tmp)`` into this process's temporary name, then rename it to ``path``. The temporary
-    file is removed if anything goes wrong (an interrupt included); the error is raised as it came
-    (callers name the file to the user)."""
+    file is removed if anything goes wrong (an interrupt included); an ``OSError`` is raised
+    naming ``path`` (not the temporary name), any other error as it came."""
     path = Path(path)
     tmp = tmp_path(path)
     try:
         write(tmp)
         os.replace(tmp, path)
+    except OSError as err:
+        unlink_quietly(tmp)
+        raise OSError(err.errno, err.strerror or str(err), str(path)) from None
     except BaseException:
         unlink_quietly(tmp)
         raise
     return path
 
 
+def write_text(path: str | Path, text: str) -> Path:
+    """``text`` into ``path``, atomically."""
+    return write_atomic(path, lambda p: Path(p).write_text(text))
+
+
+def save_figure(fig, path: str | Path, **kwargs) -> Path:
+    """``fig.savefig`` into ``path`` atomically (the format from the name's suffix, as the
+    temporary name has none): a kill leaves the previous figure, never a 0-byte or cut one."""
+    path = Path(path)
+    fmt = path.suffix.lstrip(".") or "png"
+    return write_atomic(path, lambda p: fig.savefig(p, format=fmt, **kwargs))
+
+
 def torch_save(obj, path: Path) -> None:
-    """``torch.save`` into a file opened here (torch reports a failed open or write on a path it
-    opens itself as a RuntimeError, not an OSError), flushed to disk before the rename."""
+    """``torch.save`` into memory, then the bytes into ``path`` with an ordinary write, flushed to
+    disk before the rename: a failed write (a full disk) is an ``OSError`` naming ``path`` (torch
+    writing to a file itself reports it as a ``RuntimeError`` about stream positions)."""
+    buf = io.BytesIO()
+    torch.save(obj, buf)
     with open(path, "wb") as f:
-        torch.save(obj, f)
+        f.write(buf.getbuffer())
         f.flush()
         os.fsync(f.fileno())
+
+
+def stale_temporaries(root: str | Path) -> list[Path]:
+    """Temporary files (``<name>.<pid>.tmp``) under ``root``: those a killed process left."""
+    root = Path(root)
+    if not root.is_dir():
+        return []
+    return sorted(p for p in root.rglob("*.tmp") if _TMP.search(p.name) and p.is_file() and not p.is_symlink())
+
+
+def remove_stale_temporaries(root: str | Path) -> list[Path]:
+    """Remove the temporary files a killed run left under ``root`` (call it while holding the
+    directory's lock: no live writer then uses them); returns those removed."""
+    gone = []
+    for p in stale_temporaries(root):
+        try:
+            p.unlink()
+            gone.append(p)
+        except OSError:
+            pass
+    return gone

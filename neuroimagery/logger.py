@@ -7,7 +7,9 @@ HParams metrics (the scalars TensorBoard's HParams view needs, under ``hparams/`
 summary ``summary/headline``."""
 from __future__ import annotations
 
+import functools
 import math
+import threading
 import time
 from contextlib import nullcontext
 from pathlib import Path
@@ -90,17 +92,59 @@ class NullLogger:
         pass
 
 
+def _quiet_writer_thread() -> None:
+    """TensorBoard's writer thread re-raises a failed write (a full disk) after handing it to the
+    writer, whose next call raises it in the run's own thread: its traceback is not printed (the
+    hook in place is wrapped once; other threads' errors go to it as before)."""
+    previous = threading.excepthook
+    if getattr(previous, "quiet_tensorboard", False):
+        return
+
+    def hook(args) -> None:
+        if type(args.thread).__name__ == "_AsyncWriterThread" and isinstance(args.exc_value, OSError):
+            return
+        previous(args)
+
+    hook.quiet_tensorboard = True
+    threading.excepthook = hook
+
+
+def _naming(method):
+    """A failed write of TensorBoard's as an ``OSError`` that names the event file."""
+
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except OSError as err:
+            if self.failed:  # said once; later calls (close) add nothing
+                return None
+            self.failed = True
+            raise OSError(err.errno, err.strerror or str(err), str(self.event_file)) from None
+
+    return wrapper
+
+
 class TensorBoardLogger(NullLogger):
     """Writes TensorBoard events under ``root`` (``DIR/tb`` of a run): one event file per run, so a
-    run rewritten into its directory replaces the old file instead of adding a second one."""
+    run rewritten into its directory replaces the old file instead of adding a second one. A write
+    that fails (a full disk) is an ``OSError`` naming the event file, raised once."""
 
     def __init__(self, root: str | Path, map_images: bool = True) -> None:
         from torch.utils.tensorboard import SummaryWriter
 
+        _quiet_writer_thread()
         root = Path(root)
         for old in root.glob("events.out.tfevents.*"):
             old.unlink()
-        self.writer = SummaryWriter(log_dir=str(root))
+        self.failed = False
+        try:
+            self.writer = SummaryWriter(log_dir=str(root))
+            self.event_file = Path(self.writer._get_file_writer().event_writer._file_name)
+        except OSError as err:
+            made = sorted(root.glob("events.out.tfevents.*"))
+            raise OSError(err.errno, f"{err.strerror or err} (TensorBoard's event file)",
+                          str(made[-1] if made else root)) from None
         self.map_images = map_images
         self._first: dict[str, tuple[float, int, float]] = {}  # tag -> its one point so far (value, step, time)
         self._curves: set[str] = set()  # tags with two points or more, written as they come
@@ -108,6 +152,7 @@ class TensorBoardLogger(NullLogger):
     def training_curves(self):
         return monitor.to(self.scalar)
 
+    @_naming
     def scalar(self, tag: str, value: float, step: int = 0) -> None:
         """A point of the curve ``tag``; a tag's first point is written once a second one comes
         (a tag with one point ends in the text summary ``summary/single_values``)."""
@@ -127,6 +172,7 @@ class TensorBoardLogger(NullLogger):
             if isinstance(v, (int, float)):
                 self.scalar(f"{prefix}{k}", v, step)
 
+    @_naming
     def map(self, tag: str, activity: torch.Tensor, step: int = 0) -> None:
         if self.map_images:
             self.writer.add_image(tag, _to_image(activity), step, dataformats="CHW")
@@ -135,14 +181,17 @@ class TensorBoardLogger(NullLogger):
         for k, v in maps.items():
             self.map(f"{prefix}{k}", v, step)
 
+    @_naming
     def image(self, tag: str, rgb, step: int = 0) -> None:
         """An (H, W, 3) colour picture with values in [0, 1]."""
         if self.map_images:
             self.writer.add_image(tag, torch.as_tensor(rgb, dtype=torch.float32).clamp(0, 1), step, dataformats="HWC")
 
+    @_naming
     def text(self, tag: str, text: str, step: int = 0) -> None:
         self.writer.add_text(tag, text, step)
 
+    @_naming
     def hparams(self, settings: dict, metrics: dict) -> None:
         """The run's settings and headline figures in TensorBoard's HParams view, written into this
         run's event file (``SummaryWriter.add_hparams`` would open a second one)."""
@@ -159,9 +208,11 @@ class TensorBoardLogger(NullLogger):
             self.writer.add_text("summary/headline", _markdown_table(
                 ["figure", "value"], [[k.removeprefix("hparams/"), f"{v:.4g}"] for k, v in metrics.items()]), 0)
 
+    @_naming
     def flush(self) -> None:
         self.writer.flush()
 
+    @_naming
     def close(self) -> None:
         if self._first:
             rows = [[tag, f"{v:.4g}", str(step)] for tag, (v, step, _) in sorted(self._first.items())]

@@ -95,3 +95,87 @@ def tensor_hash(state: Any) -> str:
 
     walk(state, "")
     return h.hexdigest()
+
+
+# ------------------------------------------------------------------------------ a run's state
+# manifest.json of a run directory records, beside the manifest above, ``state``: ``running``
+# from the moment work starts, then ``complete`` (every output written; ``files`` holds their
+# SHA-256) or ``interrupted`` (stopped: Ctrl-C, SIGTERM, an error; ``stopped`` says how); and
+# ``trained``: whether training finished and its checkpoints are whole. A run killed outright
+# (SIGKILL, power) stays ``running`` with a lock whose process is gone (neuroimagery/lock.py).
+STATES = ("running", "complete", "interrupted")
+OUTPUTS = ("train.json", "trials.csv", "individuals.csv", "summary.json", "report.md")
+
+
+def file_hash(path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def output_hashes(root) -> dict[str, str]:
+    """SHA-256 of the run's result files and checkpoints, by path relative to ``root``."""
+    from pathlib import Path
+
+    root = Path(root)
+    paths = [root / n for n in OUTPUTS] + sorted((root / "checkpoints").glob("*.pt"))
+    return {p.relative_to(root).as_posix(): file_hash(p) for p in paths if p.is_file()}
+
+
+def _changed(root, files: Mapping[str, str], only: tuple[str, ...] | None = None) -> str | None:
+    """The first file of ``files`` (relative paths -> hashes) missing or altered under ``root``."""
+    from pathlib import Path
+
+    for rel, digest in files.items():
+        if only is not None and not rel.startswith(only):
+            continue
+        p = Path(root) / rel
+        if not p.is_file():
+            return f"{p}: missing (manifest.json lists it)"
+        if file_hash(p) != digest:
+            return f"{p}: changed since the run finished (its hash differs from the one in manifest.json)"
+    return None
+
+
+def verify_files(root, manifest: Mapping[str, Any], use: str) -> None:
+    """Refuse a complete run whose files are not those it finished with (``files`` hashes)."""
+    from .errors import UserInputError
+
+    files = manifest.get("files") if isinstance(manifest.get("files"), dict) else {}
+    bad = _changed(root, files)
+    if bad:
+        raise UserInputError(f"{use}: {bad}")
+
+
+def require_complete(root, manifest: Mapping[str, Any], use: str, trained_enough: bool = False) -> str | None:
+    """Refuse (``UserInputError``, ``use`` says for what) a run directory that is not complete.
+    ``trained_enough``: a run whose training
+    finished (``trained``) suffices. The files are checked by :func:`verify_files` (pooling) or
+    by the hash of the tensors (checkpoints.py). Returns a ``note`` for a run
+    written before runs recorded their state (the caller has checked its files), else None."""
+    from pathlib import Path
+
+    from . import lock
+    from .errors import UserInputError
+
+    root = Path(root)
+    state = manifest.get("state")
+    if state is None:
+        return (f"{root}: written before runs recorded their state (version {manifest.get('package')}); "
+                "accepted as its files agree with its manifest")
+    if state == "complete" or (trained_enough and state in STATES and manifest.get("trained") is True):
+        return None
+    if state == "running":
+        holder = lock.read(root)
+        alive = lock.holder_alive(holder) if holder else False
+        if alive or alive is None and holder:
+            why = f"still being written (host {holder.get('host')}, PID {holder.get('pid')})"
+        else:
+            why = "stopped before it finished (killed: its process is gone)"
+    elif state == "interrupted":
+        why = f"interrupted ({manifest.get('stopped') or 'stopped before it finished'})"
+    else:
+        why = f"in an unknown state {state!r}"
+    raise UserInputError(f"{use}: {root} is not a complete run: {why}; its files may mix runs (run it again)")

@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import statistics
 import sys
 from dataclasses import dataclass
@@ -31,11 +30,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from . import console
+from . import console, manifest as mf
 from .analysis.report import Report
 from .analysis.summary import TRIAL_COLUMNS, summarise_test
 from .analysis.tables import read_whole_csv
 from .errors import UserInputError
+from .files import remove_stale_temporaries, tmp_path, write_atomic
 
 # per test: (key in summary.json, label in report.md, a rate shown in %?)
 MEASURES = (("correct_rate", "correct", True), ("error_rate", "error", True),
@@ -53,6 +53,7 @@ class Run:
     dir: Path
     manifest: dict
     summary: dict
+    legacy: str | None = None  # a run written before runs recorded their state: the note to give
 
     experiment = property(lambda self: self.manifest.get("experiment"))
     seed = property(lambda self: self.manifest.get("seed"))
@@ -94,11 +95,14 @@ def _json(path: Path, what: str) -> dict:
 def read_run(d: Path) -> Run:
     """The manifest and summary of one run directory; refused unless the run is finished."""
     manifest = _json(d / "manifest.json", f"not a run directory; {OLD}")
-    for key in ("experiment", "seed", "settings"):
+    for key in ("experiment", "seed", "settings", "participants"):
         if key not in manifest:
             raise UserInputError(f"{d / 'manifest.json'}: no {key!r} (not a manifest this package wrote)")
+    if not isinstance(manifest["settings"], dict):
+        raise UserInputError(f"{d / 'manifest.json'}: 'settings' is not a mapping (not a manifest this package wrote)")
     summary = _json(d / "summary.json", "not a finished run: it stopped, or is still running")
-    return Run(d, manifest, summary)
+    legacy = mf.require_complete(d, manifest, "pool")
+    return Run(d, manifest, summary, legacy)
 
 
 def check_runs(runs: list[Run], free: tuple[str, ...] = ()) -> None:
@@ -139,6 +143,16 @@ def read_trials(run: Run) -> pd.DataFrame:
         if not pd.api.types.is_bool_dtype(df[col]):
             raise UserInputError(f"{path}: column {col} is not True/False")
     return df
+
+
+def _accept_legacy(run: Run, participants: int | None) -> None:
+    """A run written before runs recorded their state has no hashes of its files: accepted when its
+    rows are its summary's (checked) and count the participants its manifest states, with a note."""
+    stated = run.manifest.get("participants")
+    if participants is not None and stated != participants:
+        raise UserInputError(f"pool: {run.dir}: manifest.json states {stated} participants, its rows hold {participants} "
+                             "(files of two runs mixed: an overwrite that stopped?); run it again")
+    console.note(run.legacy)
 
 
 def _close(a, b, rate: bool) -> bool:
@@ -199,6 +213,11 @@ def pool_trials(runs: list[Run]) -> tuple[dict, pd.DataFrame]:
     if any((r.summary.get("targets") or {}) != targets for r in runs[1:]):
         console.note(f"the runs state different thesis targets; the report shows those of {runs[0].dir}")
     counts = [int(f.participant.nunique()) for f in frames]
+    for r, n in zip(runs, counts):
+        if r.legacy is not None:
+            _accept_legacy(r, n)
+        else:
+            mf.verify_files(r.dir, r.manifest, "pool")
     summary = {"experiment": runs[0].experiment, "pooled": True, "seeds": [r.seed for r in runs],
                "participants": sum(counts), "tests": tests, "targets": targets,
                "effects": pooled_effects(runs[0].experiment, rows),
@@ -271,6 +290,11 @@ def pool(dirs: list[str | Path]) -> tuple[dict, pd.DataFrame, Report]:
 
         check_runs(runs, free=tuple(f"experiment.{k}" for k in exp5_pool._FREE_KEYS))
         summary, df = exp5_pool.pool([r.dir for r in runs])
+        for r in runs:
+            if r.legacy is not None:
+                console.note(r.legacy)
+            else:
+                mf.verify_files(r.dir, r.manifest, "pool")
         return summary, df, exp5_pool.report(summary, exp5_pool.read_config(runs[0].dir)[0])
     check_runs(runs)
     summary, df = pool_trials(runs)
@@ -279,28 +303,40 @@ def pool(dirs: list[str | Path]) -> tuple[dict, pd.DataFrame, Report]:
 
 # ------------------------------------------------------------------------------- writing
 def _write(path: Path, text: str | None = None, frame: pd.DataFrame | None = None, float_format=None) -> None:
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-    try:
+    def put(tmp: Path) -> None:
         if frame is not None:
             frame.to_csv(tmp, index=False, float_format=float_format)
         else:
             tmp.write_text(text)
-        os.replace(tmp, path)
+
+    try:
+        write_atomic(path, put)
     except OSError as err:
-        tmp.unlink(missing_ok=True)
         raise UserInputError(f"cannot write {path}: {err.strerror or err}") from None
+
+
+def check_out(out: str | Path) -> Path:
+    """``--out`` before any pooling: not a run directory, a folder that can be made and written."""
+    out = Path(out)
+    if (out / "manifest.json").exists():
+        raise UserInputError(f"--out: {out} is a run directory (it has manifest.json): choose another")
+    if out.exists() and not out.is_dir():
+        raise UserInputError(f"--out: {out} is a file, not a folder: choose another")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = tmp_path(out / ".write-test")
+        probe.write_text("")
+        probe.unlink()
+    except OSError as err:
+        raise UserInputError(f"--out: cannot write into {out} ({err.strerror or err})") from None
+    remove_stale_temporaries(out)
+    return out
 
 
 def write(out: str | Path, summary: dict, df: pd.DataFrame, rep: Report) -> Path:
     """Write the pooled table (``trials.csv``, or ``individuals.csv`` for exp5), ``summary.json`` and
-    ``report.md`` into ``out``; returns the report's path."""
-    out = Path(out)
-    if (out / "manifest.json").exists():
-        raise UserInputError(f"--out: {out} is a run directory (it has manifest.json): choose another")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise UserInputError(f"--out: cannot create {out} ({err.strerror or err})") from None
+    ``report.md`` into ``out``, each atomically; returns the report's path."""
+    out = check_out(out)
     if summary["experiment"] == "exp5":
         _write(out / "individuals.csv", frame=df)
     else:  # as a run writes its trials.csv
@@ -316,6 +352,8 @@ def main(argv: list[str] | None = None, prog: str = "python -m neuroimagery.pool
                     "or a Hydra sweep directory holding them")
     ap.add_argument("--out", help="write the pooled table, summary.json and report.md here")
     args = ap.parse_args(argv)
+    if args.out:
+        check_out(args.out)
     summary, df, rep = pool(args.runs)
     sys.stdout.write(rep.text())
     if args.out:

@@ -6,7 +6,8 @@ known length (a bar ``exp4 train: forward model``), :func:`advance` counts finis
 bar per phase (``exp4 test: 1440/2160 trials``, with the block just finished); :func:`expect`
 gives that bar its total before the first block, so it shows how far the phase is and an ETA. Nothing is shown outside
 a phase or with ``progress=false``, and an experiment that reports nothing (Exp. 5 has its own bar)
-shows nothing. Each phase that showed work leaves one line in the job log.
+shows nothing. Each phase that showed work leaves one line in the job log: ``done in X s``, or, for a phase that did
+not finish, that it stopped.
 """
 from __future__ import annotations
 
@@ -53,15 +54,22 @@ class _Phase:
             self.counter.set_postfix_str(note, refresh=False)
         self.counter.update(n)
 
-    def close(self) -> None:
+    def close(self, stopped: BaseException | None = None) -> None:
+        """One line in the job log: ``done in X s`` for a phase that finished; for one that did
+        not, that it stopped, and why (an interrupt, or an error)."""
         if self.counter is not None:
             self.counter.close()
-        if self.counter is not None or self.bars:
+        took = time.perf_counter() - self.t0
+        if stopped is not None:
+            why = "interrupted" if isinstance(stopped, KeyboardInterrupt) else f"stopped by {type(stopped).__name__}"
+            so_far = f" after {self.counted} {self.unit}" if self.counter is not None else ""
+            LOG.warning(f"{self.label}: {why}{so_far}, {took:.1f} s in; not finished")
+        elif self.counter is not None or self.bars:
             done = f"{self.counted} {self.unit} " if self.counter is not None else ""
-            LOG.info(f"{self.label}: {done}done in {time.perf_counter() - self.t0:.1f} s")
-        total = None if self.counter is None else self.counter.total
-        if total is not None and total != self.counted:  # the announced total was wrong (or the phase stopped early)
-            LOG.warning(f"{self.label}: counted {self.counted} of the {total} {self.unit} announced")
+            LOG.info(f"{self.label}: {done}done in {took:.1f} s")
+            total = None if self.counter is None else self.counter.total
+            if total is not None and total != self.counted:  # the announced total was wrong
+                LOG.warning(f"{self.label}: counted {self.counted} of the {total} {self.unit} announced")
 
 
 _current: _Phase | None = None
@@ -74,9 +82,12 @@ def phase(label: str, enabled: bool) -> Iterator[None]:
     outer, _current = _current, _Phase(label, enabled)
     try:
         yield
-    finally:
-        _current.close()
+    except BaseException as err:
+        _current.close(stopped=err)
         _current = outer
+        raise
+    _current.close()
+    _current = outer
 
 
 def bar(iterable: Iterable | None = None, total: int | None = None, what: str = "", unit: str = "it") -> tqdm:

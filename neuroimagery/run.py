@@ -5,12 +5,11 @@ wrap them with ``@hydra.main``. Tests call them directly with a composed config.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
-import pickle
 import tempfile
 import time
-import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -22,8 +21,10 @@ from .config import Config, experiment_module, validate
 from .nn.functional import intra_op_threads
 from .threads import auto_threads
 from .errors import UserInputError
-from .files import torch_save, write_atomic
-from .logger import make_logger
+from .checkpoints import load_checkpoint, load_model, read_json, safe_load, verify_checkpoint, verify_run  # noqa: F401
+from .files import remove_stale_temporaries, torch_save, write_atomic
+from .lock import RunLock
+from .logger import NullLogger, make_logger
 from .validation import check_run
 
 _STARTUP_TAKEN = []  # the first run of a process records its startup; later runs of a sweep have none
@@ -51,6 +52,12 @@ class RunDir:
 
     ``root/.hydra/config.yaml``, ``checkpoints/``, ``train.json`` (train.py), ``trials.csv`` or
     ``individuals.csv``, ``summary.json``, ``report.md``, ``figures/*.png``, ``tb/``.
+
+    With a ``manifest``, making a ``RunDir`` claims the directory: it takes the directory's lock
+    (neuroimagery/lock.py), removes the temporary files a killed run left, refuses a directory that
+    holds another run (unless ``overwrite``), then writes ``manifest.json`` with ``state: running``.
+    A refusal leaves nothing: a directory this made is removed again. :meth:`close` records
+    ``complete`` (with the hashes of the files written) or ``interrupted`` and releases the lock.
     """
 
     def __init__(self, root: str | Path, cfg: Config, raw: DictConfig | None = None,
@@ -58,25 +65,52 @@ class RunDir:
         self.root = Path(root)
         self.cfg = cfg
         self.manifest = manifest
+        self.timings: dict[str, float] = {}
+        self.phase, self.trained, self.lock = "setup", False, None
+        self.logger = NullLogger()
+        created = not self.root.exists()
         try:
-            for d in (self.root, self.checkpoints, self.figures):
-                d.mkdir(parents=True, exist_ok=True)
+            self.root.mkdir(parents=True, exist_ok=True)
         except OSError as err:
             raise UserInputError(f"cannot create the run directory {self.root}: {err.strerror or err}") from None
         if manifest is not None:
-            self._claim(manifest, getattr(cfg, "overwrite", False))
-        if raw is not None:  # Hydra's record, written once the directory is ours (hydra.output_subdir is null)
-            hydra_dir = self.root / ".hydra"
-            hydra_dir.mkdir(exist_ok=True)
-            self._atomic(hydra_dir / "config.yaml", lambda p: p.write_text(OmegaConf.to_yaml(raw, resolve=True)))
-            overrides = _hydra_overrides()
-            if overrides is not None:
-                self._atomic(hydra_dir / "overrides.yaml", lambda p: p.write_text(OmegaConf.to_yaml(overrides)))
-        self.logger = make_logger(cfg, self.tb)
-        self.timings: dict[str, float] = {}
+            self.lock = RunLock(self.root)
+            try:
+                self.lock.acquire()
+                gone = remove_stale_temporaries(self.root)
+                if gone:
+                    console.note(f"removed {len(gone)} temporary file(s) that a killed run left in {self.root} "
+                                 f"({', '.join(p.name for p in gone[:3])}{', ...' if len(gone) > 3 else ''})")
+                self._check_claim(manifest, getattr(cfg, "overwrite", False))
+            except BaseException:
+                self.lock.release()
+                if created:
+                    _remove_empty_tree(self.root)
+                raise
+        try:
+            for d in (self.checkpoints, self.figures):
+                d.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            if self.lock is not None:
+                self.lock.release()
+            raise UserInputError(f"cannot create the run directory {self.root}: {err.strerror or err}") from None
+        if manifest is not None:
+            self._write_state("running")
+        try:
+            if raw is not None:  # Hydra's record, written once the directory is ours (hydra.output_subdir is null)
+                hydra_dir = self.root / ".hydra"
+                hydra_dir.mkdir(exist_ok=True)
+                self._atomic(hydra_dir / "config.yaml", lambda p: p.write_text(OmegaConf.to_yaml(raw, resolve=True)))
+                overrides = _hydra_overrides()
+                if overrides is not None:
+                    self._atomic(hydra_dir / "overrides.yaml", lambda p: p.write_text(OmegaConf.to_yaml(overrides)))
+            self.logger = make_logger(cfg, self.tb)
+        except BaseException as err:
+            self.close(ok=False, stopped=stopped_by(err, "starting"))
+            raise
 
-    def _claim(self, manifest: dict, overwrite: bool) -> None:
-        """Refuse a directory that holds another run (unless ``overwrite``), then write our manifest."""
+    def _check_claim(self, manifest: dict, overwrite: bool) -> None:
+        """Refuse a directory that holds another run (unless ``overwrite``)."""
         path = self.root / "manifest.json"
         held = [n for n in RUN_FILES if (self.root / n).exists()] + sorted(p.name for p in self.checkpoints.glob("*.pt"))
         if held and not overwrite:
@@ -85,6 +119,10 @@ class RunDir:
                                      "run of version 0.1.0, before runs had manifests, or not a run): choose another "
                                      "directory or set overwrite=true")
             old = read_json(path, "run manifest")
+            if held == ["manifest.json"] and old.get("state") in ("running", "interrupted"):
+                console.note(f"{self.root} holds a run that stopped before it wrote any result "
+                             f"({old.get('stopped') or 'killed'}): replacing it")
+                return
             diff = mf.differences(manifest["settings"], old.get("settings", {}))
             if old.get("experiment") != manifest["experiment"]:
                 diff.insert(0, f"experiment {old.get('experiment')!r} (stored) vs {manifest['experiment']!r} (this run)")
@@ -95,7 +133,21 @@ class RunDir:
                 console.note(f"{self.root} holds a run of version {old.get('package')} (this is {manifest['package']})")
             console.note(f"{self.root} holds a run with the same settings: "
                          + ("finished tasks are kept and the run resumes" if manifest["experiment"] == "exp5" else "rewriting it"))
-        self.write_json("manifest.json", manifest)
+
+    def _write_state(self, state: str, stopped: str | None = None) -> None:
+        """``manifest.json``: the manifest with the run's ``state`` (neuroimagery/manifest.py)."""
+        data = {**self.manifest, "state": state, "trained": self.trained}
+        if stopped:
+            data["stopped"] = stopped
+        if state == "complete" or self.trained:
+            data["files"] = mf.output_hashes(self.root)
+        self.write_json("manifest.json", data)
+
+    def mark_trained(self) -> None:
+        """Training finished and its checkpoints are whole: ``checkpoint=`` may use them."""
+        self.trained = True
+        if self.manifest is not None and self.lock is not None and self.lock.held:
+            self._write_state("running")
 
     def _atomic(self, path: Path, write) -> Path:
         """``write(tmp)`` then rename onto ``path``; an ``OSError`` leaves no temporary file behind and
@@ -103,7 +155,10 @@ class RunDir:
         try:
             return write_atomic(path, write)
         except OSError as err:
-            raise UserInputError(f"cannot write {path}: {err.strerror or err}{self._rescue(path, write)}") from None
+            model = ""
+            if self.trained and path.parent != self.checkpoints and path.name != "manifest.json":
+                model = f"; the trained model is whole in {self.checkpoints}"
+            raise UserInputError(f"cannot write {path}: {err.strerror or err}{model}{self._rescue(path, write)}") from None
 
     @staticmethod
     def _rescue(path: Path, write) -> str:
@@ -135,8 +190,60 @@ class RunDir:
     def write_csv(self, name: str, frame) -> Path:
         return self._atomic(self.root / name, lambda p: frame.to_csv(p, index=False, float_format="%.6g"))
 
-    def close(self) -> None:
-        self.logger.close()
+    def close(self, ok: bool = True, stopped: str | None = None) -> None:
+        """Close the logger, record ``complete`` (``ok``) or ``interrupted`` and release the lock.
+        A failure to write while finishing a good run is raised (the run is then ``interrupted``);
+        while an error is already on its way up, it is not (that error is the one to show)."""
+        pending = None
+        try:
+            self.logger.close()
+        except OSError as err:
+            if ok:
+                pending, ok = err, False
+                stopped = f"cannot write {err.filename or self.tb}: {err.strerror or err}"
+        self.logger = NullLogger()
+        if self.lock is not None and self.lock.held:
+            try:
+                self._write_state("complete" if ok else "interrupted", None if ok else stopped)
+            except (OSError, UserInputError) as err:
+                pending = pending or (err if ok else None)
+            finally:
+                self.lock.release()
+        if pending is not None:
+            raise pending
+
+
+def _remove_empty_tree(root: Path) -> None:
+    """Remove ``root`` if it holds nothing but empty folders (a refused run's own directory)."""
+    try:
+        for d in sorted((p for p in root.rglob("*")), key=lambda p: len(p.parts), reverse=True):
+            if not d.is_dir() or d.is_symlink():
+                return
+            d.rmdir()
+        root.rmdir()
+    except OSError:
+        pass
+
+
+def stopped_by(err: BaseException | None, phase: str) -> str:
+    """How a run stopped, for ``manifest.json``'s ``stopped``."""
+    if isinstance(err, KeyboardInterrupt):
+        return f"interrupted (Ctrl-C or SIGTERM) while {phase}"
+    if err is None:
+        return f"stopped while {phase}"
+    first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+    return f"stopped by an error while {phase}: {first[:200]}"
+
+
+def _output_dir(out_dir: str | Path | None) -> Path:
+    if out_dir is not None:
+        return Path(out_dir)
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        return Path(HydraConfig.get().runtime.output_dir)
+    except Exception:
+        return Path("outputs") / time.strftime("%Y-%m-%d_%H-%M-%S")
 
 
 def _hydra_overrides():
@@ -156,86 +263,9 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-def read_json(path: Path, what: str) -> dict:
-    """A JSON object from ``path``; a missing, unreadable or corrupt file is a :class:`UserInputError`."""
-    try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as err:
-        raise UserInputError(f"{what} {path}: cannot be read ({getattr(err, 'strerror', None) or err})") from None
-    if not isinstance(data, dict):
-        raise UserInputError(f"{what} {path}: not a JSON object")
-    return data
-
-
-def safe_load(path: str | Path) -> Any:
-    """``torch.load`` with ``weights_only=True``: tensors and plain containers only, so nothing in
-    the file is executed. A file that is not such a checkpoint is a :class:`UserInputError`."""
-    path = Path(path)
-    try:
-        return torch.load(path, map_location="cpu", weights_only=True)
-    except (pickle.UnpicklingError, RuntimeError, EOFError, zipfile.BadZipFile, ValueError, TypeError,
-            AttributeError, ImportError, IndexError, KeyError) as err:
-        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise UserInputError(f"checkpoint {path}: not a checkpoint this package wrote, or corrupt; "
-                             f"nothing in it was run ({first[:200]})") from None
-    except OSError as err:
-        raise UserInputError(f"checkpoint {path}: cannot be read ({err.strerror or err})") from None
-
-
-def _checkpoint_file(checkpoint: str | Path, name: str, experiment: str) -> Path:
-    path = Path(checkpoint) / "checkpoints" / f"{name}.pt"
-    if not path.exists():
-        raise UserInputError(f"checkpoint: no {path} (is {checkpoint} the directory of a training run of {experiment}?)")
-    return path
-
-
-def load_checkpoint(checkpoint: str | Path, name: str) -> dict:
-    """Read ``checkpoints/<name>.pt`` of a training run's directory, with a clear error if absent."""
-    path = _checkpoint_file(checkpoint, name, "this experiment")
-    state = safe_load(path)
-    if not isinstance(state, dict):
-        raise UserInputError(f"checkpoint {path}: holds a {type(state).__name__}, not a checkpoint of this package")
-    state.pop("manifest", None)
-    return state
-
-
-def verify_checkpoint(checkpoint: str | Path, name: str, manifest: dict) -> None:
-    """Check ``checkpoints/<name>.pt`` against this run's ``manifest``: the tensors are those it
-    stored (hash), and it was trained with the same settings; every differing key is named."""
-    path = _checkpoint_file(checkpoint, name, manifest["experiment"])
-    state = safe_load(path)
-    stored = state.pop("manifest", None) if isinstance(state, dict) else None
-    if not isinstance(stored, dict):
-        raise UserInputError(f"checkpoint {path}: has no manifest (written by version 0.1.0, before checkpoints had "
-                             "manifests, or not by this package): train it again with this version")
-    if stored.get("tensor_hash") != mf.tensor_hash(state):
-        raise UserInputError(f"checkpoint {path}: its tensors do not match the hash it stores (altered or corrupt)")
-    if stored.get("experiment") != manifest["experiment"]:
-        raise UserInputError(f"checkpoint: {checkpoint} was trained for {stored.get('experiment')}, "
-                             f"not {manifest['experiment']}")
-    diff = mf.differences(manifest["training"], stored.get("training", {}))
-    if diff:
-        raise UserInputError(f"checkpoint {path} was trained with other settings: {'; '.join(diff)} "
-                             "(set them as in training, or train again)")
-    if stored.get("package") != manifest["package"]:
-        console.note(f"checkpoint {path} was written by version {stored.get('package')} (this is "
-                     f"{manifest['package']})")
-
-
-def _output_dir(out_dir: str | Path | None) -> Path:
-    if out_dir is not None:
-        return Path(out_dir)
-    try:
-        from hydra.core.hydra_config import HydraConfig
-
-        return Path(HydraConfig.get().runtime.output_dir)
-    except Exception:
-        return Path("outputs") / time.strftime("%Y-%m-%d_%H-%M-%S")
-
-
-def _prepare(cfg: DictConfig | Config, out_dir, checkpoint: bool = False):
-    """Validate everything (config, stimulus folder, the checkpoint named) before any work, then
-    claim the run directory."""
+def _prepare(cfg: DictConfig | Config, checkpoint: bool = False):
+    """Validate everything (config, stimulus folder, the checkpoint named) before any work. The
+    run directory is claimed later, by :class:`RunDir`, when work starts."""
     raw = cfg if isinstance(cfg, DictConfig) else None
     conf = validate(cfg)
     module = experiment_module(conf.experiment.name)
@@ -244,34 +274,50 @@ def _prepare(cfg: DictConfig | Config, out_dir, checkpoint: bool = False):
     if conf.checkpoint and not checkpoint:
         raise UserInputError("checkpoint= has no effect in training: it names a trained run for evaluate.py")
     if checkpoint and conf.checkpoint:
-        ck = Path(conf.checkpoint)
-        if not ck.is_dir():
-            raise UserInputError(f"checkpoint: {ck} is not a directory")
-        for name in getattr(module, "CHECKPOINTS", ("model",)):
-            verify_checkpoint(ck, name, manifest)
-    run = RunDir(_output_dir(out_dir), conf, raw, manifest)
-    return conf, module, run
+        verify_run(conf.checkpoint, getattr(module, "CHECKPOINTS", ("model",)), manifest)
+    return conf, module, manifest, raw
+
+
+@contextlib.contextmanager
+def _recorded(run: RunDir):
+    """Close ``run`` on the way out: ``complete`` if the body finished, else ``interrupted`` with
+    how it stopped."""
+    try:
+        yield
+    except BaseException as err:
+        run.close(ok=False, stopped=stopped_by(err, run.phase))
+        if isinstance(err, OSError) and run.trained:  # a full disk while testing: say where the model is
+            raise UserInputError(f"cannot write {err.filename or run.root}: {err.strerror or err}; the trained model is "
+                                 f"whole in {run.checkpoints}") from None
+        raise
+    run.close(ok=True)
+
+
+def _train_phase(conf, module, run) -> tuple[Any, dict]:
+    t0 = time.perf_counter()
+    memory.reset_peak()
+    run.phase = "training"
+    with progress.phase(f"{conf.experiment.name} train", conf.progress), run.logger.training_curves():
+        trained = module.train(conf, run)
+    run.timings["train"] = round(time.perf_counter() - t0, 3)
+    run.mark_trained()
+    return trained, {"train": memory.peak_rss_mb()}
 
 
 def train(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
     """Train experiment ``cfg.experiment.name`` and save its checkpoints. Returns a small summary."""
-    conf, module, run = _prepare(cfg, out_dir)
+    conf, module, manifest, raw = _prepare(cfg)
     with intra_op_threads(conf.threads or auto_threads()):  # restored afterwards
-        try:
-            t0 = time.perf_counter()
-            memory.reset_peak()
-            with progress.phase(f"{conf.experiment.name} train", conf.progress), run.logger.training_curves():
-                module.train(conf, run)
-            run.timings["train"] = round(time.perf_counter() - t0, 3)
-            peaks = {"train": memory.peak_rss_mb()}
+        run = RunDir(_output_dir(out_dir), conf, raw, manifest)
+        with _recorded(run):
+            _, peaks = _train_phase(conf, module, run)
             # experiments whose simulated subjects are not cfg.participants say how many they trained
             count, unit = module.trained_count(conf) if hasattr(module, "trained_count") else (conf.participants, "participants")
             info = {"experiment": conf.experiment.name, "participants": count, "unit": unit, "runtime_s": dict(run.timings),
                     "peak_rss_mb": peaks, "checkpoints": str(run.checkpoints)}
+            run.phase = "writing train.json"
             run.write_json("train.json", info)
-            return info
-        finally:
-            run.close()
+        return info
 
 
 def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
@@ -281,14 +327,15 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
     """
     started = None if _STARTUP_TAKEN else process_age_s()
     _STARTUP_TAKEN.append(True)
-    conf, module, run = _prepare(cfg, out_dir, checkpoint=True)
-    if started is not None:
-        run.timings["startup"] = round(started, 3)
+    conf, module, manifest, raw = _prepare(cfg, checkpoint=True)
     with intra_op_threads(conf.threads or auto_threads()):  # restored afterwards
-        try:
+        trained = load_model(module, conf, conf.checkpoint) if conf.checkpoint else None  # before any claim
+        run = RunDir(_output_dir(out_dir), conf, raw, manifest)
+        if started is not None:
+            run.timings["startup"] = round(started, 3)
+        with _recorded(run):
             if conf.checkpoint:
                 ck = Path(conf.checkpoint)
-                trained = module.load(conf, ck)
                 tj = ck / "train.json"
                 peaks = {}
                 if tj.exists():
@@ -296,16 +343,12 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
                     run.timings.update(record.get("runtime_s", {}))
                     peaks.update(record.get("peak_rss_mb", {}))
             else:
-                t0 = time.perf_counter()
-                memory.reset_peak()
-                with progress.phase(f"{conf.experiment.name} train", conf.progress), run.logger.training_curves():
-                    trained = module.train(conf, run)
-                run.timings["train"] = round(time.perf_counter() - t0, 3)
-                peaks = {"train": memory.peak_rss_mb()}
+                trained, peaks = _train_phase(conf, module, run)
             from .analysis import figures
 
             t0, drawn = time.perf_counter(), figures.drawing_time()
             memory.reset_peak()
+            run.phase = "testing"
             with progress.phase(f"{conf.experiment.name} test", conf.progress):
                 summary = module.evaluate(conf, run, trained)
             run.timings["evaluate"] = round(time.perf_counter() - t0, 3)
@@ -322,12 +365,11 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
                     summary["custom_vs_chance"] = chance
             summary["runtime_s"] = dict(run.timings)
             summary["peak_rss_mb"] = peaks  # this process's peak resident memory per phase (neuroimagery/memory.py)
+            run.phase = "writing the summary and report"
             run.write_json("summary.json", summary)
             from .analysis.summary import headline
 
             run.logger.hparams(run.manifest["settings"] if run.manifest else mf.flatten(conf), headline(summary))
             if hasattr(module, "report"):
                 module.report(conf, run, summary)
-            return summary
-        finally:
-            run.close()
+        return summary

@@ -61,11 +61,11 @@ def progress_misses(monkeypatch):
     missed: list[str] = []
     close = progress._Phase.close
 
-    def checked_close(self):
+    def checked_close(self, stopped=None):
         total = None if self.counter is None else self.counter.total
-        if total is not None and total != self.counted:
+        if stopped is None and total is not None and total != self.counted:  # a phase that stopped counts fewer
             missed.append(f"{self.label}: counted {self.counted} of {total}")
-        close(self)
+        close(self, stopped)
 
     monkeypatch.setattr(progress._Phase, "close", checked_close)
     yield missed

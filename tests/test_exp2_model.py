@@ -315,7 +315,9 @@ def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     m = MotorRotationModel(e, 1, 0)
     m.fit({(o, a): (torch.rand(1024, generator=g) > 0.8).float() for o in (0, 1) for a in ANGLES})
     conf = validate(_cfg("participants=1", *small))
-    RunDir(tmp_path / "tr", conf, manifest=mf.build(conf, exp2)).save_checkpoint("model", m.compact_state())
+    tr = RunDir(tmp_path / "tr", conf, manifest=mf.build(conf, exp2))
+    tr.save_checkpoint("model", m.compact_state())
+    tr.close()  # a finished training run: complete, its lock released
     with pytest.raises(UserInputError, match="participants 1 \\(stored\\) vs 3"):
         evaluate(_cfg("participants=3", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")
     s = evaluate(_cfg("participants=1", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")

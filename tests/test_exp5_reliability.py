@@ -47,6 +47,7 @@ def as_run_of(d: Path, cfg, keys=()) -> None:
     rd = R.RunDir(d, conf, manifest=mf.build(conf, exp5))
     if keys:
         rd.save_checkpoint("exp5_index", {"keys": list(keys), "seed": conf.seed})
+    rd.close(ok=bool(keys), stopped="stopped")  # finished (with its index) or stopped; the lock released
 
 
 def one_error_line(capsys) -> str:

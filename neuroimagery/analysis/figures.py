@@ -18,6 +18,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from ..files import save_figure  # noqa: E402
+
 
 THESIS_STYLE = dict(color="black", linestyle="--", linewidth=1.2)
 
@@ -210,7 +212,7 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
     bar.set_label("activity, each map\nscaled to its own range", fontsize=6)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi, metadata={"Software": None})
+    save_figure(fig, path, dpi=dpi, metadata={"Software": None})
     plt.close(fig)
     return path
 
@@ -248,6 +250,6 @@ def save(fig, path: str | Path) -> Path:
     fig.tight_layout()
     _unclutter(fig)
     fig.tight_layout()
-    fig.savefig(path, dpi=110, metadata={"Software": None})
+    save_figure(fig, path, dpi=110, metadata={"Software": None})
     plt.close(fig)
     return path

@@ -6,6 +6,8 @@ import re
 from pathlib import Path
 from typing import Any
 
+from ..files import write_text
+
 
 def fmt(v: Any, pct: bool = False) -> str:
     if v is None:
@@ -180,9 +182,7 @@ class Report:
         return "\n".join(self.lines).rstrip() + "\n"
 
     def write(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.write_text(self.text())
-        return path
+        return write_text(path, self.text())
 
 
 def reproducibility_note(seed: int) -> str:

@@ -37,6 +37,29 @@ from .exp5_figures import group_table
 _FREE_KEYS = ENGINE_KEYS + ("engine.filmstrip_repetition", "repetitions", "quick.repetitions")
 
 
+def read_yaml(path: Path) -> dict:
+    """A run's saved configuration as plain data; nothing in it is run (a safe YAML loader, no
+    Python tags) and every way it can be unreadable is one ``UserInputError`` naming the file."""
+    import yaml
+    from omegaconf.errors import OmegaConfBaseException
+
+    try:
+        raw = OmegaConf.to_container(OmegaConf.load(path), resolve=True)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f" (line {mark.line + 1})" if mark is not None else ""
+        what = getattr(err, "problem", None) or str(err).splitlines()[0]
+        raise UserInputError(f"{path}: not a configuration this package wrote: {what}{where}") from None
+    except OmegaConfBaseException as err:  # an unknown resolver, a broken interpolation
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+        raise UserInputError(f"{path}: cannot be resolved: {first[:200]}") from None
+    except (OSError, UnicodeDecodeError, ValueError, TypeError) as err:
+        raise UserInputError(f"{path}: cannot be read ({getattr(err, 'strerror', None) or err})") from None
+    if not isinstance(raw, dict):
+        raise UserInputError(f"{path}: not a mapping (not a configuration this package wrote)")
+    return raw
+
+
 def read_config(run_dir: str | Path) -> tuple[Exp5Config, int]:
     """The experiment settings and seed of one finished Exp. 5 run directory."""
     d = Path(run_dir)
@@ -46,7 +69,9 @@ def read_config(run_dir: str | Path) -> tuple[Exp5Config, int]:
     for path in (cfg_path, csv_path, d / "summary.json"):
         if not path.is_file():
             raise UserInputError(f"{d}: no {path.relative_to(d)} (not a finished Exp. 5 run directory)")
-    raw = OmegaConf.to_container(OmegaConf.load(cfg_path), resolve=True)
+    raw = read_yaml(cfg_path)
+    if not isinstance(raw.get("experiment") or {}, dict):
+        raise UserInputError(f"{cfg_path}: 'experiment' is not a mapping (not a config this package wrote)")
     exp = nest(dict(raw.get("experiment") or {}))  # a run of the earlier flat layout reads too
     if exp.get("name") != "exp5":
         raise UserInputError(f"{d}: experiment {exp.get('name')!r}, not exp5")
@@ -61,7 +86,10 @@ def read_config(run_dir: str | Path) -> tuple[Exp5Config, int]:
         raise UserInputError(f"{cfg_path}: unknown experiment key ({err})") from None
     except ValueError as err:
         raise UserInputError(f"{cfg_path}: {err}") from None
-    return e, int(raw.get("seed", 0))
+    try:
+        return e, int(raw.get("seed", 0))
+    except (TypeError, ValueError):
+        raise UserInputError(f"{cfg_path}: seed {raw.get('seed')!r} is not an integer") from None
 
 
 GROUP = ["hypothesis", "level", "situation", "strategy"]

@@ -18,13 +18,16 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import torch
 
 from neuroimagery.errors import UserInputError
+from neuroimagery.files import remove_stale_temporaries, tmp_path, write_text
 from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.world import EVENTS, ToolWorld
 from neuroimagery.thesis import EXP5_TABLE_7_1
@@ -120,6 +123,49 @@ def markdown(table: dict) -> str:
             + "---|" * len(EVENTS) + "\n" + thesis_rows)
 
 
+OUTPUTS = ("table_7_1.json", "table_7_1.md")
+
+
+def check_out(out: Path) -> Path:
+    """``--out`` before the first rollout: a folder (made if absent) this process can write into,
+    whose output names are not folders."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserInputError(f"--out: {out} is a file, not a folder: choose another")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = tmp_path(out / ".write-test")
+        probe.write_text("")
+        probe.unlink()
+    except OSError as err:
+        raise UserInputError(f"--out: cannot write into {out} ({err.strerror or err})") from None
+    for name in OUTPUTS:
+        if (out / name).is_dir():
+            raise UserInputError(f"--out: {out / name} is a folder; the table is written under that name")
+    remove_stale_temporaries(out)
+    return out
+
+
+def write_outputs(out: Path, table: dict) -> None:
+    """The table and its markdown into ``out``, each atomically. A failed write keeps the computed
+    table: it goes to a file of the system's temporary folder, named in the error."""
+    path = out / OUTPUTS[0]
+    try:
+        write_text(path, json.dumps(table, indent=2))
+        path = out / OUTPUTS[1]
+        write_text(path, markdown(table))
+    except OSError as err:
+        kept = ""
+        try:
+            fd, spare = tempfile.mkstemp(prefix="table_7_1-", suffix=".json")
+            with os.fdopen(fd, "w") as f:
+                f.write(json.dumps(table, indent=2))
+            kept = f"; the computed table is kept in {spare}"
+        except OSError:
+            pass
+        raise UserInputError(f"cannot write {path}: {err.strerror or err}{kept}") from None
+
+
 # the most rollouts per posture and seed, and seeds, without --allow-large: a rollout is a physics
 # simulation of a movement (tens of ms), so these already take hours
 MAX_ROLLOUTS = 100_000
@@ -166,10 +212,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = parse(argv)
         t0 = time.perf_counter()
+        check_out(args.out)
         table = measure(args.rollouts, args.seeds)
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "table_7_1.json").write_text(json.dumps(table, indent=2))
-        (args.out / "table_7_1.md").write_text(markdown(table))
+        write_outputs(args.out, table)
         print(markdown(table))
         print(f"wrote {args.out / 'table_7_1.json'} in {time.perf_counter() - t0:.1f} s")
     except UserInputError as err:

@@ -32,6 +32,8 @@ from typing import Sequence
 
 import numpy as np
 
+from ..files import save_figure
+
 __all__ = ["generate", "mirror", "is_chiral", "check_object", "canonical", "rotation_matrix", "SMScene",
            "View", "contact_sheet", "KINDS"]
 
@@ -354,5 +356,5 @@ def contact_sheet(scene: SMScene, objects: Sequence[np.ndarray], names: Sequence
             if j == 0:
                 ax.set_ylabel(name, fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
