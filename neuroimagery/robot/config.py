@@ -63,6 +63,10 @@ class WorldConfig:
     # exploration: a DMP's goal noise has this share of each joint's range as its standard
     # deviation (the goal noise rule, docs/robot.md)
     goal_noise_share: float = 0.1
+    # where an exploratory movement's goal lies before the noise (docs/contracts.md, W9): 'posture'
+    # = the initial posture the DMP is reinitialised with (Fig. 7.5, line 1532, the reading fixed
+    # from the text) | 'anywhere' = the DMP's own random goal, uniform inside the joint limits
+    explore_goals: str = "posture"
     rake_length: float = 0.40  # grip -> end of the handle, where the head is fixed (urdf/rake.urdf)
     # centre of the rake head's plate in the rake (grip) frame: the handle meets the plate 3.5 cm
     # above its centre (5 mm below its top edge), so the handle clears a toy the head is placed
@@ -131,6 +135,8 @@ class WorldConfig:
         for key in positive:
             if not float(getattr(self, key)) > 0:
                 raise ValueError(f"WorldConfig.{key} must be > 0, got {getattr(self, key)!r}")
+        if self.explore_goals not in ("posture", "anywhere"):
+            raise ValueError(f"WorldConfig.explore_goals must be 'posture' or 'anywhere', got {self.explore_goals!r}")
         if self.rake_drive not in ("kinematic", "constraint"):
             raise ValueError(f"WorldConfig.rake_drive must be 'kinematic' or 'constraint', got {self.rake_drive!r}")
         if not self.table_clearance >= 0:
