@@ -2,7 +2,7 @@
 1 % threshold, a pull alone from posture 4 under 5 % of the libraries, a move-then-pull route for
 most of them. The full measurements are slow; the default suite runs a small smoke version.
 
-The full W1 and W2 tests are strict xfails: the rebuilt world misses them (docs/robot.md, "Table
+The full W1, W2 and W3 tests are strict xfails: the rebuilt world misses them (docs/robot.md, "Table
 7.1, measured"); they are kept so that the suite says so, and a world that meets them turns them
 into failures to be promoted.
 """
@@ -43,6 +43,7 @@ def test_w2_table_7_1_skills_at_least_20_of_24(libraries):
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured 4 of 16 libraries (25 %) (docs/robot.md)")
 def test_w3_a_pull_alone_retrieves_from_posture_4_for_under_5_percent(libraries):
     assert libraries["with_pull"] > 0 and libraries["pull_alone_share"] < 0.05
 
