@@ -58,7 +58,7 @@ class StandInToolEnv:
 
     def execute(self, params: torch.Tensor, state: State, watched: str | None) -> list[Result]:
         out = []
-        w = None if watched is None else EVENTS.index(watched)
+        w = [] if watched is None else [EVENTS.index(watched)] if isinstance(watched, str) else [EVENTS.index(x) for x in watched]
         for th in params.double():
             self.rollouts += 1
             head, toy = self._head_toy(state)
@@ -81,7 +81,7 @@ class StandInToolEnv:
                         fired[i] = True
                         first = first or EVENTS[i]
                 fired = [a or b for a, b in zip(fired, now)]
-                if w is not None and fired[w]:
+                if any(fired[i] for i in w):
                     break
             nxt = State(state.posture, tuple(round(float(v), 6) for v in head), tuple(round(float(v), 6) for v in toy))
             out.append(Result(tuple(fired), nxt, first))

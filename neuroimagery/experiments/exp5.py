@@ -8,11 +8,11 @@ from toy = posture 4), every individual tested both as a reactive and as a plann
 * HP2: all six detectors, 0, 2, 4, 6, 8, 10 training trials (ages 14, 14, 16, 18, 20, 22 months).
 
 Work unit ("task"): one repetition and one situation (or both, with
-``engine.share_library_across_situations``). The task acquires one skill library with all six
-detectors (Fig. 7.5); every individual of that task keeps the skills of its own enabled
-detectors, its C1/C2/C3 training is replayed for exactly those skills, and it then runs Fig. 7.6.
-All individuals of a task share the (deterministic) outcomes of skill sequences, so the physics
-of a given sequence runs once. Tasks run in parallel (joblib) and each leaves one small result
+``engine.share_library_across_situations``). Each detector set of the task's individuals
+acquires its own skill library with exactly those detectors (Fig. 7.5); the individuals with the
+same set (the HP2 groups, HP1's six-detector group) share it, their C1/C2/C3 training is replayed
+from it, and each then runs Fig. 7.6. The individuals of one library share the (deterministic)
+outcomes of skill sequences, so the physics of a given sequence runs once. Tasks run in parallel (joblib) and each leaves one small result
 file in ``checkpoints/`` so an interrupted run resumes where it stopped (rerun with the same
 ``hydra.run.dir``).
 
@@ -216,7 +216,6 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
     acq = e.acquisition
     r = task["repetition"]
     sit_ids = [list(SITUATIONS).index(s) for s in task["situations"]]
-    g_lib = _gen(seed, 1, r, *sit_ids)
 
     fresh: list[ToolUseBrain] = []
 
@@ -227,24 +226,40 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
             fresh.append(ToolUseBrain.from_params(env.image_shape, e.brain, n_dmps=acq.n_dmps, seed=seed))
         return copy.deepcopy(fresh[0])
 
-    if library is not None:
-        lib = Library.from_state(library)
-    else:
-        lib = acquire_skills(env, EVENTS, acq, g_lib, brain=new_brain())
-    t_acq = time.perf_counter() - t0
+    # each robot acquires its library with its own enabled detectors (Fig. 7.5; docs/contracts.md
+    # W11): one library per detector set, shared only by the robots with the same set (the HP2
+    # groups and HP1's six-detector group)
+    stored = {k: Library.from_state(v) for k, v in (library or {}).items()}
+    libs: dict[str, Library] = {}
+    t_acq = 0.0
+
+    def library_for(enabled: list[str]) -> Library:
+        nonlocal t_acq
+        name = "+".join(enabled)
+        if name not in libs:
+            t1 = time.perf_counter()
+            mask = sum(1 << EVENTS.index(x) for x in enabled)
+            libs[name] = stored[name] if name in stored else acquire_skills(
+                env, enabled, acq, _gen(seed, 1, r, *sit_ids, mask), brain=new_brain())
+            t_acq += time.perf_counter() - t1
+        return libs[name]
+
     rows, film = [], None
     built: dict[tuple, ToolUseBrain] = {}
+    outcomes_of: dict[tuple, Outcomes] = {}
     # per (situation, detectors): routes_1, routes_2 (the world) and imagined_1, imagined_2,
     # imagined_true (the mental images; C3 does not change in action sequencing)
     routes: dict[tuple, dict[str, int]] = {}
     for sit in task["situations"]:
         posture = SITUATIONS[sit]
-        outcomes = Outcomes(env, {s.name: s for s in lib.skills}, env.perceive)
         for gi, grp in enumerate(groups(e)):
             g_ind = _gen(seed, 2, r, list(SITUATIONS).index(sit), gi)
             enabled = detectors_for(e, grp["detectors"], g_ind)
-            sub = lib.subset(enabled)
+            sub = library_for(enabled)
             key = tuple(enabled)
+            if (sit, key) not in outcomes_of:  # rollouts of this library's skills, shared by its robots
+                outcomes_of[(sit, key)] = Outcomes(env, {s.name: s for s in sub.skills}, env.perceive)
+            outcomes = outcomes_of[(sit, key)]
             if key not in built:
                 built[key] = build_brain(env, sub, acq, new_brain(), _gen(seed, 3, r), env.perceive, outcomes=outcomes)
             if (sit, key) not in routes:
@@ -286,11 +301,18 @@ def run_task(e: Exp5Config, seed: int, task: dict, path: str | None = None, libr
                     test_actions=">".join(test.actions), test_attempts=len(test.actions), **routes[(sit, key)],
                     train_successes=">".join(str(int(ok)) for ok in train_ok),
                     train_q=">".join(f"{q:.6g}" for q in train_q)))
+    fresh_libs = [v for k, v in libs.items() if k not in stored]
     timing = dict(task_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0, acquisition_s=t_acq,
-                  explore_rollouts=0 if library is not None else lib.explore_rollouts,
-                  learn_rollouts=0 if library is not None else lib.learn_rollouts, library_reused=library is not None)
+                  explore_rollouts=sum(v.explore_rollouts for v in fresh_libs),
+                  learn_rollouts=sum(v.learn_rollouts for v in fresh_libs), library_reused=library is not None,
+                  libraries=len(libs))
     timing.update({k: v for k, v in getattr(env, "timing", {}).items()})
-    out = dict(task=task, rows=rows, library=lib.to_state(), film=film, timing=timing, config=asdict(e), seed=seed)
+    six = "+".join(EVENTS)
+    main_lib = libs.get(six) or next(iter(libs.values()), Library([], [[0] * len(EVENTS) for _ in range(4)]))
+    # ``library``: the six-detector library (Table 7.1 from the robots' learning); ``libraries``:
+    # every detector set's own library, by its detectors joined with '+'
+    out = dict(task=task, rows=rows, library=main_lib.to_state(), libraries={k: v.to_state() for k, v in libs.items()},
+               film=film, timing=timing, config=asdict(e), seed=seed)
     if path is not None:
         task_files.save(out, path)
     return out
@@ -341,7 +363,7 @@ def _valid(path: Path, e: Exp5Config, seed: int) -> dict | None:
 def _library_of(d: dict | None, e: Exp5Config, seed: int) -> dict | None:
     """The skill library of the stored task ``d`` if it was acquired with this task's acquisition
     settings and seed."""
-    return d["library"] if _finished(d, e, seed, library=True) and "library" in d else None
+    return d["libraries"] if _finished(d, e, seed, library=True) and "libraries" in d else None
 
 
 def train(cfg, run) -> dict:

@@ -39,8 +39,13 @@ class WorldParams:
     # m; no rake point travels farther in one physics step (robot.config.WorldConfig, docs/robot.md,
     # physics step criterion); null: two fixed 10 ms steps per control step
     max_substep_travel: Optional[float] = 0.008
+    # an exploratory movement's goal before the noise (robot.config.WorldConfig, docs/contracts.md
+    # W9): 'posture' = the chosen initial posture (Fig. 7.5 line 1532) | 'anywhere' = the DMP's own
+    explore_goals: str = "posture"
 
     def __post_init__(self) -> None:
+        if self.explore_goals not in ("posture", "anywhere"):
+            raise ValueError(f"experiment.world.explore_goals must be 'posture' or 'anywhere', got {self.explore_goals!r}")
         check_params("world", self, positive=("duration_s", "explore_weight_sigma", "search_goal_sigma",
                                               "search_weight_sigma"), choices=("toy_turn",))
         if self.environment != "robot" and ":" not in self.environment:
@@ -51,14 +56,14 @@ class WorldParams:
     def env_kwargs(self) -> dict:
         """The keyword arguments of ``ToolWorldEnvironment`` (all but ``environment`` and the
         physics settings of ``world_config``)."""
-        skip = ("environment", "max_substep_travel")
+        skip = ("environment", "max_substep_travel", "explore_goals")
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name not in skip}
 
     def world_config(self):
         """The pybullet world's ``WorldConfig`` with this group's physics settings."""
         from ..robot.config import WorldConfig
 
-        return WorldConfig(max_substep_travel=self.max_substep_travel)
+        return WorldConfig(max_substep_travel=self.max_substep_travel, explore_goals=self.explore_goals)
 
 
 @dataclass

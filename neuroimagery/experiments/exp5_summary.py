@@ -46,10 +46,12 @@ def library_columns(df: pd.DataFrame, results: list[dict]) -> pd.DataFrame:
     """individuals.csv column ``interaction_from_4``, read from each robot's skill library: 1 if one
     of its interaction skills (touch, south, north, west, east) learnt from another posture also
     achieves its event from posture 4 (its last competence check), 0 if none does, -1 if it has none."""
-    libs = {d["task"]["key"]: {s.name: s for s in Library.from_state(d["library"]).skills} for d in results}
+    libs = {(d["task"]["key"], k): {s.name: s for s in Library.from_state(v).skills}
+            for d in results for k, v in (d.get("libraries") or {}).items()}
+    main = {d["task"]["key"]: {s.name: s for s in Library.from_state(d["library"]).skills} for d in results}
 
-    def carry(row) -> int:
-        skills = libs.get(row["library"], {})
+    def carry(row) -> int:  # the robot's own library (its detectors), else the task's six-detector one
+        skills = libs.get((row["library"], row.get("detectors")), main.get(row["library"], {}))
         other = [skills[n] for n in str(row["skills"]).split("+") if n in skills
                  and skills[n].event != "retrieve" and skills[n].found_from != N_POSTURES]
         return int(any(s.succeeds_from[N_POSTURES - 1] for s in other)) if other else -1

@@ -28,7 +28,7 @@ import torch
 
 from neuroimagery.errors import UserInputError
 from neuroimagery.files import remove_stale_temporaries, tmp_path, write_text
-from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
+from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.world import EVENTS, ToolWorld
 from neuroimagery.thesis import EXP5_TABLE_7_1
 
@@ -64,7 +64,7 @@ def babble_counts(world: ToolWorld, posture: int, n: int, seed: int, cfg: Moveme
     counts = [0] * len(EVENTS)
     q0 = world.initial_posture(posture)
     for start in range(0, n, 50):
-        theta = goal_noise(world, dmp, random_primitives(world, dmp, min(50, n - start), cfg, gen), gen)
+        theta = explore(world, dmp, random_primitives(world, dmp, min(50, n - start), cfg, gen), q0, gen)
         for o in world.rollout(trajectories(world, dmp, theta, q0, cfg), posture, watched=None):
             for k, f in enumerate(o.events):
                 counts[k] += int(f)

@@ -12,17 +12,18 @@ from pathlib import Path
 URDF_DIR = Path(__file__).resolve().parents[2] / "urdf"
 
 # Four initial arm postures (rad, joint order of kinematics.ARM_JOINTS), fitted once by
-# ``python -m neuroimagery.robot.posture_fit`` to meet the scene criteria of docs/robot.md
-# (``robot.scene_check``). Centre of the rake head's plate (x, y), with the toy at (0.58, -0.10):
-#   1 (0.64, -0.10)  behind the toy: the plate's near face 1.7 cm beyond its north face
-#   2 (0.58, -0.245) level with the toy, on its right (east); plate end 4 cm from the toy
-#   3 (0.66, -0.30)  beyond the toy and to its right; 12 cm
-#   4 (0.62, -0.38)  far to the toy's right, the tool-far situation; 18 cm
+# ``python -m neuroimagery.robot.posture_fit`` to the plate-centre targets chosen by the rule of
+# docs/choices.md (the world contracts W5-W7 of docs/contracts.md, then the most Table 7.1 event
+# cells; ``robot.scene_check``). Centre of the rake head's plate (x, y), with the toy at (0.58, -0.10):
+#   1 (0.645, -0.135) behind the toy, the handle beside it (east): the plate's near face 1.8 cm beyond its north face
+#   2 (0.60, -0.26)   level with the toy, on its right (east); 5.5 cm from the toy
+#   3 (0.55, -0.26)   on the robot's side of the toy's far face, to its right; 5.8 cm
+#   4 (0.54, -0.37)   far to the toy's right, nearer the robot, the tool-far situation; 16.9 cm
 DEFAULT_POSTURES: tuple[tuple[float, ...], ...] = (
-    (-0.67, 0.601, 0.2, 1.07, -0.467, 0.077, -0.123),
-    (-0.194, 0.634, -0.328, 1.556, -0.474, 0.038, 0.124),
-    (-1.087, 0.495, 0.054, 0.513, -0.0, -0.236, -0.255),
-    (-0.812, 0.607, -0.024, 0.796, -0.136, -0.282, -0.19),
+    (-0.794, 0.716, 0.283, 0.785, -0.539, 0.216, -0.255),
+    (-0.397, 0.661, -0.307, 1.277, -0.385, 0.173, 0.044),
+    (-1.446, 1.055, 0.789, 0.559, -0.796, 0.216, 0.342),
+    (-0.213, 0.617, -0.401, 1.659, -0.259, -0.22, 0.312),
 )
 
 # The reachable area (docs/robot.md, robot.reach): the farthest x (m) the free left palm reaches at the
@@ -63,6 +64,10 @@ class WorldConfig:
     # exploration: a DMP's goal noise has this share of each joint's range as its standard
     # deviation (the goal noise rule, docs/robot.md)
     goal_noise_share: float = 0.1
+    # where an exploratory movement's goal lies before the noise (docs/contracts.md, W9): 'posture'
+    # = the initial posture the DMP is reinitialised with (Fig. 7.5, line 1532, the reading fixed
+    # from the text) | 'anywhere' = the DMP's own random goal, uniform inside the joint limits
+    explore_goals: str = "posture"
     rake_length: float = 0.40  # grip -> end of the handle, where the head is fixed (urdf/rake.urdf)
     # centre of the rake head's plate in the rake (grip) frame: the handle meets the plate 3.5 cm
     # above its centre (5 mm below its top edge), so the handle clears a toy the head is placed
@@ -131,6 +136,8 @@ class WorldConfig:
         for key in positive:
             if not float(getattr(self, key)) > 0:
                 raise ValueError(f"WorldConfig.{key} must be > 0, got {getattr(self, key)!r}")
+        if self.explore_goals not in ("posture", "anywhere"):
+            raise ValueError(f"WorldConfig.explore_goals must be 'posture' or 'anywhere', got {self.explore_goals!r}")
         if self.rake_drive not in ("kinematic", "constraint"):
             raise ValueError(f"WorldConfig.rake_drive must be 'kinematic' or 'constraint', got {self.rake_drive!r}")
         if not self.table_clearance >= 0:

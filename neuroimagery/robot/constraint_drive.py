@@ -9,10 +9,10 @@ import numpy as np
 import torch
 
 from neuroimagery.robot import rake_plan
-from neuroimagery.robot.events import EVENTS, Outcome, latch_events, toy_events, toy_fate
+from neuroimagery.robot.events import EVENTS, Outcome, latch_events, toy_events, watched_indices, toy_fate
 
 
-def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor, watched: str | None) -> Outcome:
+def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor, watched) -> Outcome:
     """Every control step simulated, the rake dragged to its pose by a constraint."""
     cfg, c = world.cfg, world.client
     world.reset(posture)
@@ -21,7 +21,7 @@ def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor
     fired = [False] * 6
     first: str | None = None
     blew_up = False
-    watched_i = None if watched is None else EVENTS.index(watched)
+    watched_i = watched_indices(watched)
     step = 0
     targets_pos, targets_orn = world._rake_targets(poses)
     targets_pos, targets_orn = targets_pos.tolist(), targets_orn.tolist()
@@ -45,7 +45,7 @@ def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor
         if fate == "off_table":
             off_table = True
             break
-        if watched_i is not None and fired[watched_i]:
+        if any(fired[i] for i in watched_i):
             break
     final = world.toy_xy()
     if blew_up:

@@ -125,10 +125,11 @@ class ToolWorldEnvironment:
         return random_primitives(self.world, self.dmp, 1, self.moves, generator)[0]
 
     def explore_params(self, params: torch.Tensor, posture: int, n: int, generator: torch.Generator) -> torch.Tensor:
-        """``n`` exploratory rollouts of a DMP: its goals plus noise (``robot.movements.goal_noise``)."""
-        from .movements import goal_noise
+        """``n`` exploratory rollouts of a DMP from ``posture`` (``robot.movements.explore``: the DMP
+        reinitialised with the posture, noise added to its goals; docs/contracts.md, W9)."""
+        from .movements import explore
 
-        return goal_noise(self.world, self.dmp, params.float().expand(n, -1), generator)
+        return explore(self.world, self.dmp, params.float().expand(n, -1), self.world.initial_posture(posture), generator)
 
     def search_sigma(self) -> torch.Tensor:
         return self._sigma.clone()

@@ -31,6 +31,16 @@ def event_index(name: str) -> int:
         raise UserInputError(f"unknown event {name!r}; known events: {', '.join(EVENTS)}") from None
 
 
+def watched_indices(watched) -> tuple[int, ...]:
+    """Indices of the watched events: None (none), one name, or a sequence of names (a rollout
+    stops when any of them fires: the robot's enabled, not yet acquired detectors, Fig. 7.5)."""
+    if watched is None:
+        return ()
+    if isinstance(watched, str):
+        return (event_index(watched),)
+    return tuple(event_index(w) for w in watched)
+
+
 @dataclass(frozen=True)
 class Outcome:
     """What one rollout did.

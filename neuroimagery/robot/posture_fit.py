@@ -46,9 +46,10 @@ def main() -> int:
     from .scene_check import check_scene, scene_geometry
 
     cfg = WorldConfig()
-    # targets: the plate centres of the four situations (docs/robot.md, "Initial postures"); the
+    # targets: the plate centres of the four situations (docs/robot.md, "Initial postures"; chosen by the
+    # rule of docs/choices.md); the
     # references for the orientation: the stored postures
-    targets = [(0.64, -0.10), (0.58, -0.245), (0.66, -0.30), (0.62, -0.38)]
+    targets = [(0.645, -0.135), (0.60, -0.26), (0.55, -0.26), (0.54, -0.37)]
     fitted = tuple(tuple(round(float(v), 3) for v in fit_posture(cfg, t, q)) for t, q in zip(targets, DEFAULT_POSTURES))
     print("POSTURES =", fitted)
     new = WorldConfig(postures=fitted)

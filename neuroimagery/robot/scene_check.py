@@ -65,6 +65,9 @@ def scene_geometry(cfg: WorldConfig | None = None, frontier=None) -> list[dict]:
         centre = (np.array([*cfg.rake_head_offset, 1.0]) @ T.T)[:3]
         margin = float(np.min(np.minimum(np.array(q) - lim[:, 0], lim[:, 1] - np.array(q)) / (lim[:, 1] - lim[:, 0])))
         out.append(dict(posture=k, head_xy=(round(float(centre[0]), 3), round(float(centre[1]), 3)), gap=round(gap, 4),
+                        plate_x_max=round(float(P[:, 0].max()), 4),
+                        plate_y_span=(round(float(P[:, 1].min()), 4), round(float(P[:, 1].max()), 4)),
+                        handle_over=int(over.sum()),
                         behind=bool(north.any()),
                         near_face_beyond=round(float(P[span, 0].min() - (tx + h)), 4) if span.any() else None,
                         plate_dy=round(float(centre[1] - ty), 4), handle_clearance=round(clearance, 4),
@@ -80,11 +83,20 @@ def check_scene(cfg: WorldConfig | None = None) -> list[str]:
     p1 = g[0]
     if not (p1["behind"] and p1["near_face_beyond"] is not None and 0.005 <= p1["near_face_beyond"] <= 0.03):
         bad.append(f"posture 1: the plate's near face must lie 0.5-3 cm beyond the toy's north face, got {p1['near_face_beyond']}")
-    if abs(p1["plate_dy"]) > 0.03:
-        bad.append(f"posture 1: the plate's centre must lie within 3 cm of the toy's y, got {p1['plate_dy']}")
+    tx, ty = cfg.toy_xy
+    h = cfg.toy_size / 2
+    lo, hi = p1["plate_y_span"]
+    if not (lo <= ty - h and hi >= ty + h):
+        bad.append(f"posture 1: the plate must span the toy's width (y {ty - h:.3f}..{ty + h:.3f}), got {lo}..{hi}")
+    if p1["handle_over"] > 0:  # W7: touch impossible from posture 1
+        bad.append(f"posture 1: the handle must pass beside the toy, not over it ({p1['handle_over']} handle points over it)")
     for p in g[1:]:
         if p["behind"]:
             bad.append(f"posture {p['posture']}: the plate must not lie behind the toy")
+    for p in g[2:]:  # W6: no plate point of postures 3-4 beyond the toy's far face (whole plate)
+        if p["plate_x_max"] > tx + h:
+            bad.append(f"posture {p['posture']}: no point of the plate may lie beyond the toy's far face "
+                       f"(x {tx + h:.3f}), got {p['plate_x_max']}")
     gaps = [p["gap"] for p in g]
     if not all(a < b for a, b in zip(gaps, gaps[1:])):
         bad.append(f"the gaps must grow from posture 1 to 4, got {gaps}")
@@ -97,7 +109,6 @@ def check_scene(cfg: WorldConfig | None = None) -> list[str]:
             bad.append(f"posture {p['posture']}: the plate must rest within 1 cm of the table, got {p['plate_height']}")
         if p["joint_margin"] < 0.10:
             bad.append(f"posture {p['posture']}: every joint 10 % of its range from a limit, got {p['joint_margin']}")
-    tx, ty = cfg.toy_xy
     if not tx - cfg.reach_frontier_at(ty) >= cfg.toy_size:
         bad.append(f"the toy must start at least {cfg.toy_size} m beyond the reachable area, "
                    f"got {tx - cfg.reach_frontier_at(ty):.3f}")

@@ -35,7 +35,7 @@ from neuroimagery.errors import UserInputError
 from neuroimagery.native import quiet_native_output
 from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.constraint_drive import simulate_constraint
-from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, toy_events, toy_fate, toy_yaw_of
+from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, watched_indices, toy_events, toy_fate, toy_yaw_of
 from neuroimagery.robot.eye import colour_masks
 from neuroimagery.robot.kinematics import ArmKinematics
 from neuroimagery.robot import rake_plan
@@ -277,20 +277,20 @@ class ToolWorld:
         self,
         trajectories: torch.Tensor,
         posture: int,
-        watched: str | None = None,
+        watched: str | tuple[str, ...] | None = None,
         use_filter: bool = True,
     ) -> list[Outcome]:
         """Run each joint trajectory (N, T, 7) from initial posture ``posture``; one Outcome each.
 
         Each trajectory is executed from a freshly reset scene (arm at the posture, toy at its
         start).  Trajectories should start at the posture (a DMP with ``y0`` = the posture does).
-        With ``watched`` set, a rollout stops when that event fires; with None it runs to the end.
+        With ``watched`` set (one event or several), a rollout stops as soon as one of them fires;
+        with None it runs to the end.
         ``use_filter`` skips the physics for rollouts whose rake never comes near the toy.
         """
         import time
 
-        if watched is not None:
-            event_index(watched)
+        watched_indices(watched)  # a clear error for an unknown name
         self.initial_posture(posture)
         self.check_trajectories(trajectories)
         t0 = time.perf_counter()
@@ -350,7 +350,7 @@ class ToolWorld:
             self.p.setTimeStep(h, physicsClientId=self._cid)
             self._n_now = n
 
-    def _simulate_kinematic(self, plan: dict, posture: int, watched: str | None) -> Outcome:
+    def _simulate_kinematic(self, plan: dict, posture: int, watched) -> Outcome:
         """Rake driven kinematically; physics only while the rake can reach the toy (module doc).
 
         ``plan``: one trajectory's entries of :meth:`_plan` (without the batch axis).
@@ -369,7 +369,7 @@ class ToolWorld:
         blew_up = off_table = False
         # the fastest any rake point has moved up to each control step (blow-up rule, toy_fate)
         rake_speed = rake_plan.fastest_so_far(plan["sweep"], cfg)
-        watched_i = None if watched is None else EVENTS.index(watched)
+        watched_i = watched_indices(watched)
         if start == tuple(self.cfg.toy_xy) and "gaps0" in plan:
             gaps = plan["gaps0"].copy()
         else:
@@ -415,7 +415,7 @@ class ToolWorld:
             if fate == "off_table":
                 off_table = True
                 break
-            if watched_i is not None and fired[watched_i]:
+            if any(fired[i] for i in watched_i):
                 break
             was_resting = resting
             resting = speed < v_rest and math.sqrt(avel[0] ** 2 + avel[1] ** 2 + avel[2] ** 2) < 20 * v_rest

@@ -211,8 +211,9 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionPar
 def _explore(env, events: Sequence[str], cfg: AcquisitionParams, generator, lib: Library,
              mastered: Callable[[str, int], bool], primitive: torch.Tensor, budget: int
              ) -> tuple[tuple[str, torch.Tensor, int] | None, int]:
-    """Part A of Fig. 7.5 for one DMP: ``primitive`` with goal noise, from random postures
-    (batched), until a rollout fires an event of ``events`` not yet mastered from its posture or
+    """Part A of Fig. 7.5 for one DMP: ``primitive`` reinitialised with a random initial posture
+    and noise added to its goal (``env.explore_params``), batched; each rollout stops at the
+    first new event (docs/contracts.md W10); until a rollout fires an event of ``events`` not yet mastered from its posture or
     ``budget`` rollouts are spent; the first such rollout in draw order wins, every rollout is
     counted in ``lib``. Returns ((event, parameters, posture) or None, rollouts spent)."""
     tried = 0
@@ -223,7 +224,10 @@ def _explore(env, events: Sequence[str], cfg: AcquisitionParams, generator, lib:
         for p in sorted(set(postures)):
             idx = [i for i, q in enumerate(postures) if q == p]
             theta = env.explore_params(primitive, p, len(idx), generator)
-            for i, th, r in zip(idx, theta, env.execute(theta, env.start(p), None)):
+            # the arm stops as soon as a new event happens (lines 1428, 1536-1537): the detectors
+            # watched are the enabled ones whose skill is not yet acquired or mastered from p
+            watched = tuple(e for e in events if not mastered(e, p)) or None
+            for i, th, r in zip(idx, theta, env.execute(theta, env.start(p), watched)):
                 results.append((i, th, r))
         results.sort(key=lambda t: t[0])
         found = None

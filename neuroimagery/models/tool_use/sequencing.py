@@ -91,7 +91,9 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     softmax (among the active ones, ``active_threshold``), then a reactive child performs the
     primitive (the real scene is perceived next) while a planning child imagines it through C3
     (the mental image becomes the next input). The toy-related reward is read from that next
-    image (reactive: the retrieve detector). In training mode C4 learns by eq. 7.1; a planning
+    image by the environment's reader (``env.reward``), the same for both children; the
+    simulator's retrieve detector only says, for the analysis, whether the toy was really
+    retrieved (``TrialRecord.success``). In training mode C4 learns by eq. 7.1; a planning
     child trains in mind only.
 
     The test (``training`` False) of a planning child, ``planning_test``:
@@ -135,9 +137,11 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
         if imagining and float(env.reward(imagined)) > 0:
             rec.imagined_success = True
         if acting:
+            # one pair of eyes (Fig. 7.6, lines 1585-1586; docs/contracts.md W12): the reward is read
+            # from the next camera image by the same reader the planning child uses on its mental image
             r = outcomes.after(posture, done_events)
             x1 = outcomes.perceive(r.next_state)
-            reward = 1.0 if r.retrieved else 0.0
+            reward = float(env.reward(x1))
         else:
             x1 = imagined
             reward = float(env.reward(x1))
@@ -152,7 +156,9 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
         if reward > 0:
             break
     if acting:
-        rec.success = bool(rec.rewards and rec.rewards[-1] > 0)
+        # analysis only: whether the toy is really in reach after the child's last move (the
+        # simulator's retrieve detector; the child itself judged from its eyes)
+        rec.success = bool(done_events) and outcomes.after(posture, done_events).retrieved
     else:
         rec.imagined_success = bool(rec.rewards and rec.rewards[-1] > 0)
         # "plan" test: the plan is performed for real (prefixes are cached); stop once the toy is in reach

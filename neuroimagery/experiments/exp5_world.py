@@ -1,0 +1,140 @@
+"""Acceptance of the Exp 5 world at the level of skill libraries (docs/contracts.md, W2-W4).
+
+    python -m neuroimagery.experiments.exp5_world --libraries N --out DIR [--seed S] [--jobs J]
+
+Acquires ``N`` skill libraries as Fig. 7.5 does (all six IM detectors, the world and acquisition
+settings of ``conf/experiment/exp5.yaml``, no brain: an event counts as mastered from a posture when
+one of its skills achieved it there in its last competence check), then measures on the world
+alone, before any action sequencing:
+
+* Table 7.1, skills: for each posture and event, the share of the learnt skills of that event that
+  achieve it from that posture (last competence check); *possible* above ``POSSIBLE_RATE``;
+* Table 7.1, events as the robots met them: the share of libraries whose exploration fired the
+  event from the posture;
+* W3: the share of libraries whose learnt pull (a skill of "retrieve"), performed from posture 4,
+  retrieves the toy;
+* W4: the share of libraries with a move-then-pull route from posture 4: a skill of another event
+  (touch included) that does not retrieve by itself, followed by a pull that does.
+
+The retrieve detector of the simulator is read here: this is analysis of the world, not a child's
+perception. Writes ``DIR/world_libraries.json`` and ``.md``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from ..errors import UserInputError
+from ..models.tool_use import EVENTS
+from ..robot.babble import CURVE_THRESHOLDS, POSSIBLE_RATE, THESIS_SKILLS, agreement, wilson
+
+SKILL_NAMES = ("P", "T", "S", "N", "W", "E")
+
+
+def _one_library(seed: int, i: int) -> dict:
+    import torch
+
+    from ..models.tool_use import AcquisitionParams, Outcomes, acquire_skills
+    from .exp5_config import WorldParams
+    from ..robot.environment import ToolWorldEnvironment
+
+    torch.set_num_threads(1)
+    w = WorldParams()
+    env = ToolWorldEnvironment(w.world_config(), **w.env_kwargs())
+    try:
+        g = torch.Generator().manual_seed(seed * 100003 + i)
+        lib = acquire_skills(env, EVENTS, AcquisitionParams(), g, brain=None)
+        outcomes = Outcomes(env, {s.name: s for s in lib.skills}, env.perceive)
+        pulls = [s.name for s in lib.skills if s.event == "retrieve"]
+        moves = [s.name for s in lib.skills if s.event != "retrieve"]
+        pull_alone = any(outcomes.after(4, (a,)).retrieved for a in pulls)
+        routes = sorted({a for a in moves for b in pulls
+                         if not outcomes.after(4, (a,)).retrieved and outcomes.after(4, (a, b)).retrieved})
+        return dict(library=i, skills={s.name: [bool(v) for v in s.succeeds_from] for s in lib.skills},
+                    events_seen=[[int(c > 0) for c in row] for row in lib.events_seen], missing=lib.missing,
+                    has_pull=bool(pulls), pull_alone_from_4=bool(pull_alone), move_then_pull_from_4=routes,
+                    rollouts=lib.explore_rollouts + lib.learn_rollouts + outcomes.rollouts)
+    finally:
+        env.close()
+
+
+def summarise(libs: list[dict]) -> dict:
+    n = len(libs)
+    skills, events = {}, {}
+    for p in range(4):
+        row_s, row_e = [], []
+        for k, e in enumerate(EVENTS):
+            of_e = [ok[p] for lib in libs for name, ok in lib["skills"].items() if name.rstrip("0123456789") == e]
+            row_s.append(round(sum(of_e) / len(of_e), 4) if of_e else 0.0)
+            row_e.append(round(sum(lib["events_seen"][p][k] for lib in libs) / n, 4))
+        skills[f"posture-{p + 1}"], events[f"posture-{p + 1}"] = row_s, row_e
+    with_pull = [lib for lib in libs if lib["has_pull"]]
+    alone = sum(lib["pull_alone_from_4"] for lib in with_pull)
+    route = sum(bool(lib["move_then_pull_from_4"]) for lib in libs)
+    return dict(
+        libraries=n, possible_rate=POSSIBLE_RATE, skill_rates=skills, event_shares=events,
+        skill_cells={k: [int(r > POSSIBLE_RATE) for r in v] for k, v in skills.items()},
+        skill_agreement={str(t): agreement(skills, THESIS_SKILLS, t) for t in CURVE_THRESHOLDS},
+        with_pull=len(with_pull), pull_alone_from_4=alone,
+        pull_alone_share=round(alone / len(with_pull), 4) if with_pull else None,
+        pull_alone_ci95=[round(v, 4) for v in wilson(alone, len(with_pull))],
+        move_then_pull=route, move_then_pull_share=round(route / n, 4),
+        move_then_pull_ci95=[round(v, 4) for v in wilson(route, n)],
+        route_moves={e: sum(any(a.rstrip("0123456789") == e for a in lib["move_then_pull_from_4"]) for lib in libs)
+                     for e in EVENTS[1:]},
+        missing={e: sum(e in lib["missing"] for lib in libs) for e in EVENTS})
+
+
+def markdown(s: dict) -> str:
+    head = "| posture | " + " | ".join(SKILL_NAMES) + " | agree |\n|---|" + "---|" * 7 + "\n"
+    rows = "".join(
+        f"| {k} | " + " | ".join(f"{r:.2f}{'' if int(r > s['possible_rate']) == t else ' *'}"
+                                 for r, t in zip(v, THESIS_SKILLS[k]))
+        + f" | {sum(int(r > s['possible_rate']) == t for r, t in zip(v, THESIS_SKILLS[k]))}/6 |\n"
+        for k, v in s["skill_rates"].items())
+    curve = " | ".join(f"{float(t):.1%}: {a}" for t, a in s["skill_agreement"].items())
+    return (f"### Skills from {s['libraries']} libraries (share of each event's skills achieving it from the posture)\n\n"
+            + head + rows + f"\n`*`: differs from thesis Table 7.1 at \"possible\" = above {s['possible_rate']:.0%}. "
+            f"Cells agreeing at other thresholds: {curve}.\n\n"
+            f"- pull alone retrieves from posture 4: {s['pull_alone_from_4']} of {s['with_pull']} libraries with a pull "
+            f"({s['pull_alone_share']}, 95 % [{s['pull_alone_ci95'][0]}, {s['pull_alone_ci95'][1]}])\n"
+            f"- a move-then-pull route from posture 4: {s['move_then_pull']} of {s['libraries']} libraries "
+            f"({s['move_then_pull_share']}, 95 % [{s['move_then_pull_ci95'][0]}, {s['move_then_pull_ci95'][1]}]); "
+            f"first moves: {s['route_moves']}\n- events never found: {s['missing']}\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m neuroimagery.experiments.exp5_world",
+                                     description=__doc__.split("\n")[0])
+    parser.add_argument("--libraries", type=int, default=16, help="skill libraries to acquire")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--jobs", type=int, default=2, help="worker processes")
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    args = parser.parse_args(argv)
+    try:
+        if args.libraries < 1 or args.jobs < 1:
+            raise UserInputError(f"--libraries and --jobs must be >= 1, got {args.libraries}, {args.jobs}")
+        args.out.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        if args.jobs == 1:
+            libs = [_one_library(args.seed, i) for i in range(args.libraries)]
+        else:
+            from joblib import Parallel, delayed
+
+            libs = Parallel(n_jobs=args.jobs)(delayed(_one_library)(args.seed, i) for i in range(args.libraries))
+        s = summarise(libs)
+        (args.out / "world_libraries.json").write_text(json.dumps(dict(summary=s, libraries=libs), indent=1))
+        (args.out / "world_libraries.md").write_text(markdown(s))
+        print(markdown(s))
+        print(f"wrote {args.out / 'world_libraries.json'} in {time.perf_counter() - t0:.0f} s")
+    except UserInputError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
