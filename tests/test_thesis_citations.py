@@ -8,7 +8,7 @@ import pytest
 from neuroimagery.thesis import EXP1, EXP2, EXP3, EXP4, EXP5_LINES, FIGURES, SECTIONS, figure_caption, section_of
 
 ROOT = Path(__file__).resolve().parents[1]
-LINE_CITE = re.compile(r"\b(?:thesis )?(?:lines?|l\.) ?\d{3,4}\b")
+LINE_CITE = re.compile(r"\b(?:thesis )?(?:lines?|l\.) ?\d{3,4}\b", re.IGNORECASE)
 
 
 def test_section_of_maps_lines_to_the_thesis_headings():
@@ -32,6 +32,7 @@ def test_every_caption_cites_a_section_and_no_line():
 
 def test_checker_catches_line_citations():
     assert LINE_CITE.search("Thesis: 79 % (line 1248).") and LINE_CITE.search("thesis lines 905-915")
+    assert LINE_CITE.search("Line 1532 reinitialises the DMP")
     assert not LINE_CITE.search("the line of sight; lines of 20 rotation steps; section 6.2.3, Fig. 6.9c")
 
 

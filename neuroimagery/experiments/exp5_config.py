@@ -40,7 +40,7 @@ class WorldParams:
     # physics step criterion); null: two fixed 10 ms steps per control step
     max_substep_travel: Optional[float] = 0.008
     # an exploratory movement's goal before the noise (robot.config.WorldConfig, docs/contracts.md
-    # W9): 'posture' = the chosen initial posture (Fig. 7.5 line 1532) | 'anywhere' = the DMP's own
+    # W9): 'posture' = the chosen initial posture (Fig. 7.5, section 7.1.2) | 'anywhere' = the DMP's own
     explore_goals: str = "posture"
 
     def __post_init__(self) -> None:

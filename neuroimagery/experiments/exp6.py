@@ -231,9 +231,11 @@ def run_tests(cfg, model, scene=None, record: int = 0):
         if own:
             scene.close()
     frames, histories = [], {}
+    tables = {(t, cond): trial_table(index, names, e, t, cond) for t in e.tests for cond in e.conditions}
+    progress.expect(sum(len(tb) for tb in tables.values()) * len(ids))
     for k, t in enumerate(e.tests):
         for cond in e.conditions:
-            table = trial_table(index, names, e, t, cond)
+            table = tables[t, cond]
             tgt = images[:, torch.as_tensor(table["target_row"].to_numpy().copy())]
             rot = images[:, torch.as_tensor(table["rotated_row"].to_numpy().copy())]
             stream = 100 + TESTS.index(t) + 10 * CONDITIONS.index(cond)  # none keeps the stream of a run without the others
