@@ -92,3 +92,28 @@ def remove_stale_temporaries(root: str | Path) -> list[Path]:
         except OSError:
             pass
     return gone
+
+
+def writable_folder(out: str | Path, outputs: tuple[str, ...] = (), refuse_run_dir: bool = False) -> Path:
+    """A tool's ``--out`` checked before its work: a folder (made if absent) this process can write
+    into, not a run directory (with ``refuse_run_dir``), whose output names are not folders; stale
+    temporaries of a killed earlier call are removed. Refusals are :class:`UserInputError`."""
+    from .errors import UserInputError
+
+    out = Path(out)
+    if refuse_run_dir and (out / "manifest.json").exists():
+        raise UserInputError(f"--out: {out} is a run directory (it has manifest.json): choose another")
+    if out.exists() and not out.is_dir():
+        raise UserInputError(f"--out: {out} is a file, not a folder: choose another")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = tmp_path(out / ".write-test")
+        probe.write_text("")
+        probe.unlink()
+    except OSError as err:
+        raise UserInputError(f"--out: cannot write into {out} ({err.strerror or err})") from None
+    for name in outputs:
+        if (out / name).is_dir():
+            raise UserInputError(f"--out: {out / name} is a folder; the table is written under that name")
+    remove_stale_temporaries(out)
+    return out

@@ -35,7 +35,7 @@ from .analysis.report import Report
 from .analysis.summary import TRIAL_COLUMNS, summarise_test
 from .analysis.tables import read_whole_csv
 from .errors import UserInputError
-from .files import remove_stale_temporaries, tmp_path, write_atomic
+from .files import writable_folder, write_atomic
 
 # per test: (key in summary.json, label in report.md, a rate shown in %?)
 MEASURES = (("correct_rate", "correct", True), ("error_rate", "error", True),
@@ -317,20 +317,7 @@ def _write(path: Path, text: str | None = None, frame: pd.DataFrame | None = Non
 
 def check_out(out: str | Path) -> Path:
     """``--out`` before any pooling: not a run directory, a folder that can be made and written."""
-    out = Path(out)
-    if (out / "manifest.json").exists():
-        raise UserInputError(f"--out: {out} is a run directory (it has manifest.json): choose another")
-    if out.exists() and not out.is_dir():
-        raise UserInputError(f"--out: {out} is a file, not a folder: choose another")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = tmp_path(out / ".write-test")
-        probe.write_text("")
-        probe.unlink()
-    except OSError as err:
-        raise UserInputError(f"--out: cannot write into {out} ({err.strerror or err})") from None
-    remove_stale_temporaries(out)
-    return out
+    return writable_folder(out, refuse_run_dir=True)
 
 
 def write(out: str | Path, summary: dict, df: pd.DataFrame, rep: Report) -> Path:

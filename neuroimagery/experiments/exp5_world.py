@@ -28,10 +28,12 @@ import time
 from pathlib import Path
 
 from ..errors import UserInputError
+from ..files import writable_folder, write_text
 from ..models.tool_use import EVENTS
 from ..robot.babble import CURVE_THRESHOLDS, POSSIBLE_RATE, THESIS_SKILLS, agreement, wilson
 
 SKILL_NAMES = ("P", "T", "S", "N", "W", "E")
+OUTPUTS = ("world_libraries.json", "world_libraries.md")
 
 
 def _one_library(seed: int, i: int) -> dict:
@@ -117,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.libraries < 1 or args.jobs < 1:
             raise UserInputError(f"--libraries and --jobs must be >= 1, got {args.libraries}, {args.jobs}")
-        args.out.mkdir(parents=True, exist_ok=True)
+        writable_folder(args.out, OUTPUTS)
         t0 = time.perf_counter()
         if args.jobs == 1:
             libs = [_one_library(args.seed, i) for i in range(args.libraries)]
@@ -126,8 +128,8 @@ def main(argv: list[str] | None = None) -> int:
 
             libs = Parallel(n_jobs=args.jobs)(delayed(_one_library)(args.seed, i) for i in range(args.libraries))
         s = summarise(libs)
-        (args.out / "world_libraries.json").write_text(json.dumps(dict(summary=s, libraries=libs), indent=1))
-        (args.out / "world_libraries.md").write_text(markdown(s))
+        write_text(args.out / OUTPUTS[0], json.dumps(dict(summary=s, libraries=libs), indent=1))
+        write_text(args.out / OUTPUTS[1], markdown(s))
         print(markdown(s))
         print(f"wrote {args.out / 'world_libraries.json'} in {time.perf_counter() - t0:.0f} s")
     except UserInputError as err:

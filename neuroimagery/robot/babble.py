@@ -27,7 +27,7 @@ from pathlib import Path
 import torch
 
 from neuroimagery.errors import UserInputError
-from neuroimagery.files import remove_stale_temporaries, tmp_path, write_text
+from neuroimagery.files import writable_folder, write_text
 from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.world import EVENTS, ToolWorld
 from neuroimagery.thesis import EXP5_TABLE_7_1
@@ -127,23 +127,8 @@ OUTPUTS = ("table_7_1.json", "table_7_1.md")
 
 
 def check_out(out: Path) -> Path:
-    """``--out`` before the first rollout: a folder (made if absent) this process can write into,
-    whose output names are not folders."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise UserInputError(f"--out: {out} is a file, not a folder: choose another")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = tmp_path(out / ".write-test")
-        probe.write_text("")
-        probe.unlink()
-    except OSError as err:
-        raise UserInputError(f"--out: cannot write into {out} ({err.strerror or err})") from None
-    for name in OUTPUTS:
-        if (out / name).is_dir():
-            raise UserInputError(f"--out: {out / name} is a folder; the table is written under that name")
-    remove_stale_temporaries(out)
-    return out
+    """``--out`` before the first rollout (:func:`~neuroimagery.files.writable_folder`)."""
+    return writable_folder(out, OUTPUTS)
 
 
 def write_outputs(out: Path, table: dict) -> None:
