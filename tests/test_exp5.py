@@ -691,7 +691,7 @@ def test_full_run_shows_the_thesis_claims(tmp_path):
     else:
         s = R.evaluate(cfg, out_dir=tmp_path)
     claims = exp5.thesis_claims(s, cfg.experiment)
-    assert len(claims) == 15  # every claim could be judged on a full run
+    assert len(claims) == 18  # every claim could be judged on a full run
     failed = [f"{c['claim']}: {c['value']}" for c in claims if not c["holds"]]  # every failure is listed
     assert not failed, "claims not shown:\n" + "\n".join(failed)
 
