@@ -93,15 +93,6 @@ class LocalConnection(Connection):
             out += pad[..., self.source[:, k]] * w[:, :, k].unsqueeze(1)
         return out
 
-    def net_rows(self, x: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
-        """``W x`` for any input rows ``(N, n)``, row r using participant ``group[r]``."""
-        N, n = x.shape
-        pad = torch.cat([x, x.new_zeros(N, 1)], -1)
-        out = x.new_zeros(N, n)
-        for k in range(self.K):
-            out += pad[:, self.source[:, k]] * self.weight[group, :, k]
-        return out
-
     def net_binary(self, x: torch.Tensor, group: torch.Tensor | None = None) -> torch.Tensor:
         """``W x`` for sparse ``x`` ``(N, n)`` rows (binary, or graded with few active units), row r
         using participant ``group[r]`` (default: all rows of participant 0 when P == 1). Cost grows
