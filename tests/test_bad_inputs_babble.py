@@ -39,3 +39,23 @@ def test_bad_arguments_are_one_error_line_before_any_rollout(tmp_path, capsys, m
 def test_counts_may_be_written_as_powers_of_ten():
     assert babble.parse(["--rollouts", "1e3", "--seeds", "2", "--out", "x"]).rollouts == 1000
     assert babble.parse(["--rollouts", "1_000_000", "--allow-large", "--out", "x"]).rollouts == 1_000_000
+
+
+WORLD_CASES = [
+    (["--libraries", "abc"], "--libraries", "not a whole number: 'abc'"),
+    (["--libraries", "0"], "--libraries and --jobs must be >= 1", None),
+    (["--jobs", "0"], "--libraries and --jobs must be >= 1", None),
+    (["--bogus", "1"], "unrecognized arguments: --bogus 1", None),
+]
+
+
+@pytest.mark.parametrize("args,needle,also", WORLD_CASES, ids=[" ".join(a) for a, _, _ in WORLD_CASES])
+def test_world_check_arguments_are_one_error_line_before_any_library(tmp_path, capsys, monkeypatch, args, needle, also):
+    """``python -m neuroimagery.experiments.exp5_world`` parses as babble does (one ``error:`` line)."""
+    from neuroimagery.experiments import exp5_world
+
+    def no_library(*a, **k):
+        raise AssertionError("a library was acquired before the arguments were checked")
+
+    monkeypatch.setattr(exp5_world, "_one_library", no_library)
+    refused(capsys, lambda: exp5_world.main(args + ["--out", str(tmp_path / "o")]), needle, *([also] if also else []))

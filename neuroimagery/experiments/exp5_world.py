@@ -21,7 +21,6 @@ perception. Writes ``DIR/world_libraries.json`` and ``.md``.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -30,7 +29,7 @@ from pathlib import Path
 from ..errors import UserInputError
 from ..files import writable_folder, write_text
 from ..models.tool_use import EVENTS
-from ..robot.babble import CURVE_THRESHOLDS, POSSIBLE_RATE, THESIS_SKILLS, agreement, wilson
+from ..robot.babble import CURVE_THRESHOLDS, POSSIBLE_RATE, THESIS_SKILLS, OneLineParser, agreement, count, wilson
 
 SKILL_NAMES = ("P", "T", "S", "N", "W", "E")
 OUTPUTS = ("world_libraries.json", "world_libraries.md")
@@ -109,14 +108,13 @@ def markdown(s: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m neuroimagery.experiments.exp5_world",
-                                     description=__doc__.split("\n")[0])
-    parser.add_argument("--libraries", type=int, default=16, help="skill libraries to acquire")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--jobs", type=int, default=2, help="worker processes")
+    parser = OneLineParser(prog="python -m neuroimagery.experiments.exp5_world", description=__doc__.split("\n")[0])
+    parser.add_argument("--libraries", type=count, default=16, help="skill libraries to acquire")
+    parser.add_argument("--seed", type=count, default=0)
+    parser.add_argument("--jobs", type=count, default=2, help="worker processes")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
-    args = parser.parse_args(argv)
     try:
+        args = parser.parse_args(argv)
         if args.libraries < 1 or args.jobs < 1:
             raise UserInputError(f"--libraries and --jobs must be >= 1, got {args.libraries}, {args.jobs}")
         writable_folder(args.out, OUTPUTS)

@@ -30,7 +30,7 @@ NEAR, FAR = 0.05, 3.0  # the eye camera's clipping planes (vision.shepard_metzle
 
 
 def _grid(e) -> int | None:
-    from .exp6 import grid_side
+    from .exp6_data import grid_side
 
     try:
         return grid_side(e)
@@ -131,7 +131,7 @@ def _probe(e, cells) -> None:
     redder than ``red_threshold``."""
     from ..native import quiet_native_output
     from ..vision import shepard_metzler as sm
-    from .exp6 import make_scene
+    from .exp6_data import make_scene
 
     with quiet_native_output():  # pybullet's banner on import: a refusal stays one line
         import pybullet  # noqa: F401

@@ -157,7 +157,7 @@ MAX_ROLLOUTS = 100_000
 MAX_SEEDS = 100
 
 
-class _Parser(argparse.ArgumentParser):
+class OneLineParser(argparse.ArgumentParser):
     """argparse whose refusals are the one ``error:`` line of every tool (no usage text)."""
 
     def error(self, message: str):
@@ -177,7 +177,7 @@ def count(text: str) -> int:
 
 def parse(argv: list[str] | None = None) -> argparse.Namespace:
     """The command line, every value checked (a :class:`UserInputError` naming the option)."""
-    parser = _Parser(prog="python -m neuroimagery.robot.babble", description=__doc__.split("\n")[0])
+    parser = OneLineParser(prog="python -m neuroimagery.robot.babble", description=__doc__.split("\n")[0])
     parser.add_argument("--rollouts", type=count, default=1000, help="random DMPs per posture and seed")
     parser.add_argument("--seeds", type=count, default=3, help="seeds 0 .. K-1")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
