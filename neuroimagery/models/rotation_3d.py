@@ -36,6 +36,7 @@ from torch import nn
 
 from ..nn import Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, Sanger
 from ..nn.connections import Connection
+from ..nn.decision import full_match_gain
 from ..nn.functional import gain_field, softmax_select
 from ..nn.local import LocalConnection, offset_count
 from . import voxel_code as vc
@@ -386,7 +387,4 @@ def lca_gain(g) -> float:
     Euler cycles: ``threshold k / (1 - (1 - dt k)^cycles)``."""
     if g.input_gain is not None:
         return float(g.input_gain)
-    k, dt, n = g.k, g.dt, g.cycles
-    if k == 0:
-        return g.threshold / (dt * n)
-    return g.threshold * k / (1.0 - (1.0 - dt * k) ** n)
+    return full_match_gain(g.threshold, g.k, g.dt, g.cycles)

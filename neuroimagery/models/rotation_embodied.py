@@ -32,7 +32,7 @@ from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul, binary_matmul_rows, pack_bits, popcount, unique_rows, unpack_bits
 from ..vision.reflection import principal_axis_flip, reflection_index
 from .recording import sample_indices
-from ..nn.decision import smallest_deciding_gain
+from ..nn.decision import full_match_gain, smallest_deciding_gain
 from .posture_ch6 import fit_posture_soms, posture_maps, posture_order  # noqa: F401  (re-exported)
 from .rotation_embodied_params import EmbodiedParams, EmbodiedPostureParams  # noqa: F401  (re-exported)
 
@@ -61,10 +61,7 @@ def lca_gain(p) -> float:
     ``lca_cycles`` Euler cycles (docs/choices.md): ``threshold k / (1 - (1 - dt k)^cycles)``."""
     if p.lca_input_gain is not None:
         return float(p.lca_input_gain)
-    k, dt, n = p.lca_k, p.lca_dt, p.lca_cycles
-    if k == 0:
-        return p.lca_threshold / (dt * n)
-    return p.lca_threshold * k / (1.0 - (1.0 - dt * k) ** n)
+    return full_match_gain(p.lca_threshold, p.lca_k, p.lca_dt, p.lca_cycles)
 
 
 def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int) -> tuple[torch.Tensor, torch.Tensor]:

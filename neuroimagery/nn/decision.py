@@ -192,6 +192,15 @@ class LeakyCompetingAccumulator(nn.Module):
         pass
 
 
+def full_match_gain(threshold: float, k: float, dt: float, cycles: int) -> float:
+    """The smallest input gain with which evidence 1, alone from rest, carries a leaky accumulator
+    (leak ``k``, Euler step ``dt``) across ``threshold`` within ``cycles`` cycles:
+    ``threshold k / (1 - (1 - dt k)^cycles)`` (``threshold / (dt cycles)`` without leak)."""
+    if k == 0:
+        return threshold / (dt * cycles)
+    return threshold * k / (1.0 - (1.0 - dt * k) ** cycles)
+
+
 @torch.no_grad()
 def smallest_deciding_gain(pmcd: "LeakyCompetingAccumulator", evidence: torch.Tensor, cycles: int, answer: int = 0, iterations: int = 60) -> torch.Tensor:
     """The smallest gain ``g`` (per row of ``evidence`` ``(R, 2)``) with which the accumulator ``pmcd``,
