@@ -9,7 +9,6 @@ the table costs the suite little time. The other tables of bad inputs: ``test_ba
 from __future__ import annotations
 
 import pickle
-import time
 from pathlib import Path
 
 import pytest
@@ -19,9 +18,9 @@ from neuroimagery import cli
 from neuroimagery.run import evaluate, train
 
 from conftest import make_cfg
+from support_bad_inputs import evaluating, refused
 
 EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "exp6", "demo")
-LIMIT_S = 10.0  # a refusal must come within seconds: these are checks, not work
 
 
 class _Marker:
@@ -46,26 +45,6 @@ def no_training(monkeypatch):
         monkeypatch.setattr(importlib.import_module(f"neuroimagery.experiments.{name}"), "train", forbidden)
 
 
-def _refused(capsys, fn, *needles):
-    """Run ``fn`` as the command line would; assert one clear ``error:`` line naming ``needles``."""
-    t0 = time.perf_counter()
-    with pytest.raises(SystemExit) as ex:
-        fn()
-    took = time.perf_counter() - t0
-    err = capsys.readouterr().err
-    assert ex.value.code == 2, err
-    lines = [ln for ln in err.splitlines() if ln.startswith("error:")]
-    assert len(lines) == 1, err
-    assert "Traceback" not in err
-    for n in needles:
-        assert n in lines[0], (n, lines[0])
-    assert took < LIMIT_S, f"refused after {took:.1f} s"
-    return lines[0]
-
-
-def _evaluate(tmp, *over):
-    return lambda: cli.friendly_errors(evaluate)(make_cfg(*over), out_dir=tmp)
-
 
 # ------------------------------------------------------------------------------ checkpoints
 @pytest.fixture(scope="module")
@@ -87,11 +66,11 @@ def test_a_crafted_checkpoint_runs_nothing(tmp_path, capsys, demo_run):
     marker = tmp_path / "executed"
     with open(ck / "checkpoints" / "model.pt", "wb") as f:
         pickle.dump({"state_dict": _Marker(marker)}, f)
-    _refused(capsys, _evaluate(tmp_path / "run", "experiment=demo", "participants=2", f"checkpoint={ck}"),
+    refused(capsys, evaluating(tmp_path / "run", "experiment=demo", "participants=2", f"checkpoint={ck}"),
              "model.pt", "nothing in it was run")
     assert not marker.exists()
     torch.save({"state_dict": _Marker(marker)}, ck / "checkpoints" / "model.pt")  # the zip format too
-    _refused(capsys, _evaluate(tmp_path / "run", "experiment=demo", "participants=2", f"checkpoint={ck}"), "model.pt")
+    refused(capsys, evaluating(tmp_path / "run", "experiment=demo", "participants=2", f"checkpoint={ck}"), "model.pt")
     assert not marker.exists()
 
 
@@ -121,21 +100,21 @@ def test_bad_or_mismatched_checkpoints_are_refused(tmp_path, capsys, no_training
     if how:
         _alter(ck / "checkpoints" / "model.pt", how)
     over = over if "participants=3" in over else ["participants=2", *over]
-    _refused(capsys, _evaluate(tmp_path / "run", "experiment=demo", *over, f"checkpoint={ck}"), needle)
+    refused(capsys, evaluating(tmp_path / "run", "experiment=demo", *over, f"checkpoint={ck}"), needle)
 
 
 def test_checkpoints_of_another_experiment_or_missing_are_refused(tmp_path, capsys, no_training, demo_run):
-    _refused(capsys, _evaluate(tmp_path / "a", "experiment=exp1", "participants=2", f"checkpoint={demo_run}"),
+    refused(capsys, evaluating(tmp_path / "a", "experiment=exp1", "participants=2", f"checkpoint={demo_run}"),
              "trained for demo")
-    _refused(capsys, _evaluate(tmp_path / "b", "experiment=demo", f"checkpoint={tmp_path / 'nowhere'}"), "not a directory")
+    refused(capsys, evaluating(tmp_path / "b", "experiment=demo", f"checkpoint={tmp_path / 'nowhere'}"), "not a directory")
     (tmp_path / "empty").mkdir()
-    _refused(capsys, _evaluate(tmp_path / "c", "experiment=demo", f"checkpoint={tmp_path / 'empty'}"), "model.pt")
+    refused(capsys, evaluating(tmp_path / "c", "experiment=demo", f"checkpoint={tmp_path / 'empty'}"), "model.pt")
 
 
 # --------------------------------------------------------------------------- run directories
 def test_a_run_directory_of_another_run_is_refused_unless_overwrite(tmp_path, capsys, demo_run):
     run = _copy_run(demo_run, tmp_path / "run")
-    _refused(capsys, _evaluate(run, "experiment=demo", "participants=2", "seed=1"), "holds another run", "seed")
+    refused(capsys, evaluating(run, "experiment=demo", "participants=2", "seed=1"), "holds another run", "seed")
     evaluate(make_cfg("experiment=demo", "participants=2", "seed=1", "overwrite=true"), out_dir=run)
     assert (run / "summary.json").is_file()
 
@@ -151,16 +130,16 @@ def test_run_files_without_a_manifest_or_a_corrupt_one_are_refused(tmp_path, cap
     old = tmp_path / "old"
     old.mkdir()
     (old / "summary.json").write_text("{}")
-    _refused(capsys, _evaluate(old, "experiment=demo"), "without a manifest")
+    refused(capsys, evaluating(old, "experiment=demo"), "without a manifest")
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "manifest.json").write_text("{not json")
-    _refused(capsys, _evaluate(bad, "experiment=demo"), "manifest.json")
+    refused(capsys, evaluating(bad, "experiment=demo"), "manifest.json")
 
 
 def test_a_file_where_the_run_directory_belongs_is_refused(tmp_path, capsys, no_training):
     (tmp_path / "f").write_text("x")
-    _refused(capsys, _evaluate(tmp_path / "f" / "run", "experiment=demo"), "cannot create the run directory")
+    refused(capsys, evaluating(tmp_path / "f" / "run", "experiment=demo"), "cannot create the run directory")
 
 
 def test_a_full_disk_keeps_what_was_computed(tmp_path, capsys, monkeypatch):
@@ -175,7 +154,7 @@ def test_a_full_disk_keeps_what_was_computed(tmp_path, capsys, monkeypatch):
         return real(self, path, *a, **k)
 
     monkeypatch.setattr(pd.DataFrame, "to_csv", full)
-    line = _refused(capsys, _evaluate(run_dir, "experiment=demo", "participants=2", "logger=none"),
+    line = refused(capsys, evaluating(run_dir, "experiment=demo", "participants=2", "logger=none"),
                     "trials.csv", "No space left on device", "kept in")
     kept = Path(line.split("kept in ")[1])
     assert len(pd.read_csv(kept)) == 2 * 37
@@ -191,4 +170,4 @@ def test_the_pool_refuses_what_is_not_a_run(tmp_path, capsys, make, needle):
     d = tmp_path / "r"
     if make == "empty":
         d.mkdir()
-    _refused(capsys, lambda: cli.friendly_errors(exp5_pool.main)([str(d)]), needle)
+    refused(capsys, lambda: cli.friendly_errors(exp5_pool.main)([str(d)]), needle)
