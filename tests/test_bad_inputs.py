@@ -18,9 +18,7 @@ from neuroimagery import cli
 from neuroimagery.run import evaluate, train
 
 from conftest import make_cfg
-from support_bad_inputs import evaluating, refused
-
-EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "exp6", "demo")
+from support_bad_inputs import evaluating, no_training, refused  # noqa: F401 (fixture)
 
 
 class _Marker:
@@ -31,19 +29,6 @@ class _Marker:
 
     def __reduce__(self):
         return (Path.touch, (Path(self.path),))
-
-
-@pytest.fixture
-def no_training(monkeypatch):
-    """Any experiment that starts training fails the test: refusals must come first."""
-    import importlib
-
-    def forbidden(*a, **k):
-        raise AssertionError("training started before the input was refused")
-
-    for name in EXPERIMENTS:
-        monkeypatch.setattr(importlib.import_module(f"neuroimagery.experiments.{name}"), "train", forbidden)
-
 
 
 # ------------------------------------------------------------------------------ checkpoints
