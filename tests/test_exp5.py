@@ -596,7 +596,7 @@ def test_batched_c1_and_c3_updates_equal_repeated_single_steps(monkeypatch):
     assert torch.allclose(a.c1.weight, b.c1.weight, atol=1e-6)
     # C3 learns through BidirectionalSOM.fit, which picks the closed form (neighbourhood below the
     # cutoff, one pair repeated); it equals the SOM block's step-by-step online rule
-    from neuroimagery.nn import som_trainers
+    from neuroimagery.nn import som as som_module
 
     c, d = ToolUseBrain((6, 8), c3_eta=0.2), ToolUseBrain((6, 8), c3_eta=0.2)
     d.c3.som.weight.copy_(c.c3.som.weight)
@@ -604,8 +604,8 @@ def test_batched_c1_and_c3_updates_equal_repeated_single_steps(monkeypatch):
     chosen = []
 
     def spy(*a, **k):
-        chosen.append(som_trainers.choose(*a, **k).name)
-        return som_trainers.choose(*a, **k)
+        chosen.append(som_module.choose(*a, **k).name)
+        return som_module.choose(*a, **k)
 
     monkeypatch.setattr("neuroimagery.nn.som.choose", spy)
     d.train_c3(x, unit=3, posture=2, outcome=out, times=9, generator=g)

@@ -1,11 +1,12 @@
-"""The registered implementations of a rule over a sequence (nn/learning.py) against the plain
+"""The registered forms of a rule over a sequence (nn/forms.py, nn/learning.py) against the plain
 step-by-step rule: same weights within a stated float tolerance, same discrete outcomes (the
 winning output unit of every training input), and the choice made from the inputs."""
 import pytest
 import torch
 
 from neuroimagery.nn import AllToAll, Delta, Hebbian
-from neuroimagery.nn.learning import KERNELS, IndexedRows
+from neuroimagery.nn import forms
+from neuroimagery.nn.learning import IndexedRows
 
 # float32 weights formed by another summation order (closed form in float64 or float32, sparse
 # column sums): a few ulps of the O(1) weights, far below any difference a learning step makes
@@ -98,7 +99,7 @@ def test_kernels_are_chosen_from_the_inputs_and_refused_when_they_do_not_apply()
         h.learn(X[0], Y[0], sequence=True, batch=2, method="hebbian_shared")
     with pytest.raises(ValueError, match="method must be"):
         h.learn(X[0], Y[0], sequence=True, method="fast")
-    assert set(KERNELS) >= {"hebbian_shared", "hebbian_indexed", "delta_binary"}
+    assert set(forms.names(h)) >= {"plain", "hebbian_shared", "hebbian_indexed", "delta_binary"}
 
 
 def test_a_sequence_in_eval_mode_changes_nothing():

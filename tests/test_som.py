@@ -3,7 +3,8 @@ import pytest
 import torch
 
 from neuroimagery.nn import SOM, BidirectionalSOM, participant_generators
-from neuroimagery.nn import seeding, som_trainers
+from neuroimagery.nn import seeding
+from neuroimagery.nn import som as som_module
 
 
 def test_som_on_1d_input_keeps_topology():
@@ -94,7 +95,7 @@ def test_windowed_fit_by_pieces_and_jointly_equals_online_rule():
     online rule's winners; the joint fit gives each map the weights of its own fit, to within the
     rounding of the final products (the joint loop works on other shapes)."""
     from neuroimagery.nn.numerics import rounding_bound
-    from neuroimagery.nn.som_windowed import fit_windowed, fit_windowed_many, windowed_factors
+    from neuroimagery.nn.som_windowed import fit_windowed, fit_windowed_many
 
     g = torch.Generator().manual_seed(7)
     A, B = (torch.rand(4, 120, generator=g) > 0.6).float(), (torch.rand(3, 80, generator=g) > 0.6).float()
@@ -115,7 +116,7 @@ def test_windowed_fit_by_pieces_and_jointly_equals_online_rule():
     # the weights are scale * w0 + coef @ X, with scale and coef from float64 recurrences that are
     # element for element the same: if they round differently their float32 values move by at most
     # one ulp (one more term's worth of rounding), and the float32 product of N patterns adds N + 1
-    f = windowed_factors(solo)
+    f = solo.learnt_factors
     mag = f["scale"].abs().unsqueeze(-1) * mk(200, 3).weight.abs() + f["coef"].abs() @ f["patterns"].abs()
     assert ((jx.weight - solo.weight).abs() <= rounding_bound(mag, f["coef"].shape[-1] + 2)).all()
     assert torch.allclose(jy.weight, ref_y.weight, atol=1e-5)
@@ -128,7 +129,7 @@ def test_windowed_compiled_loop_gives_the_torch_loops_bits(monkeypatch):
     in the same order: winners, weights and factors are the same bits, for two maps trained
     together (pieces, a padded piece column) and with scales small enough to be folded back."""
     from neuroimagery.nn import som_windowed_kernel as kernel
-    from neuroimagery.nn.som_windowed import fit_windowed_many, windowed_factors
+    from neuroimagery.nn.som_windowed import fit_windowed_many
 
     if not kernel.available():
         pytest.skip("numba is not installed: the torch loop is the only one")
@@ -147,11 +148,11 @@ def test_windowed_compiled_loop_gives_the_torch_loops_bits(monkeypatch):
         for m in maps:
             m.rule.cutoff = 0.01
         win = fit_windowed_many([(maps[0], X, ox, (60, 40)), (maps[1], Y, oy, None)])
-        runs.append((win, [m.weight.clone() for m in maps], [windowed_factors(m) for m in maps]))
+        runs.append((win, [m.weight.clone() for m in maps], [m.learnt_factors for m in maps]))
     (wa, Wa, Fa), (wb, Wb, Fb) = runs
     assert all(torch.equal(x, y) for x, y in zip(wa, wb))
     assert all(torch.equal(x, y) for x, y in zip(Wa, Wb))
-    assert all(torch.equal(fa[k], fb[k]) for fa, fb in zip(Fa, Fb) for k in fa)
+    assert all(fa.keys() == fb.keys() and all(torch.equal(fa[k], fb[k]) for k in fa if k != "kind") for fa, fb in zip(Fa, Fb))
     assert (Fa[0]["scale"] < 1e-12).any()  # below the fold threshold: some scales were folded back
 
 
@@ -182,20 +183,24 @@ def test_windowed_weights_rebuild_from_their_factors():
     """The windowed fit keeps what it formed the weights from (scale, coefficients, patterns);
     those and the initial weights give the trained weights again, bit for bit, at a fraction of
     their size. A map trained otherwise has no factors."""
-    from neuroimagery.nn.som_windowed import fit_windowed, rebuild_windowed, windowed_factors
+    from neuroimagery.nn.som_windowed import fit_windowed, rebuild_windowed
 
     X = (torch.rand(12, 400, generator=torch.Generator().manual_seed(4)) > 0.7).float()
     kw = dict(participants=2, seed=6, eta=0.3, sigma=3.0, eta_final=0.02, sigma_final=0.5, iterations=200)
     a, fresh = SOM((9, 9), 400, **kw), SOM((9, 9), 400, **kw)
     fit_windowed(a, X, seeding.randint(participant_generators(2, 2), 12, (200,)))
-    f = windowed_factors(a)
+    f = a.learnt_factors
+    assert f["kind"] == "som_windowed"
     assert f["coef"].shape == (2, 81, 12) and f["patterns"].shape == (12, 400)
     rebuild_windowed(fresh, f)
     assert torch.equal(fresh.weight, a.weight)  # the trainer's own products, same shapes and threads
     with pytest.raises(ValueError, match="do not fit"):
         rebuild_windowed(SOM((9, 9), 400, participants=3), f)
-    with pytest.raises(ValueError, match="not trained by fit_windowed"):
-        windowed_factors(SOM((9, 9), 400))
+    other = SOM((9, 9), 400, **kw)
+    other.fit(X, iterations=20, method="windowed")
+    assert other.learnt_factors["kind"] == "som_windowed"
+    other.fit(X, iterations=20, method="online")  # a later fit by another form leaves none
+    assert SOM((9, 9), 400).learnt_factors is None and other.learnt_factors is None
 
 
 def _repeated_case(sigma=0.1, iterations=1, eta_final=None, seed=5):
@@ -212,10 +217,10 @@ def test_repeated_fit_equals_plain_rule():
     fast, plain, a, b = _repeated_case()
     for label, T in ((3, 50), (3, 7), (6, 50)):
         order, labels = torch.zeros(1, T, dtype=torch.long), torch.tensor([[label]])
-        assert som_trainers.choose(fast.som, torch.cat([a, b], -1), labels, "auto", {}, order).name == "repeated"
+        assert som_module.choose(fast.som, torch.cat([a, b], -1), labels, "auto", {}, order).name == "repeated"
         wf = fast.fit(a, b, labels=labels, iterations=T, order=order)
         plain.som.supervised = True
-        wp = som_trainers.fit_plain(plain.som, torch.cat([a, b], -1), order, labels)
+        wp = som_module.fit_plain(plain.som, torch.cat([a, b], -1), order, labels)
         assert torch.equal(wf, wp)  # identical winners: the label at every step
         assert torch.allclose(fast.weight, plain.weight, rtol=0, atol=1e-6)  # float32 rounding of 50 steps
         assert int(fast.som.steps) == int(plain.som.steps)
@@ -233,6 +238,6 @@ def test_repeated_fit_only_where_it_holds(case):
     if case == "changing":
         X, labels = X.expand(1, 2, -1).clone(), torch.tensor([[3, 4]])
         order[0, 5:] = 1
-    assert som_trainers.choose(fast.som, X, labels, "auto", {}, order).name != "repeated"
+    assert som_module.choose(fast.som, X, labels, "auto", {}, order).name != "repeated"
     with pytest.raises(ValueError, match="method='repeated' needs"):
-        som_trainers.choose(fast.som, X, labels, "repeated", {}, order)
+        som_module.choose(fast.som, X, labels, "repeated", {}, order)

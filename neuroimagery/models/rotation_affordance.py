@@ -33,8 +33,7 @@ from torch import nn
 from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators, seeding
 from ..nn.functional import intra_op_threads
 from ..nn.row_cache import RowCache, distinct_rows
-from ..nn.som_windowed import windowed_factors
-from .factor_checkpoint import FactorCheckpoint
+from .factor_checkpoint import FactorCheckpoint, learnt_factors
 from ..bounds import bounded, check_declared
 from .params import FieldParams, SomParams
 
@@ -140,9 +139,6 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         self.train()
         self.c1.learn(x, post, sequence=True)  # affordance, online outstar over the shared sequence
         self.c2.learn(post, nxt_img, sequence=True)  # forward model
-        # what the large weights are formed from, for compact_state (C5 learns step by step: saved in full)
-        self._factors = fx = {k: c.learnt_factors for k, c in (("c1.weight", self.c1), ("c2.weight", self.c2))
-                              if c.learnt_factors is not None}
         # matching SOM on the 4 combinations of upright images, then the answer association
         up = [images[(0, 0.0)], images[(1, 0.0)]]
         pairs = [(i, j) for i in (0, 1) for j in (0, 1)]
@@ -151,13 +147,14 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         order = seeding.randint(participant_generators(self.seed, P, stream=4), X.shape[0], (e.som.iterations,))
         with intra_op_threads(e.som.threads, cap=True):  # each SOM step is small: extra threads only add hand-offs
             self.pfc2.fit(X, order=order, method=e.som.method)
-        if e.som.method == "windowed":  # the other methods leave no factors: the weights are saved in full
-            fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
         act, _ = self.pfc2_activity(X[:, :1024].expand(P, -1, -1), X[:, 1024:].expand(P, -1, -1))
         yes = torch.tensor([i == j for i, j in pairs])
         target = self.answer_code(yes)  # (4, 200)
         ks = list(range(len(pairs))) * e.hebb_epochs  # the 4 pairs in turn, one per step
         self.c5.learn(act[:, ks], target[ks], sequence=True)
+        # what the large weights are formed from, for compact_state (C5 learns step by step and a
+        # SOM trained by another method than 'windowed' leaves no factors: saved in full)
+        self._factors = learnt_factors(self)
         self.eval()
 
     # ------------------------------------------------------------------ a trial

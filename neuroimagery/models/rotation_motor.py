@@ -34,10 +34,9 @@ from ..nn.learning import IndexedRows
 from ..nn.row_cache import RowCache, distinct_rows
 from ..nn.functional import squared_norms
 from ..nn.som import fit_together
-from ..nn.som_windowed import windowed_factors
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 from ..nn.functional import intra_op_threads
-from .factor_checkpoint import FactorCheckpoint
+from .factor_checkpoint import FactorCheckpoint, learnt_factors
 from ..bounds import bounded, check_declared
 from .params import FieldParams, SomParams
 
@@ -222,8 +221,6 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         # C1: every image pre-activates the 7 postures at 0.2; C6: the target image selects its own
         all7 = self.pmc1_code(ang, e.preactivation).sum(0)
         seq = list(range(14)) * e.c1_epochs
-        # what each trained weight is formed from, for compact_state (key: the state_dict entry)
-        self._factors = fx = {}
         self.train()
         self.c1.learn(img[seq], all7.expand(len(seq), -1), sequence=True)
         own = self.pmc1_code(torch.tensor([a for _, a in items]), e.bias)
@@ -244,9 +241,6 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         gens = participant_generators(self.seed, P, stream=9)
         self.fit_soms([(self.m11, X, pat[:, : e.som.iterations], (3100, 3100)),  # [SS, PMC_1]
                        (self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som.iterations,)), (1024, 1024))])  # [PP, PFC_1]
-        if e.som.method == "windowed":  # the other methods leave no factors: their weights are saved in full
-            fx["m11.weight"] = {"kind": "som_windowed", **windowed_factors(self.m11)}
-            fx["pfc2.weight"] = {"kind": "som_windowed", **windowed_factors(self.pfc2)}
         Th = e.hebb_steps
         table = self.m11_table(torch.arange(2).repeat_interleave(7), ang.repeat(2))  # SS codes of the 14 postures
         ids = torch.arange(98)
@@ -268,10 +262,9 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         p_act = self.som_bump(self.pfc2, Y.expand(P, -1, -1))
         ans = self.pmc2.flat(self.pmc2.encode(torch.tensor([[4.5, 4.5], [4.5, 14.5]])))
         self.c5.learn(IndexedRows(p_act, order), IndexedRows(ans, (~same[order]).long()), sequence=True)
-        for k in ("c1", "c6", "c9", "c10", "c2", "c5"):  # what each closed form formed the weights from
-            f = getattr(self, k).learnt_factors
-            if f is not None:
-                fx[f"{k}.weight"] = f
+        # what each trained weight is formed from, for compact_state (key: the state_dict entry);
+        # a SOM trained by another method than 'windowed' leaves none: its weights are saved in full
+        self._factors = learnt_factors(self)
         self.eval()
         return {"m11_patterns": X, "pfc2_patterns": Y}
 

@@ -1,10 +1,14 @@
 """Building blocks: population-coded maps, connections, local learning rules, SOMs and decision
-dynamics. No block knows which experiment uses it."""
+dynamics. No block knows which experiment uses it.
+
+Importing the package registers every form of the rules (:mod:`.forms`)."""
+from . import hebbian_closed_form, som_factored, som_online, som_repeated, som_windowed  # noqa: F401  (register forms)
 from .connections import AllToAll, Connection, GainField, HardWired, OneToOne
 from .decision import Decision, DynamicField, LeakyCompetingAccumulator
+from .delta import Delta
 from .functional import gain_field, gaussian_bump, softmax_probabilities, softmax_select, transfer
 from .maps import PopulationMap, population_cover
-from .rules import Delta, GatedHebbian, Hebbian, Kohonen, QLearning, Rule, Sanger, SupervisedKohonen
+from .rules import GatedHebbian, Hebbian, Kohonen, QLearning, Rule, Sanger, SupervisedKohonen
 from .seeding import participant_generators
 from .som import SOM, BidirectionalSOM
 

@@ -23,8 +23,10 @@ import torch
 from torch import nn
 
 from . import seeding
+from .forms import Form, register
 from .functional import (as_batched, check_participants, check_tensor, checks_enabled, gain_field,
                          participants_weight, transfer)
+from .learning import learn_sequence, run_plain
 from .rules import Rule
 
 
@@ -97,9 +99,10 @@ class Connection(nn.Module):
         ``(T, n)`` shared by every participant, ``(P, T, n)``, or
         :class:`~neuroimagery.nn.learning.IndexedRows`, applied in order ``batch`` steps at a time
         (``post=None`` with ``Delta``: the connection's own output at the current weights). The
-        implementation is chosen from the rule and the inputs' shape and sparsity among those
-        registered in :mod:`neuroimagery.nn.learning` (``method='auto'``; ``'plain'``: one
-        :meth:`learn` step per group); what a closed form formed the weights from is left in
+        implementation is chosen from the rule and the inputs' shape and sparsity among the
+        forms registered for the rule and the connection (:mod:`neuroimagery.nn.forms`,
+        ``method='auto'``; ``'plain'``: one :meth:`learn` step per group,
+        :mod:`neuroimagery.nn.learning`); what a closed form formed the weights from is left in
         ``learnt_factors``. ``progress`` optionally wraps the iterable of steps.
         """
         if not self.learning():
@@ -107,8 +110,6 @@ class Connection(nn.Module):
         if sequence:
             if return_delta:
                 raise ValueError("return_delta is for one step, not a sequence")
-            from .learning import learn_sequence
-
             learn_sequence(self, pre, post, batch, method, progress, **kw)
             return None
         pre_b = self._activity(pre, self.n_in, "pre")
@@ -229,3 +230,14 @@ class GainField(nn.Module):
 
     def reset_state(self) -> None:
         pass
+
+
+@register(Rule, Connection)
+class Plain(Form):
+    """Any rule over a sequence, one :meth:`Connection.learn` step per group (the reference of
+    every faster form; :func:`~.learning.run_plain`)."""
+
+    name, priority = "plain", 99
+
+    def run(self, conn, rule, call) -> None:
+        run_plain(conn, call.pre, call.post, call.batch, call.progress, **call.kw)

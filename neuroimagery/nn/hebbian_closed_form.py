@@ -1,6 +1,8 @@
-"""Closed forms of the online outstar Hebbian rule (eq. 4.2-4.3), registered as implementations
-of :class:`~neuroimagery.nn.Hebbian` over a sequence (:mod:`neuroimagery.nn.learning`:
-``conn.learn(pre, post, sequence=True)`` picks them).
+"""Closed forms of the online outstar Hebbian rule (eq. 4.2-4.3), registered as forms of
+:class:`~neuroimagery.nn.Hebbian` on a :class:`~neuroimagery.nn.Connection` over a sequence
+(:mod:`neuroimagery.nn.forms`: ``conn.learn(pre, post, sequence=True)`` picks them). Each form
+records what it formed the weights from (``conn.learnt_factors``), rebuilds the weights from it
+and bounds the rounding of that rebuild (compact checkpoints).
 
 With one pattern per step the update ``W <- W (1 - eta x_i) + eta y_j x_i`` is affine in the weights,
 so a whole training sequence reduces to a few matrix products. These functions give the same weights
@@ -12,7 +14,10 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .learning import IndexedRows, Kernel, register
+from .connections import AllToAll, Connection
+from .forms import Form, register
+from .learning import IndexedRows
+from .numerics import cast_bound, rounding_bound
 from .rules import Hebbian
 
 
@@ -46,8 +51,6 @@ def hebbian_shared(weight0: torch.Tensor, pre: torch.Tensor, post: torch.Tensor,
 
 def hebbian_online(weight0: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, eta: float) -> torch.Tensor:
     """Reference: the same training through ``AllToAll.learn`` one pattern at a time (slow)."""
-    from .connections import AllToAll
-
     P, n_out, n_in = weight0.shape
     c = AllToAll(n_in, n_out, participants=P, init="zeros", rules=Hebbian(eta, "outstar"))
     c.weight.copy_(weight0)
@@ -172,38 +175,84 @@ def rebuild_indexed(weight0: torch.Tensor, factors: dict) -> torch.Tensor:
     return out
 
 
-# ------------------------------------------------------------------ registered kernels
+# ------------------------------------------------------------------ registered forms
+WHY = "does not apply to this rule or these inputs"
+
+
 def _online_outstar(conn, rule, batch: int) -> bool:
     return type(rule) is Hebbian and rule.form == "outstar" and batch == 1 and conn.weight.dim() == 3
 
 
-def _applies_shared(conn, rule, pre, post, batch, kw) -> bool:
-    return (_online_outstar(conn, rule, batch) and not kw and isinstance(pre, torch.Tensor)
-            and isinstance(post, torch.Tensor) and pre.dim() == 2 and post.dim() == 2)
+@register(Hebbian, Connection)
+class Shared(Form):
+    """One sequence ``(T, in)``, ``(T, out)`` for every participant: :func:`hebbian_shared`; its
+    factors are the sequence and the rate."""
+
+    name = kind = "hebbian_shared"
+
+    def why_not(self, conn, rule, call):
+        pre, post = call.pre, call.post
+        ok = (_online_outstar(conn, rule, call.batch) and not call.kw and isinstance(pre, torch.Tensor)
+              and isinstance(post, torch.Tensor) and pre.dim() == 2 and post.dim() == 2)
+        return None if ok else WHY
+
+    @torch.no_grad()
+    def run(self, conn, rule, call) -> dict:
+        conn.weight.copy_(hebbian_shared(conn.weight, call.pre, call.post, rule.eta))
+        return {"kind": self.kind, "pre": call.pre, "post": call.post.contiguous(), "eta": rule.eta}
+
+    @torch.no_grad()
+    def rebuild(self, conn, f: dict) -> None:
+        conn.weight.copy_(hebbian_shared(conn.weight, f["pre"], f["post"], f["eta"]))
+
+    @torch.no_grad()
+    def bound(self, f: dict, w0, saved, rows):
+        """Float64 work: each term passes through at most ``2 T + 5`` roundings (``T`` factors of
+        its decay, 3 more products, ``T`` sums over the steps, 2 to combine), then rounds to
+        float32 (one more ulp)."""
+        d = torch.float64
+        w0 = w0.to(d).abs()
+        pre, post, eta = f["pre"].to(d), f["post"][:, rows].to(d), float(f["eta"])
+        keep = (1.0 - eta * pre).abs()  # the decays and suffix products of hebbian_shared, in absolute value
+        rev = torch.cumprod(torch.flip(keep, [0]), 0)
+        suffix = torch.cat([torch.flip(rev, [0])[1:], torch.ones_like(keep[:1])], 0)
+        mag = rev[-1] * w0 + (post.abs().T @ (abs(eta) * pre.abs() * suffix)).unsqueeze(0)
+        return rounding_bound(mag, 2 * pre.shape[0] + 5, d) + cast_bound(saved.to(d))
 
 
-@torch.no_grad()
-def _run_shared(conn, rule, pre, post, batch, progress, kw) -> dict:
-    conn.weight.copy_(hebbian_shared(conn.weight, pre, post, rule.eta))
-    return {"kind": "hebbian_shared", "pre": pre, "post": post.contiguous(), "eta": rule.eta}
+@register(Hebbian, Connection)
+class Indexed(Form):
+    """Outputs drawn from a small set (``post`` a shared :class:`IndexedRows`):
+    :func:`hebbian_indexed_many`; its factors are the decays and the per-pattern sums."""
 
+    name = kind = "hebbian_indexed"
 
-def _applies_indexed(conn, rule, pre, post, batch, kw) -> bool:
-    return (_online_outstar(conn, rule, batch) and not kw and isinstance(post, IndexedRows) and post.shared
-            and (isinstance(pre, IndexedRows) or isinstance(pre, torch.Tensor)))
+    def why_not(self, conn, rule, call):
+        pre, post = call.pre, call.post
+        ok = (_online_outstar(conn, rule, call.batch) and not call.kw and isinstance(post, IndexedRows) and post.shared
+              and (isinstance(pre, IndexedRows) or isinstance(pre, torch.Tensor)))
+        return None if ok else WHY
 
+    @torch.no_grad()
+    def run(self, conn, rule, call) -> dict:
+        pre, post = call.pre, call.post
+        if isinstance(pre, IndexedRows):
+            pre_of = pre.of
+        else:
+            pre_of = (lambda p: pre) if pre.dim() == 2 else (lambda p: pre[p])
+        factors: list = []
+        (w,) = hebbian_indexed_many(pre_of, [(conn.weight, post.index, post.table)], rule.eta, factors)
+        conn.weight.copy_(w)
+        return {"kind": self.kind, **factors[0]}
 
-@torch.no_grad()
-def _run_indexed(conn, rule, pre, post, batch, progress, kw) -> dict:
-    if isinstance(pre, IndexedRows):
-        pre_of = pre.of
-    else:
-        pre_of = (lambda p: pre) if pre.dim() == 2 else (lambda p: pre[p])
-    factors: list = []
-    (w,) = hebbian_indexed_many(pre_of, [(conn.weight, post.index, post.table)], rule.eta, factors)
-    conn.weight.copy_(w)
-    return {"kind": "hebbian_indexed", **factors[0]}
+    @torch.no_grad()
+    def rebuild(self, conn, f: dict) -> None:
+        conn.weight.copy_(rebuild_indexed(conn.weight, f))
 
-
-register(Kernel("hebbian_shared", _applies_shared, _run_shared))
-register(Kernel("hebbian_indexed", _applies_indexed, _run_indexed))
+    @torch.no_grad()
+    def bound(self, f: dict, w0, saved, rows):
+        """``w = a w0 + sum_k post_k C_k`` in float32: ``K + 1`` terms."""
+        d = torch.float64
+        C = f["C"].to(d).abs()
+        prod = torch.einsum("ko,pki->poi", f["post_set"][:, rows].to(d).abs(), C)
+        return rounding_bound(f["a"].to(d).abs().unsqueeze(1) * w0.to(d).abs() + prod, C.shape[1] + 1)

@@ -1,36 +1,30 @@
-"""Registered implementations of a rule applied over a training sequence
-(``Connection.learn(..., sequence=True)``).
+"""A rule applied over a training sequence (``Connection.learn(..., sequence=True)``).
 
 A sequence is ``T`` presentations applied one after the other, ``batch`` patterns at a time, each
 group evaluated at the weights the previous group left (``batch=1``: the online rule of the
-thesis). The plain implementation does exactly that, calling :meth:`Connection.learn` once per
-group. Faster implementations of the same arithmetic are registered here, as a simulator's builder
-keeps several kernels for one rule, and the connection picks the first whose ``applies`` accepts
-the rule and the inputs' shape and sparsity (``method='auto'``); ``method='plain'`` forces the
-step-by-step form. Each fast one is tested against the plain one (``tests/test_learning.py``).
+thesis). The plain form (:func:`run_plain`, the form ``'plain'`` registered in
+:mod:`.connections`) does exactly that, calling :meth:`Connection.learn` once per group. Faster
+forms of the same arithmetic are registered in :mod:`.forms` for the rule and the connection
+(``@register(Hebbian, Connection)``) and the connection picks the first that applies to the
+rule and the inputs' shape and sparsity (``method='auto'``); ``method='plain'`` forces the
+step-by-step form. Each fast one is tested against the plain one (``tests/test_learning.py``):
 
-Registered here (their modules register them on import):
+* ``hebbian_shared``, ``hebbian_indexed`` (:mod:`.hebbian_closed_form`): outstar Hebbian, one
+  pattern per step, over one sequence shared by every participant or with outputs drawn from a
+  small set (``post`` an :class:`IndexedRows`): closed forms of the whole sequence;
+* ``delta_binary`` (:mod:`.delta`): the delta rule on 0/1 inputs in mini-batches on the CPU,
+  touching only the weight columns of the active inputs.
 
-* ``hebbian_shared`` (:mod:`.hebbian_closed_form`): outstar Hebbian, one pattern per step, the
-  same sequence for every participant (2-D ``pre`` and ``post``): the closed form of the whole
-  sequence as a few matrix products;
-* ``hebbian_indexed`` (:mod:`.hebbian_closed_form`): outstar Hebbian, one pattern per step, the
-  outputs drawn from a small set (``post`` an :class:`IndexedRows`): the same closed form, summed
-  per output pattern;
-* ``delta_binary`` (:mod:`.binary_delta`): the delta rule on 0/1 inputs in mini-batches on the
-  CPU, touching only the weight columns of the active inputs.
-
-A kernel may leave what it formed the weights from in ``conn.learnt_factors`` (a dict with a
+A form may leave what it formed the weights from in ``conn.learnt_factors`` (a dict with its
 ``kind``), which compact checkpoints store instead of the weights; the plain form leaves ``None``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable
+from types import SimpleNamespace
 
 import torch
 
-from . import monitor
+from . import forms, monitor
 from .functional import check_floating
 
 
@@ -75,25 +69,6 @@ def rows(x, lo: int, hi: int, P: int) -> torch.Tensor:
     if isinstance(x, IndexedRows):
         return x.rows(lo, hi)
     return x[lo:hi].expand(P, -1, -1) if x.dim() == 2 else x[:, lo:hi]
-
-
-@dataclass(frozen=True)
-class Kernel:
-    """``applies(conn, rule, pre, post, batch, kw) -> bool``; ``run(conn, rule, pre, post, batch,
-    progress, kw) -> factors dict | None`` trains ``conn`` in place."""
-
-    name: str
-    applies: Callable
-    run: Callable
-
-
-KERNELS: dict[str, Kernel] = {}
-
-
-def register(kernel: Kernel) -> Kernel:
-    """Add ``kernel`` (replacing one of the same name); ``auto`` tries them in registration order."""
-    KERNELS[kernel.name] = kernel
-    return kernel
 
 
 def error_curve(conn) -> str:
@@ -152,20 +127,12 @@ def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", p
 
 
 def _learn(conn, pre, post, batch, method, progress, kw) -> None:
-    if method == "plain":
-        return run_plain(conn, pre, post, int(batch), progress, **kw)
-    if method != "auto" and method not in KERNELS:
-        raise ValueError(f"method must be 'auto', 'plain' or one of {sorted(KERNELS)}, got {method!r}")
-    names = list(KERNELS) if method == "auto" else [method]
+    call = SimpleNamespace(pre=pre, post=post, batch=int(batch), progress=progress, kw=kw)
     rule = conn.rules[0] if len(conn.rules) == 1 else None
-    for name in names:
-        k = KERNELS[name]
-        if rule is not None and k.applies(conn, rule, pre, post, int(batch), kw):
-            conn.learnt_factors = k.run(conn, rule, pre, post, int(batch), progress, kw)
-            return None
-        if method != "auto":
-            raise ValueError(f"method={method!r} does not apply to this rule or these inputs")
-    return run_plain(conn, pre, post, int(batch), progress, **kw)
-
-
-from . import binary_delta, hebbian_closed_form  # noqa: E402,F401  (they register their kernels)
+    if rule is None and method not in ("auto", "plain"):  # the fast forms train one rule
+        names = forms.names(conn)
+        if method not in names:
+            raise ValueError(f"method must be 'auto' or one of {names}, got {method!r}")
+        raise ValueError(f"method={method!r} does not apply to this rule or these inputs")
+    form = forms.choose(conn, rule, call, "plain" if rule is None else method)
+    conn.learnt_factors = form.run(conn, rule, call)

@@ -7,23 +7,26 @@ outside the grid read as zero. ``offset_set`` replaces the ball by any set of of
 in (z, y, x) order (e.g. a column along the line of sight). A local connection is the dense all-to-all connection of eq. 4.4
 with every weight outside the receptive fields fixed at zero.
 
-Learning goes through :meth:`LocalConnection.learn` with a :class:`~neuroimagery.nn.rules.Delta`
-rule (eq. 6.4): ``dw[o, k] = eta (target_o - post_o) pre_{o + d_k}``, the dense rule restricted to
-the stored weights. For binary input (0/1, the 3-D dot images and voxel maps) only the weights of
-the active inputs are read and written; both the product and the update add in index order
-(``index_add_`` on the CPU), so the numbers do not depend on the thread count.
+Learning goes through :meth:`LocalConnection.learn`, which applies each attached rule by the form
+registered for it and a local connection (:mod:`.forms`): the delta rule (eq. 6.4) has its own
+(:mod:`.delta`: ``dw[o, k] = eta (target_o - post_o) pre_{o + d_k}``, from active-unit indices,
+sparse or dense activity); any other rule takes :class:`Restricted`, its change on the equivalent
+dense weights kept at the stored ones. The sparse product adds in index order (``index_add_`` on
+the CPU), so the numbers do not depend on the thread count.
 """
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 from typing import Sequence
 
 import torch
 
-from . import seeding
+from . import forms, seeding
 from .connections import Connection
+from .forms import Form, register
 from .functional import check_floating
-from .rules import Delta, Rule
+from .rules import Rule
 
 
 def offsets(radius: float) -> torch.Tensor:
@@ -56,9 +59,6 @@ class LocalConnection(Connection):
         w = seeding.uniform(generators, (n, K), float(init[0]), float(init[1]))
         # weight buffer (P, n, K); Connection's dense helpers are replaced below
         super().__init__(n, n, w, "identity", rules, name)
-        for r in self.rules:
-            if not isinstance(r, Delta):
-                raise ValueError(f"LocalConnection {name!r}: only the delta rule is implemented, got {type(r).__name__}")
         self.side, self.radius, self.K = int(side), float(radius), int(K)
         z, y, x = torch.meshgrid(torch.arange(side), torch.arange(side), torch.arange(side), indexing="ij")
         coords = torch.stack([z, y, x], -1).reshape(-1, 3)  # voxel o = (z * side + y) * side + x
@@ -125,7 +125,7 @@ class LocalConnection(Connection):
         return out
 
     # ------------------------------------------------------------------ learning
-    def _offset(self, src: torch.Tensor, out: torch.Tensor) -> torch.Tensor:
+    def offset_index(self, src: torch.Tensor, out: torch.Tensor) -> torch.Tensor:
         """Offset index k with ``source[out, k] == src`` (elementwise), -1 when ``src`` is outside
         ``out``'s receptive field."""
         side, span = self.side, 2 * self.side - 1
@@ -133,110 +133,43 @@ class LocalConnection(Connection):
         return self.offset_of[(dz[..., 0] * span + dz[..., 1]) * span + dz[..., 2]]
 
     @torch.no_grad()
-    def _learn_index(self, pre_index: torch.Tensor, target_index: torch.Tensor, scale: float) -> torch.Tensor:
-        """The delta rule for binary patterns given by their active units: ``pre_index`` ``(P, B, D)``,
-        ``target_index`` ``(P, B, T)`` (-1 = no unit; repeats count once, as in a 0/1 map). Returns
-        the flat weight indices and changes (``index_add_`` order = pattern order)."""
-        P, B, D = pre_index.shape
-        n, K = self.n_in, self.K
-        pre = pre_index.reshape(P * B, D)
-        # a repeated active unit counts once (0/1 input)
-        dup = torch.zeros_like(pre, dtype=torch.bool)
-        for d in range(1, D):
-            dup[:, d] = (pre[:, :d] == pre[:, d:d + 1]).any(-1)
-        valid = (pre >= 0) & ~dup
-        safe = pre.clamp_min(0)
-        o = self.target_of[safe]  # (R, D, K) outputs reached
-        ok = valid.unsqueeze(-1) & (o < n)
-        oc = o.clamp_max(n - 1)
-        part = torch.arange(P).repeat_interleave(B)  # (R,)
-        k = torch.arange(K).view(1, 1, K).expand_as(oc)
-        flat = (part.view(-1, 1, 1) * n + oc) * K + k  # (R, D, K) weight of each reached output from its own unit
-        wv = self.weight.view(-1)
-        post = wv[flat]  # the unit's own contribution
-        # contributions of the pattern's other active units: only those within twice the radius matter
-        c = self.coords[safe]  # (R, D, 3)
-        for d in range(D):
-            for d2 in range(D):
-                if d2 == d:
-                    continue
-                near = valid[:, d] & valid[:, d2] & ((c[:, d] - c[:, d2]).abs().max(-1).values <= 2 * self.radius)
-                r = near.nonzero().squeeze(-1)
-                if r.numel() == 0:
-                    continue
-                oo = oc[r, d]  # (r, K)
-                k2 = self._offset(safe[r, d2].unsqueeze(-1).expand_as(oo), oo)
-                w = wv[((part[r].unsqueeze(-1) * n + oo) * K + k2.clamp_min(0))]
-                post[r, d] += torch.where(ok[r, d] & (k2 >= 0), w, torch.zeros_like(w))
-        tgt = target_index.reshape(P * B, -1)
-        hit = (oc.unsqueeze(-1) == tgt.view(P * B, 1, 1, -1)).any(-1)  # (R, D, K)
-        err = hit.to(post.dtype) - post
-        return flat.reshape(-1), torch.where(ok, scale * err, torch.zeros_like(err)).reshape(-1)
-
-    @torch.no_grad()
     def learn(self, pre: torch.Tensor | None = None, post: torch.Tensor | None = None, return_delta: bool = False,
-              target: torch.Tensor | None = None, pre_index: torch.Tensor | None = None,
-              target_index: torch.Tensor | None = None, **kw) -> torch.Tensor | None:
-        """The delta rule (eq. 6.4) on the stored weights, summed over the batch.
+              **kw) -> torch.Tensor | None:
+        """Every rule's change to the stored weights, each computed at the same weights, by the
+        form registered for the rule and a local connection (:mod:`.forms`).
 
-        Dense form: ``pre`` ``(P, B, n)``, ``post`` the output at the current weights (computed here
-        when None), ``target`` ``(P, B, n)``; binary ``pre`` takes a sparse path. Index form, for
-        binary patterns: ``pre_index`` ``(P, B, D)`` and ``target_index`` ``(P, B, T)`` list the
-        active units (-1 = none); the same rule without forming the maps. Only in ``train()`` mode
-        and with a rule attached (the first call in ``eval()`` mode warns)."""
+        ``pre`` ``(P, B, n)`` and ``post`` (the delta rule computes the output at the current
+        weights when None), and the rule's own arguments (the delta rule's ``target``
+        ``(P, B, n)``; or, for binary patterns, ``pre_index`` ``(P, B, D)`` and ``target_index``
+        ``(P, B, T)`` listing the active units, -1 = none). Only in ``train()`` mode and with a
+        rule attached (the first call in ``eval()`` mode warns). Returns the summed change when
+        ``return_delta`` or several rules ask for it, else None."""
         if not self.learning():
             return None
-        if pre_index is not None:
-            if target_index is None:
-                raise ValueError(f"connection {self.name!r}: the index form needs target_index")
-            total = torch.zeros_like(self.weight) if return_delta or len(self.rules) > 1 else None
-            for rule in self.rules:
-                scale = rule.eta / pre_index.shape[1] if rule.reduction == "mean" else rule.eta
-                flat, delta = self._learn_index(pre_index, target_index, scale)
-                (self.weight if total is None else total).view(-1).index_add_(0, flat, delta)
-            if total is not None:
-                self.weight.add_(total)
-            return total
-        if pre is None:
+        if pre is None and kw.get("pre_index") is None:
             raise ValueError(f"connection {self.name!r}: learn needs pre or pre_index")
-        if target is None:
-            raise ValueError(f"connection {self.name!r}: the delta rule needs a target")
         # the change in the weights' dtype, so they keep it
-        pre, target = (check_floating(f"{what} of connection {self.name!r}", x).to(self.weight.dtype)
-                       for what, x in (("pre", pre), ("target", target)))
+        if pre is not None:
+            pre = check_floating(f"pre of connection {self.name!r}", pre).to(self.weight.dtype)
+        if kw.get("target") is not None:
+            kw["target"] = check_floating(f"target of connection {self.name!r}", kw["target"]).to(self.weight.dtype)
         post = None if post is None else post.to(self.weight.dtype)
-        P, B, n = pre.shape
-        binary = bool(((pre == 0) | (pre == 1)).all()) or float((pre != 0).float().mean()) <= 0.25  # the sparse path
-        if post is None:
-            post = self.net_binary(pre.reshape(P * B, n), torch.arange(P).repeat_interleave(B)).view(P, B, n) \
-                if binary else self.net(pre)
-        err = target - post  # (P, B, n)
         total = torch.zeros_like(self.weight) if return_delta or len(self.rules) > 1 else None
+        call = SimpleNamespace(pre=pre, post=post, kw=kw, out=self.weight if total is None else total)
         for rule in self.rules:
-            scale = rule.eta / B if rule.reduction == "mean" else rule.eta
-            if binary:
-                p, b, i = (pre != 0).nonzero(as_tuple=True)
-                o = self.target_of[i]  # (A, K)
-                k = torch.arange(self.K).expand_as(o)
-                e = torch.cat([err, err.new_zeros(P, B, 1)], -1)[p.unsqueeze(1), b.unsqueeze(1), o]  # (A, K)
-                e = e * pre[p, b, i].unsqueeze(1)  # graded input: the rule's pre factor
-                flat = ((p.unsqueeze(1) * n + o.clamp_max(n - 1)) * self.K + k)
-                delta = torch.where(o < n, scale * e, torch.zeros_like(e))
-                if total is None:
-                    self.weight.view(-1).index_add_(0, flat.reshape(-1), delta.reshape(-1))
-                else:
-                    total.view(-1).index_add_(0, flat.reshape(-1), delta.reshape(-1))
-            else:
-                pad = torch.cat([pre, pre.new_zeros(P, B, 1)], -1)
-                d = torch.stack([(err * pad[..., self.source[:, k]]).sum(1) for k in range(self.K)], -1) * scale
-                d = d * (self.source < n).unsqueeze(0)
-                if total is None:
-                    self.weight.add_(d)
-                else:
-                    total.add_(d)
+            form = forms.choose(self, rule, call)
+            if form is None:
+                raise ValueError(f"connection {self.name!r}: no form of {type(rule).__name__} takes these inputs")
+            form.run(self, rule, call)
         if total is not None:
             self.weight.add_(total)
         return total
+
+    def restrict(self, change: torch.Tensor) -> torch.Tensor:
+        """A dense change ``(P, n, n)`` at the stored weights ``(P, n, K)`` (zero outside the grid)."""
+        P, n = change.shape[0], self.n_in
+        pad = torch.cat([change, change.new_zeros(P, n, 1)], -1)
+        return pad.gather(2, self.source.unsqueeze(0).expand(P, -1, -1))
 
     def dense(self, participant: int = 0) -> torch.Tensor:
         """The equivalent dense weight matrix ``(n, n)`` of one participant (for checks)."""
@@ -247,3 +180,23 @@ class LocalConnection(Connection):
 
     def extra_repr(self) -> str:
         return f"name={self.name!r}, side={self.side}, radius={self.radius}, K={self.K}, P={self.participants}"
+
+
+@register(Rule, LocalConnection)
+class Restricted(Form):
+    """Any rule on a local connection: its change on the equivalent dense weights ``(P, n, n)``
+    (:meth:`LocalConnection.dense`), kept at the stored weights. A local connection is the dense
+    one with every weight outside the receptive fields fixed at zero, so the change of a weight is
+    the dense rule's wherever that rule's change of a weight depends on that weight and the
+    activity alone. Costs ``n x n`` per participant: rules used at scale register their own form."""
+
+    name, priority = "restricted", 99
+
+    def why_not(self, conn, rule, call):
+        return None if call.pre is not None and call.kw.get("pre_index") is None else "needs pre"
+
+    @torch.no_grad()
+    def run(self, conn, rule, call) -> None:
+        W = torch.stack([conn.dense(p) for p in range(conn.participants)])
+        kw = {k: v for k, v in call.kw.items() if v is not None}
+        call.out.add_(conn.restrict(rule.delta(W, pre=call.pre, post=call.post, **kw)))

@@ -4,6 +4,8 @@ A rule only *computes* a weight change from the activity it is given; the connec
 the weights applies it in place (see :meth:`neuroimagery.nn.connections.Connection.learn`). Several
 rules on one connection therefore do not depend on their order.
 
+The delta rule, with its registered forms, is in :mod:`.delta`.
+
 Weights have shape ``(P, out, in)`` (participants first); activities ``(P, B, n)``. Changes from
 the ``B`` patterns of a batch are computed at the same weights and added (``reduction='sum'``) or
 averaged (``'mean'``); with ``B = 1`` both equal the online rule of the thesis.
@@ -136,30 +138,6 @@ class GatedHebbian(Hebbian):
 
     def extra_repr(self) -> str:
         return f"eta={self.eta}, gated outstar"
-
-
-class Delta(Rule):
-    """Delta (Widrow-Hoff) rule (eq. 6.4): ``dw_ji = eta (y_j - a_j) x_i``.
-
-    ``target`` is the desired output ``y``, ``post`` the actual output ``a``. Thesis: eta = 0.1.
-    """
-
-    def __init__(self, eta: float = 0.1, reduction: str = "sum") -> None:
-        super().__init__()
-        self.eta = check_rate("eta", eta)
-        self.reduction = _check_reduction(reduction)
-
-    def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, target: torch.Tensor, **_) -> torch.Tensor:
-        scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta
-        return torch.bmm((target - post).transpose(1, 2), pre).mul_(scale)
-
-    def apply_(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, target: torch.Tensor, **_) -> None:
-        """``weight += delta(...)`` accumulated straight into the weights."""
-        scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta
-        weight.baddbmm_((target - post).transpose(1, 2), pre, alpha=scale)
-
-    def extra_repr(self) -> str:
-        return f"eta={self.eta}"
 
 
 class Kohonen(Rule):
@@ -322,7 +300,7 @@ class QLearning(Rule):
         return f"eta={self.eta}, gamma={self.gamma}, form={self.form!r}"
 
 
-__all__ = ["Rule", "Hebbian", "GatedHebbian", "Delta", "Kohonen", "SupervisedKohonen", "QLearning"]
+__all__ = ["Rule", "Hebbian", "GatedHebbian", "Kohonen", "SupervisedKohonen", "QLearning"]
 
 
 class Sanger(Rule):

@@ -3,8 +3,9 @@
 
 Weights ``(P, units, in)``: row ``k`` of participant ``p`` is unit ``k``'s prototype. Training is
 online (one pattern per participant per iteration, as in the thesis's algorithm) and batched over
-participants. :meth:`SOM.fit` trains by one of the registered implementations of that online
-rule (:mod:`neuroimagery.nn.som_trainers`): ``method='online'`` (every unit updated at every
+participants. :meth:`SOM.fit` trains by one of the forms of that online rule registered for a
+SOM (:mod:`neuroimagery.nn.forms`; :func:`fit_plain` is the reference of them all):
+``method='online'`` (every unit updated at every
 presentation: the fused kernel of :mod:`neuroimagery.nn.som_online` for the Kohonen rules, one
 :meth:`SOM.step` per step otherwise), ``'factored'`` (:mod:`~neuroimagery.nn.som_factored`: the weights
 never touched while training) or ``'windowed'`` (:mod:`~neuroimagery.nn.som_windowed`: the
@@ -23,14 +24,16 @@ from __future__ import annotations
 
 from typing import Sequence
 
+from types import SimpleNamespace
+
 import torch
 from torch import nn
 
 from . import monitor, seeding
 from .functional import (as_batched, check_floating, check_rate, check_tensor, checks_enabled, grid_coords,
                          participants_weight, squared_norms)
+from . import forms
 from .rules import Kohonen, SupervisedKohonen
-from .som_trainers import TRAINERS, choose
 
 ORDER_STREAM = 1  # stream of participant_generators(seed, P, stream) a SOM built from a seed draws fit() orders from
 
@@ -93,6 +96,7 @@ class SOM(nn.Module):
         self.register_buffer("grid", grid_coords(self.shape))
         self.register_buffer("weight", seeding.uniform(generators, (units, self.n_in), float(init[0]), float(init[1])))
         self.register_buffer("steps", torch.zeros((), dtype=torch.long))
+        self.learnt_factors: dict | None = None  # what the last fit formed the weights from (windowed)
 
     @property
     def participants(self) -> int:
@@ -165,8 +169,8 @@ class SOM(nn.Module):
         pattern order is drawn (or taken from ``order``) and returned, ``(P, iterations)`` pattern
         indices, not winners.
         """
-        if method != "auto" and method not in TRAINERS:
-            raise ValueError(f"method must be 'auto' or one of {sorted(TRAINERS)}, got {method!r}")
+        if method != "auto" and method not in forms.names(self):
+            raise ValueError(f"method must be 'auto' or one of {forms.names(self)}, got {method!r}")
         check_tensor("patterns", patterns, (self.n_in,))
         P = self.participants
         X = self.rule.scale_input(patterns.to(self.weight.dtype))
@@ -199,6 +203,7 @@ class SOM(nn.Module):
         if not self.training:
             return order
         trainer = choose(self, X, labels, method, {"parts": parts}, order)
+        self.learnt_factors = None
         it = range(T)
         if progress:
             from tqdm.auto import tqdm
@@ -207,7 +212,7 @@ class SOM(nn.Module):
         if _together is not None:  # fit_together: the map's checked call, trained with the others
             _together.append((self, trainer, X, order, labels, parts, it))
             return None
-        return self._finish(X, trainer.fit(self, X, order, labels, it, parts=parts))
+        return self._finish(X, _run(trainer, self, X, order, labels, it, parts))
 
     def _finish(self, X: torch.Tensor, winners: torch.Tensor) -> torch.Tensor:
         if monitor.active():  # the trained map's final state, at its own step count
@@ -244,10 +249,58 @@ class SOM(nn.Module):
         return f"name={self.name!r}, shape={self.shape}, in={self.n_in}, P={self.participants}, supervised={self.supervised}"
 
 
+def _call(X, order, labels, steps=None, parts=None) -> SimpleNamespace:
+    """A fit's arguments as its forms read them."""
+    return SimpleNamespace(X=X, order=order, labels=labels, steps=steps, options={"parts": parts})
+
+
+def _run(form, som, X, order, labels, steps, parts):
+    som.learnt_factors = None
+    return form.run(som, som.rule, _call(X, order, labels, steps, parts))
+
+
+def choose(som, X: torch.Tensor, labels: torch.Tensor | None, method: str, options: dict,
+           order: torch.Tensor | None = None) -> forms.Form:
+    """The form that trains ``som`` for ``method`` (for ``'auto'``, the first that suits the call,
+    given the pattern ``order`` ``(P, T)`` when one is passed); a ``ValueError`` if it cannot
+    train this call or does not read one of ``options``."""
+    call = SimpleNamespace(X=X, order=order, labels=labels, steps=None, options=options)
+    form = forms.choose(som, som.rule, call, method)
+    if form is None:
+        raise ValueError(f"no registered form trains SOM {som.name!r} with {type(som.rule).__name__}")
+    return form
+
+
+def curve(som, T: int) -> monitor.Curve | None:
+    """The running training curve of a fit of ``T`` steps: the mean distance of the presented
+    patterns to their winners (or labelled units) before each step's change; None when no reader
+    listens (:mod:`.monitor`), so an unwatched fit measures nothing."""
+    if not monitor.active():
+        return None
+    what = "label" if som.supervised else "winner"
+    return monitor.Curve(f"train/som/{som.name or 'som'}/{what}_distance", T, offset=int(som.steps))
+
+
+def fit_plain(som, X, order, labels, steps=None) -> torch.Tensor:
+    """The plain rule, the reference of every other form: one :meth:`SOM.step` per step."""
+    p = torch.arange(som.participants, device=order.device)
+    winners = torch.empty_like(order)
+    steps = range(order.shape[1]) if steps is None else steps
+    watch = curve(som, order.shape[1])
+    for t in steps:
+        s = order[:, t]
+        x, w = X[p, s], None if labels is None else labels[p, s]
+        if watch is not None:
+            d2 = som.distances(x.unsqueeze(1))[:, 0]  # (P, U)
+            watch.add(t, (d2.min(-1).values if w is None else d2[p, w]).sqrt().mean())
+        winners[:, t] = som.step(x, w)
+    return winners
+
+
 @torch.no_grad()
 def fit_together(fits: Sequence[tuple[SOM, dict]]) -> list[torch.Tensor]:
     """``som.fit(**kwargs)`` for each ``(som, kwargs)`` of ``fits``, with the maps whose chosen
-    implementation can train several maps in one loop (``Trainer.fit_many``, e.g. ``windowed``)
+    form can train several maps in one loop (``Form.run_many``, e.g. ``windowed``)
     trained together: each map's arguments are checked as by its own :meth:`SOM.fit`, and it
     gets the winners and weights its own fit would give (every participant's arithmetic is its
     own). Returns what each ``fit`` returns."""
@@ -263,13 +316,13 @@ def fit_together(fits: Sequence[tuple[SOM, dict]]) -> list[torch.Tensor]:
     groups: dict = {}
     for job in queued:
         tr = job[2]
-        groups.setdefault(tr.name if tr.fit_many is not None else ("alone", job[0]), []).append(job)
+        groups.setdefault(tr.name if tr.run_many is not None else ("alone", job[0]), []).append(job)
     for jobs in groups.values():
         tr = jobs[0][2]
-        if tr.fit_many is not None and len(jobs) > 1:
-            wins = tr.fit_many([(som, X, order, labels, parts) for _, som, _, X, order, labels, parts, _ in jobs])
+        if tr.run_many is not None and len(jobs) > 1:
+            wins = tr.run_many([(som, X, order, labels, parts) for _, som, _, X, order, labels, parts, _ in jobs])
         else:
-            wins = [tr.fit(som, X, order, labels, it, parts=parts) for _, som, _, X, order, labels, parts, it in jobs]
+            wins = [_run(tr, som, X, order, labels, it, parts) for _, som, _, X, order, labels, parts, it in jobs]
         for (i, som, _, X, *_), w in zip(jobs, wins):
             out[i] = som._finish(X, w)
     return out

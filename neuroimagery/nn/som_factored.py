@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import torch
 
-from .rules import SupervisedKohonen
-from .som_trainers import curve
+from .forms import Form, register
+from .rules import Kohonen, SupervisedKohonen
+from .som import SOM, curve
 
 
 @torch.no_grad()
@@ -85,3 +86,32 @@ def fit_factored(som, X: torch.Tensor, order: torch.Tensor, labels: torch.Tensor
     som.weight.copy_(c.unsqueeze(-1).to(W0.dtype) * W0 + torch.bmm(cR.transpose(1, 2), X))
     som.steps += order.shape[1]
     return winners
+
+
+def rates_below_one(som) -> bool:
+    return max(som.rule.eta0, som.rule.eta1) < 1
+
+
+def refuse(som) -> str | None:
+    """Why the factored arithmetic cannot train ``som`` (None if it can)."""
+    if som.weight.device.type == "meta":
+        return "needs the weights' values; on the meta device use 'online'"
+    if not rates_below_one(som):
+        return "needs learning rates below 1 (a unit may not jump onto a pattern)"
+    return None
+
+
+@register(Kohonen, SOM)
+class Factored(Form):
+    """``method='factored'``: 'auto' takes it when there are fewer patterns than inputs."""
+
+    name, priority = "factored", 2
+
+    def why_not(self, som, rule, call):
+        return refuse(som)
+
+    def suits(self, som, rule, call) -> bool:
+        return call.X.shape[1] < som.n_in and rates_below_one(som) and som.weight.device.type != "meta"
+
+    def run(self, som, rule, call) -> torch.Tensor:
+        return fit_factored(som, call.X, call.order, call.labels, call.steps)

@@ -36,8 +36,9 @@ from __future__ import annotations
 
 import torch
 
-from .rules import Kohonen, SupervisedKohonen
-from .som_trainers import curve
+from .forms import Form, register
+from .rules import Kohonen, Rule, SupervisedKohonen
+from .som import SOM, curve, fit_plain
 
 CHUNK = 32  # presentations per refresh of the dot products and norms
 
@@ -174,3 +175,17 @@ def _fold(W, Hs, Bs, Xc, K, span) -> None:
         W[:, lo:hi].mul_(S[:, 0].to(dt).unsqueeze(-1)).baddbmm_(C.transpose(1, 2).to(dt), Xc[:, :K])
     Hs.zero_()
     Bs.fill_(1.0)
+
+
+@register(Rule, SOM)
+class Online(Form):
+    """``method='online'``: every unit updated at every presentation: :func:`fit_online` for the
+    Kohonen rules, :func:`~.som.fit_plain` (one :meth:`SOM.step` per step, the plain rule, on any
+    device and dtype) for any other. 'auto' takes it when no faster form applies."""
+
+    name, priority = "online", 99
+
+    def run(self, som, rule, call) -> torch.Tensor:
+        if som.weight.device.type != "meta" and supports(rule):
+            return fit_online(som, call.X, call.order, call.labels, call.steps)
+        return fit_plain(som, call.X, call.order, call.labels, call.steps)

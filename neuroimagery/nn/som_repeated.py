@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import torch
 
-from .rules import SupervisedKohonen
-from .som_trainers import curve
+from .forms import Form, register
+from .rules import Kohonen, SupervisedKohonen
+from .som import SOM, curve
+from .som_online import supports
 
 
 def _supports(rule) -> bool:
-    from .som_online import supports
-
     return supports(rule) and not (isinstance(rule, SupervisedKohonen) and rule.normalise)
 
 
@@ -66,3 +66,19 @@ def fit_repeated(som, X: torch.Tensor, order: torch.Tensor, labels: torch.Tensor
     som.weight[p, win] = x + (1.0 - float(eta)) ** T * (w - x)
     som.steps += T
     return win.unsqueeze(1).expand(P, T).clone()
+
+
+@register(Kohonen, SOM)
+class Repeated(Form):
+    """``method='repeated'``: 'auto' takes it for labelled maps where :func:`applies` holds."""
+
+    name, priority = "repeated", 1
+
+    def why_not(self, som, rule, call):
+        return "needs the pattern order" if call.order is None else applies(som, call.X, call.order, call.labels)
+
+    def suits(self, som, rule, call) -> bool:
+        return call.labels is not None
+
+    def run(self, som, rule, call) -> torch.Tensor:
+        return fit_repeated(som, call.X, call.order, call.labels, call.steps)

@@ -1,5 +1,7 @@
-"""The per-participant windowed form of online Kohonen training (``SOM.fit(method='windowed')``)
-and the factors it forms the trained weights from (saved in checkpoints instead of the weights).
+"""The per-participant windowed form of online Kohonen training (``SOM.fit(method='windowed')``),
+registered for a SOM (:class:`Windowed`), and the factors it forms the trained weights from
+(``som.learnt_factors``, saved in checkpoints instead of the weights): how it records them,
+rebuilds the weights from them and bounds the rounding of that rebuild.
 
 A CPU trainer: it keeps its bookkeeping in float64 host tensors and NumPy, and refuses maps whose
 weights live on another device.
@@ -11,7 +13,12 @@ from typing import Sequence
 import numpy as np
 import torch
 
+from .forms import Form, register
 from .functional import squared_norms
+from .numerics import rounding_bound
+from .rules import Kohonen
+from .som import SOM
+from .som_factored import refuse
 
 
 @torch.no_grad()
@@ -155,9 +162,9 @@ def fit_windowed_many(jobs) -> list[torch.Tensor]:
             form_windowed_weights(W0[p], scales[-1], coefs[-1], X32[p])
             i += 1
         som.steps += order.shape[1]
-        # what the final weights were formed from (see ``windowed_factors``); not part of the state
-        som.windowed_factors = {"scale": torch.stack(scales), "coef": torch.stack(coefs),
-                                "patterns": X32[0].clone() if patterns.dim() == 2 else X32.clone()}
+        # what the final weights were formed from (:class:`Windowed`); not part of the state
+        som.learnt_factors = {"kind": Windowed.kind, "scale": torch.stack(scales), "coef": torch.stack(coefs),
+                              "patterns": X32[0].clone() if patterns.dim() == 2 else X32.clone()}
         out.append(winners[i - som.participants:i])
     return out
 
@@ -238,22 +245,11 @@ def form_windowed_weights(w0: torch.Tensor, scale: torch.Tensor, coef: torch.Ten
 
 
 @torch.no_grad()
-def windowed_factors(som) -> dict:
-    """The factors :func:`fit_windowed_many` formed ``som``'s current weights from: ``scale``
-    ``(P, U)``, ``coef`` ``(P, U, N)`` and ``patterns`` ``(N, in)`` (shared) or ``(P, N, in)``.
-    Together with the initial weights they give the trained weights back (:func:`rebuild_windowed`;
-    bit for bit on the same CPU and thread count), at ``N / in`` of their size. Raises if the map
-    was not trained by the windowed form in this process."""
-    f = getattr(som, "windowed_factors", None)
-    if f is None:
-        raise ValueError(f"SOM {som.name!r} was not trained by fit_windowed in this process: no factors to save")
-    return f
-
-
-@torch.no_grad()
 def rebuild_windowed(som, factors: dict) -> None:
-    """Form ``som``'s trained weights from its *initial* weights (in place) and ``factors`` of
-    :func:`windowed_factors`, by the very products of the trainer (identical on the same CPU and threads)."""
+    """Form ``som``'s trained weights from its *initial* weights (in place) and the ``factors``
+    :func:`fit_windowed_many` left in ``som.learnt_factors`` (``scale`` ``(P, U)``, ``coef``
+    ``(P, U, N)``, ``patterns`` ``(N, in)`` shared or ``(P, N, in)``), by the very products of the
+    trainer (identical on the same CPU and threads)."""
     scale, coef, X = factors["scale"], factors["coef"], factors["patterns"]
     P, U = som.participants, som.units
     if scale.shape != (P, U) or coef.shape[:2] != (P, U) or X.shape[-1] != som.n_in or X.shape[-2] != coef.shape[2]:
@@ -262,3 +258,41 @@ def rebuild_windowed(som, factors: dict) -> None:
     for p in range(P):
         form_windowed_weights(som.weight[p], scale[p].to(som.weight.dtype), coef[p].to(som.weight.dtype),
                               (X if X.dim() == 2 else X[p]).to(som.weight.dtype))
+
+
+def _shared(X):
+    """One pattern set for all participants (an expanded view): the windowed factors keep one copy."""
+    return X[0] if X.dim() == 3 and X.shape[0] > 0 and X.stride(0) == 0 else X
+
+
+@register(Kohonen, SOM)
+class Windowed(Form):
+    """``method='windowed'`` (never chosen by 'auto'): :func:`fit_windowed`, several maps of one
+    schedule in one loop (:func:`fit_windowed_many`); its factors are the scale factors and
+    coefficients over the pattern set, ``w = scale w0 + coef X``."""
+
+    name, kind, options, auto = "windowed", "som_windowed", ("parts",), False
+
+    def why_not(self, som, rule, call):
+        if call.labels is not None:
+            return "trains unsupervised maps; use 'factored' with labels"
+        return refuse(som)
+
+    def run(self, som, rule, call) -> torch.Tensor:
+        return fit_windowed(som, _shared(call.X), call.order, call.options.get("parts"))
+
+    @staticmethod
+    def run_many(jobs) -> list[torch.Tensor]:
+        return fit_windowed_many([(som, _shared(X), order, parts) for som, X, order, labels, parts in jobs])
+
+    def rebuild(self, som, factors: dict) -> None:
+        rebuild_windowed(som, factors)
+
+    @torch.no_grad()
+    def bound(self, f: dict, w0, saved, rows):
+        """``w = scale w0 + sum_n coef_n x_n`` in float32: ``N + 1`` terms."""
+        d = torch.float64
+        X = f["patterns"].to(d).abs()
+        coef = f["coef"][:, rows].to(d).abs()
+        prod = torch.einsum("pkn,ni->pki" if X.dim() == 2 else "pkn,pni->pki", coef, X)
+        return rounding_bound(f["scale"][:, rows].to(d).abs().unsqueeze(-1) * w0.to(d).abs() + prod, coef.shape[-1] + 1)
