@@ -601,11 +601,11 @@ def test_batched_c1_and_c3_updates_equal_repeated_single_steps(monkeypatch):
     c, d = ToolUseBrain((6, 8), c3_eta=0.2), ToolUseBrain((6, 8), c3_eta=0.2)
     d.c3.som.weight.copy_(c.c3.som.weight)
     c.train(), d.train()
-    chosen = []
+    chosen, choose = [], som_module.choose
 
     def spy(*a, **k):
-        chosen.append(som_module.choose(*a, **k).name)
-        return som_module.choose(*a, **k)
+        chosen.append(choose(*a, **k).name)
+        return choose(*a, **k)
 
     monkeypatch.setattr("neuroimagery.nn.som.choose", spy)
     d.train_c3(x, unit=3, posture=2, outcome=out, times=9, generator=g)

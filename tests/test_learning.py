@@ -108,3 +108,90 @@ def test_a_sequence_in_eval_mode_changes_nothing():
     with pytest.warns(UserWarning, match=r"eval\(\) mode"):
         a.learn(torch.rand(4, 5), torch.rand(4, 3), sequence=True)
     assert torch.equal(a.weight, w)
+
+
+def test_the_registry_gives_each_learner_the_forms_of_its_rule():
+    """One registry: a learner finds the forms of its rule's type and bases, in 'auto' order; a
+    local connection owns its forms (it does not inherit the dense connection's); the factor
+    kinds name the forms that rebuild them, and an unknown kind is refused naming it."""
+    from neuroimagery.nn import SOM, Kohonen, Sanger
+    from neuroimagery.nn.local import LocalConnection
+    from neuroimagery.nn.seeding import participant_generators
+
+    dense = AllToAll(4, 3, rules=Hebbian(0.1))
+    assert [f.name for f in forms.forms_of(dense, Hebbian(0.1))] == ["hebbian_shared", "hebbian_indexed", "plain"]
+    assert [f.name for f in forms.forms_of(dense, Delta(0.1))] == ["delta_binary", "plain"]
+    assert [f.name for f in forms.forms_of(dense, Sanger(0.1))] == ["plain"]
+    local = LocalConnection(3, 1.0, participant_generators(0, 1))
+    assert [f.name for f in forms.forms_of(local, Delta(0.1))] == ["index", "sparse", "dense", "restricted"]
+    assert [f.name for f in forms.forms_of(local, Hebbian(0.1))] == ["restricted"]
+    som = SOM((3, 3), 5)
+    assert [f.name for f in forms.forms_of(som, Kohonen())] == ["repeated", "factored", "windowed", "online"]
+    assert forms.factor_form({"kind": "som_windowed"}).name == "windowed"
+    assert {forms.factor_form({"kind": k}).name for k in ("hebbian_shared", "hebbian_indexed")} == {"hebbian_shared", "hebbian_indexed"}
+    with pytest.raises(ValueError, match="unknown factor kind 'som_online'"):
+        forms.rebuild(som, {"kind": "som_online"})
+
+
+def test_a_form_registered_for_a_new_rule_is_chosen_and_keeps_its_factors():
+    """``@register(Rule, Learner)`` on a Form subclass is all a new implementation needs: 'auto'
+    picks it where it applies, it records its factors in ``learnt_factors`` and rebuilds from them."""
+    from neuroimagery.nn import Connection, Rule
+
+    class Scale(Rule):  # w <- w * (1 - eta) per step, whatever the activity
+        def __init__(self, eta):
+            super().__init__()
+            self.eta = eta
+
+        def delta(self, weight, **_):
+            return -self.eta * weight
+
+    @forms.register(Scale, Connection)
+    class ScaleClosed(forms.Form):
+        name, kind = "scale_closed_test", "scale_closed_test"
+
+        def run(self, conn, rule, call):
+            T = call.pre.shape[-2]
+            conn.weight.mul_((1 - rule.eta) ** T)
+            return {"kind": self.kind, "factor": (1 - rule.eta) ** T}
+
+        def rebuild(self, conn, f):
+            conn.weight.mul_(f["factor"])
+
+    try:
+        a, b, c = (AllToAll(3, 2, participants=2, seed=1, rules=Scale(0.5)) for _ in range(3))
+        a.learn(torch.ones(4, 3), torch.ones(4, 2), sequence=True)
+        b.learn(torch.ones(4, 3), torch.ones(4, 2), sequence=True, method="plain")
+        assert a.learnt_factors["kind"] == "scale_closed_test" and b.learnt_factors is None
+        assert torch.allclose(a.weight, b.weight)
+        forms.rebuild(c, a.learnt_factors)
+        assert torch.equal(c.weight, a.weight)
+    finally:  # leave the registry as it was
+        forms._FORMS[Connection].pop(Scale)
+        forms._KINDS.pop("scale_closed_test")
+
+
+@pytest.mark.parametrize("rule", [Hebbian(0.2), Hebbian(0.2, form="instar"), Delta(0.1, reduction="mean")])
+def test_a_local_connection_applies_any_rule_as_the_dense_rule_restricted(rule):
+    """A local connection is the dense connection with the weights outside its receptive fields
+    fixed at zero: any rule's change is the dense rule's at the stored weights (the delta rule by
+    its own forms, others by the restricted dense change)."""
+    from neuroimagery.nn.local import LocalConnection
+    from neuroimagery.nn.seeding import participant_generators
+
+    side, P = 3, 2
+    local = LocalConnection(side, 1.0, participant_generators(0, P), init=(0.0, 0.5), rules=rule)
+    n = side ** 3
+    mask = torch.stack([local.dense(p) != 0 for p in range(P)])
+    W0 = torch.stack([local.dense(p) for p in range(P)])
+    g = torch.Generator().manual_seed(1)
+    x, y = torch.rand(P, 4, n, generator=g), torch.rand(P, 4, n, generator=g)
+    if isinstance(rule, Delta):  # the actual output at the current weights, and the target
+        want = W0 + rule.delta(W0, pre=x, post=torch.bmm(x, W0.transpose(1, 2)), target=y)
+        local.learn(pre=x, target=y)
+    else:
+        want = W0 + rule.delta(W0, pre=x, post=y)
+        local.learn(pre=x, post=y)
+    got = torch.stack([local.dense(p) for p in range(P)])
+    assert not torch.allclose(got, W0)
+    assert torch.allclose(got, want * mask, atol=1e-6)
