@@ -26,7 +26,7 @@ from .forms import Form, register
 from .functional import check_rate
 from .learning import IndexedRows, error_curve
 from .local import LocalConnection
-from .rules import Rule, _check_reduction
+from .rules import Rule, check_reduction
 
 
 class Delta(Rule):
@@ -38,7 +38,7 @@ class Delta(Rule):
     def __init__(self, eta: float = 0.1, reduction: str = "sum") -> None:
         super().__init__()
         self.eta = check_rate("eta", eta)
-        self.reduction = _check_reduction(reduction)
+        self.reduction = check_reduction(reduction)
 
     def rate(self, batch: int) -> float:
         """The rate of a batch of ``batch`` patterns: ``eta`` (summed) or ``eta / batch`` (averaged)."""

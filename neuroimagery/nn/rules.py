@@ -29,7 +29,7 @@ def _on_host(weight: torch.Tensor) -> bool:
     return weight.device.type == "cpu" and not torch.compiler.is_compiling()
 
 
-def _check_reduction(reduction: str) -> str:
+def check_reduction(reduction: str) -> str:
     if reduction not in ("sum", "mean"):
         raise ValueError(f"reduction must be 'sum' or 'mean', got {reduction!r}")
     return reduction
@@ -62,7 +62,7 @@ class Hebbian(Rule):
         if form not in ("outstar", "instar"):
             raise ValueError(f"form must be 'outstar' or 'instar', got {form!r}")
         self.form = form
-        self.reduction = _check_reduction(reduction)
+        self.reduction = check_reduction(reduction)
 
     def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, **_) -> torch.Tensor:
         scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta
@@ -257,7 +257,7 @@ class QLearning(Rule):
         if form not in ("standard", "printed"):
             raise ValueError(f"form must be 'standard' or 'printed', got {form!r}")
         self.form = form
-        self.reduction = _check_reduction(reduction)
+        self.reduction = check_reduction(reduction)
 
     def delta(self, weight: torch.Tensor, pre: torch.Tensor, action: torch.Tensor, reward: torch.Tensor,
               next_pre: torch.Tensor, done: torch.Tensor | None = None, **_) -> torch.Tensor:
