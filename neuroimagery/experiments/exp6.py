@@ -169,7 +169,7 @@ def train(cfg, run):
 
 
 def load(cfg, checkpoint_dir):
-    from ..run import load_checkpoint
+    from ..checkpoints import load_checkpoint
 
     ck = load_checkpoint(checkpoint_dir, "exp6")
     model = _model(cfg, ck["participants"])
