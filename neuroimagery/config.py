@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import math
 import re
 import warnings
 from dataclasses import dataclass, field
@@ -20,7 +21,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from .bounds import bounded, check_declared
 from .errors import UserInputError
-from .validation import check_finite
+from .manifest import flatten
 from .vision.config import StimuliConfig, VisionConfig
 
 EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "exp6", "demo")
@@ -123,8 +124,6 @@ def _experiment_in(text: str) -> str | None:
 def schema_keys(experiment: str | None = None) -> list[str]:
     """Every dotted key a run may set: the top level's and those of ``experiment``'s schema (of
     every experiment when None)."""
-    from .manifest import flatten
-
     keys = [k for k in flatten(Config(experiment=None)) if k != "experiment"]  # type: ignore[arg-type]
     for name, mod in experiment_modules():
         schema = getattr(mod, "CONFIG", None)
@@ -184,6 +183,26 @@ def _unknown_keys(node: DictConfig, path: str = "") -> list[str]:
         if isinstance(child, DictConfig) and not child._is_missing() and not child._is_none():
             out += _unknown_keys(child, full + ".")
     return out
+
+
+def check_finite(conf: Any) -> None:
+    """Every float of ``conf`` (a dataclass, mapping or DictConfig) is finite."""
+    for key, value in _leaves(conf):
+        for v in value if isinstance(value, list) else [value]:
+            if isinstance(v, float) and not math.isfinite(v):
+                raise UserInputError(f"{key} must be a finite number, got {v}")
+
+
+def _leaves(conf: Any):
+    try:
+        from omegaconf import DictConfig, OmegaConf
+
+        if isinstance(conf, DictConfig):
+            conf = OmegaConf.to_container(conf, resolve=False, throw_on_missing=False)
+            conf.pop("hydra", None)
+    except ImportError:  # pragma: no cover
+        pass
+    return flatten(conf).items()
 
 
 def validate(cfg: DictConfig | Config) -> Config:

@@ -11,12 +11,9 @@ import functools
 import math
 import threading
 import time
-from contextlib import nullcontext
 from pathlib import Path
 
 import torch
-
-from .nn import monitor
 
 
 MIN_SIDE = 96  # pixels: small maps are enlarged (nearest neighbour) to at least this on their longer side
@@ -59,10 +56,7 @@ def _markdown_table(header: list[str], rows: list[list[str]]) -> str:
 class NullLogger:
     """Accepts every call and writes nothing."""
 
-    def training_curves(self):
-        """A context in which the blocks' training curves (:mod:`neuroimagery.nn.monitor`) come
-        here as scalars; with nothing written, the blocks measure nothing."""
-        return nullcontext()
+    writes = False  # whether anything is written (a run sends the blocks' training curves only then)
 
     def scalar(self, tag: str, value: float, step: int = 0) -> None:
         pass
@@ -130,6 +124,8 @@ class TensorBoardLogger(NullLogger):
     run rewritten into its directory replaces the old file instead of adding a second one. A write
     that fails (a full disk) is an ``OSError`` naming the event file, raised once."""
 
+    writes = True
+
     def __init__(self, root: str | Path, map_images: bool = True) -> None:
         from torch.utils.tensorboard import SummaryWriter
 
@@ -148,9 +144,6 @@ class TensorBoardLogger(NullLogger):
         self.map_images = map_images
         self._first: dict[str, tuple[float, int, float]] = {}  # tag -> its one point so far (value, step, time)
         self._curves: set[str] = set()  # tags with two points or more, written as they come
-
-    def training_curves(self):
-        return monitor.to(self.scalar)
 
     @_naming
     def scalar(self, tag: str, value: float, step: int = 0) -> None:

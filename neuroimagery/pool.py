@@ -15,8 +15,11 @@ Experiments 1-4 and the demo: OUT gets ``trials.csv`` (every run's rows, with ``
 columns added), ``summary.json`` (per test the figures of one run's summary computed on the rows of
 all runs, with ``per_seed`` values and their ``across_seeds`` mean, SD, min and max) and
 ``report.md`` (a table per test: each seed, the mean and SD across seeds, the pooled value and the
-thesis's target). Experiment 5 is pooled by :mod:`neuroimagery.experiments.exp5_pool` (rates,
-routes and claims on all robots; ``individuals.csv`` instead of ``trials.csv``).
+thesis's target). An experiment module may pool its runs itself (the pooling hook):
+``pool_runs(run_dirs) -> (summary, rows, report)``, with ``POOL_ROWS`` (the file the rows go to)
+and ``POOL_FREE_KEYS`` (the experiment settings that may differ between the runs besides the
+seed). Experiment 5 does (rates, routes and claims on all robots, in ``individuals.csv``:
+:mod:`neuroimagery.experiments.exp5_pool`).
 """
 from __future__ import annotations
 
@@ -34,6 +37,7 @@ from . import console, manifest as mf
 from .analysis.report import Report
 from .analysis.summary import TRIAL_COLUMNS, summarise_test
 from .analysis.tables import read_whole_csv
+from .config import EXPERIMENTS, experiment_module
 from .errors import UserInputError
 from .files import writable_folder, write_atomic
 
@@ -230,8 +234,6 @@ def pooled_effects(experiment: str, rows: pd.DataFrame) -> list[dict]:
     """The experiment's effects (its ``effects(trials)``) over the participants of all runs, each
     participant of each seed one unit (participant ids repeat across seeds, so the unit is the
     pair); an empty list for an experiment that states none."""
-    from .config import experiment_module
-
     fn = getattr(experiment_module(experiment), "effects", None)
     if fn is None:
         return []
@@ -282,20 +284,25 @@ def report_trials(summary: dict) -> Report:
     return rep
 
 
+def _hook(experiment: str):
+    """The experiment's module if it pools its runs itself (``pool_runs``), else None."""
+    module = experiment_module(experiment) if experiment in EXPERIMENTS else None
+    return module if hasattr(module, "pool_runs") else None
+
+
 def pool(dirs: list[str | Path]) -> tuple[dict, pd.DataFrame, Report]:
     """Pooled summary, rows and report of the runs in ``dirs`` (run or sweep directories)."""
     runs = [read_run(d) for d in find_runs(dirs)]
-    if runs[0].experiment == "exp5":
-        from .experiments import exp5_pool
-
-        check_runs(runs, free=tuple(f"experiment.{k}" for k in exp5_pool._FREE_KEYS))
-        summary, df = exp5_pool.pool([r.dir for r in runs])
+    hook = _hook(runs[0].experiment)
+    if hook is not None:
+        check_runs(runs, free=tuple(f"experiment.{k}" for k in getattr(hook, "POOL_FREE_KEYS", ())))
+        summary, df, rep = hook.pool_runs([r.dir for r in runs])
         for r in runs:
             if r.legacy is not None:
                 console.note(r.legacy)
             else:
                 mf.verify_files(r.dir, r.manifest, "pool")
-        return summary, df, exp5_pool.report(summary, exp5_pool.read_config(runs[0].dir)[0])
+        return summary, df, rep
     check_runs(runs)
     summary, df = pool_trials(runs)
     return summary, df, report_trials(summary)
@@ -321,11 +328,12 @@ def check_out(out: str | Path) -> Path:
 
 
 def write(out: str | Path, summary: dict, df: pd.DataFrame, rep: Report) -> Path:
-    """Write the pooled table (``trials.csv``, or ``individuals.csv`` for exp5), ``summary.json`` and
+    """Write the pooled table (``trials.csv``, or the hook's ``POOL_ROWS``), ``summary.json`` and
     ``report.md`` into ``out``, each atomically; returns the report's path."""
     out = check_out(out)
-    if summary["experiment"] == "exp5":
-        _write(out / "individuals.csv", frame=df)
+    hook = _hook(summary["experiment"])
+    if hook is not None:
+        _write(out / getattr(hook, "POOL_ROWS", "trials.csv"), frame=df)
     else:  # as a run writes its trials.csv
         _write(out / "trials.csv", frame=df, float_format="%.6g")
     _write(out / "summary.json", json.dumps(summary, indent=2) + "\n")

@@ -18,10 +18,11 @@ from omegaconf import DictConfig, OmegaConf
 
 from . import console, manifest as mf, memory, progress
 from .config import Config, experiment_module, validate
+from .nn import monitor
 from .nn.functional import intra_op_threads
 from .threads import auto_threads
 from .errors import UserInputError
-from .checkpoints import load_checkpoint, load_model, read_json, safe_load, verify_checkpoint, verify_run  # noqa: F401
+from .checkpoints import load_model, read_json, verify_run
 from .files import remove_stale_temporaries, torch_save, write_atomic
 from .lock import RunLock
 from .logger import NullLogger, make_logger
@@ -297,7 +298,10 @@ def _train_phase(conf, module, run) -> tuple[Any, dict]:
     t0 = time.perf_counter()
     memory.reset_peak()
     run.phase = "training"
-    with progress.phase(f"{conf.experiment.name} train", conf.progress), run.logger.training_curves():
+    # the blocks' training curves (neuroimagery.nn.monitor) go to the logger as scalars; with nothing
+    # written, no reader is installed and the blocks measure nothing
+    curves = monitor.to(run.logger.scalar) if run.logger.writes else contextlib.nullcontext()
+    with progress.phase(f"{conf.experiment.name} train", conf.progress), curves:
         trained = module.train(conf, run)
     run.timings["train"] = round(time.perf_counter() - t0, 3)
     run.mark_trained()

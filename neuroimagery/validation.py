@@ -25,10 +25,10 @@ An experiment module may add its own rules with ``ineffective_keys(conf) -> {key
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 from typing import Any
 
+from .config import Config, check_finite
 from .errors import UserInputError
 from .manifest import flatten
 
@@ -36,30 +36,8 @@ CAMERA_KEYS = ("robot_model", "eye", "image_width", "image_height", "fov_deg", "
                "object_width", "gaze_jitter_deg")
 
 
-def check_finite(conf: Any) -> None:
-    """Every float of ``conf`` (a dataclass, mapping or DictConfig) is finite."""
-    for key, value in _leaves(conf):
-        for v in value if isinstance(value, list) else [value]:
-            if isinstance(v, float) and not math.isfinite(v):
-                raise UserInputError(f"{key} must be a finite number, got {v}")
-
-
-def _leaves(conf: Any):
-    try:
-        from omegaconf import DictConfig, OmegaConf
-
-        if isinstance(conf, DictConfig):
-            conf = OmegaConf.to_container(conf, resolve=False, throw_on_missing=False)
-            conf.pop("hydra", None)
-    except ImportError:  # pragma: no cover
-        pass
-    return flatten(conf).items()
-
-
 def user_set(conf) -> dict[str, Any]:
     """The keys of ``conf`` whose values differ from the schema's defaults."""
-    from .config import Config
-
     defaults = flatten(Config(experiment=None))  # type: ignore[arg-type]
     defaults.pop("experiment", None)
     defaults.update(flatten(type(conf.experiment)(), "experiment."))

@@ -150,9 +150,9 @@ def test_a_full_disk_keeps_what_was_computed(tmp_path, capsys, monkeypatch):
 # ------------------------------------------------------------------------------- the pool
 @pytest.mark.parametrize("make,needle", [("missing", "no such run directory"), ("empty", "not a finished")])
 def test_the_pool_refuses_what_is_not_a_run(tmp_path, capsys, make, needle):
-    from neuroimagery.experiments import exp5_pool
+    from neuroimagery import pool
 
     d = tmp_path / "r"
     if make == "empty":
         d.mkdir()
-    refused(capsys, lambda: cli.friendly_errors(exp5_pool.main)([str(d)]), needle)
+    refused(capsys, lambda: cli.friendly_errors(pool.main)([str(d)]), needle)

@@ -530,6 +530,7 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
 def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
     import neuroimagery.run as R
     from neuroimagery.errors import UserInputError
+    from neuroimagery import pool
     from neuroimagery.experiments import exp5_pool
 
     args = ("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
@@ -549,7 +550,7 @@ def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
     assert [r["groups"] for r in summary["runs"]] == [s["groups"] for s in singles]
     assert len(summary["claims"]) == len(singles[0]["claims"])
     assert exp5_pool.pool([tmp_path / "sweep"])[0] == summary  # the sweep directory stands for its runs
-    exp5_pool.main([*map(str, runs), "--out", str(tmp_path / "pool")])
+    pool.main([*map(str, runs), "--out", str(tmp_path / "pool")])
     assert "Must-show claims on the pooled individuals" in capsys.readouterr().out
     saved = json.loads((tmp_path / "pool" / "summary.json").read_text())
     assert saved["groups"] == summary["groups"] and (tmp_path / "pool" / "report.md").exists()

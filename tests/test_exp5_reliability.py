@@ -22,6 +22,7 @@ from conftest import make_cfg  # noqa: E402
 
 import neuroimagery.run as R  # noqa: E402
 from neuroimagery.cli import friendly_errors  # noqa: E402
+from neuroimagery import pool  # noqa: E402
 from neuroimagery.errors import UserInputError  # noqa: E402
 from neuroimagery.experiments import exp5, exp5_pool, exp5_tasks  # noqa: E402
 from neuroimagery.files import tmp_path as tmp_name  # noqa: E402
@@ -264,7 +265,7 @@ def test_pool_refuses_rows_that_do_not_match_the_summary(tmp_path, capsys, finis
     else:
         csv.write_text(damage if isinstance(damage, str) else damage(csv.read_text()))
     with pytest.raises(SystemExit) as ex:
-        friendly_errors(exp5_pool.main)([str(run)])
+        friendly_errors(pool.main)([str(run)])
     assert ex.value.code == 2
     err = one_error_line(capsys)
     assert err.startswith(f"error: {csv}: ") and why in err

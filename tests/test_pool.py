@@ -164,9 +164,9 @@ def test_what_is_not_a_finished_run_is_refused(sweep, tmp_path, capsys):
     _refused(capsys, [run0, "--out", sweep / "sweep" / "1"], "is a run directory")
 
 
-def test_the_command_and_its_exp5_name_run_as_modules(sweep, tmp_path):
+def test_the_command_runs_as_a_module(sweep, tmp_path):
     out = tmp_path / "out"
-    p = subprocess.run([sys.executable, "-m", "neuroimagery.experiments.exp5_pool", str(sweep / "sweep"), "--out", str(out)],
+    p = subprocess.run([sys.executable, "-m", "neuroimagery.pool", str(sweep / "sweep"), "--out", str(out)],
                        capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert p.returncode == 0, p.stderr
     assert "# Demo pooled over 2 runs" in p.stdout and (out / "trials.csv").is_file()

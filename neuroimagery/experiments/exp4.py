@@ -115,7 +115,7 @@ def load(cfg, checkpoint_dir):
 
     from ..errors import UserInputError
     from ..models import sequence_checkpoint as sc
-    from ..run import load_checkpoint
+    from ..checkpoints import load_checkpoint
 
     ck = load_checkpoint(checkpoint_dir, "exp4")
     if "state_dict" in ck:

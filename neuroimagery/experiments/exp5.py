@@ -36,12 +36,12 @@ import pandas as pd
 import torch
 
 from ..errors import UserInputError
-from ..models.tool_use import EVENTS, Library, Outcomes, ToolUseBrain, acquire_skills, build_brain, run_trial
+from ..models.tool_use import EVENTS, N_POSTURES, Library, Outcomes, ToolUseBrain, acquire_skills, build_brain, run_trial
 from ..nn.seeding import participant_seed
 from . import exp5_tasks as task_files
 from .exp5_checks import check_inputs  # noqa: F401  (checks before work: neuroimagery.validation)
-from .exp5_config import (MOVED_KEYS, SITUATIONS, THESIS, THESIS_TABLE_7_1, Exp5Config, dotted,  # noqa: F401 (public names)
-                          nest)
+from .exp5_config import (ENGINE_KEYS, MOVED_KEYS, POOL_FREE_KEYS, SITUATIONS, THESIS,  # noqa: F401 (public names)
+                          THESIS_TABLE_7_1, Exp5Config, dotted, nest)
 from .exp5_summary import (ROUTES, STRATEGIES, group_rates, library_columns, success_route,  # noqa: F401
                            success_routes, summarise, table_7_1, thesis_claims)
 
@@ -60,6 +60,7 @@ MOVED = {**MOVED_KEYS,  # neuroimagery.config.moved_message
 # what validation and the manifests need to know (neuroimagery.validation, neuroimagery.manifest)
 INPUTS = ()  # the robot's eye is part of the world (neuroimagery.robot), not the vision group
 CHECKPOINTS = ("exp5_index",)
+POOL_ROWS = "individuals.csv"  # the pooled rows (neuroimagery.pool, with POOL_FREE_KEYS and pool_runs)
 RUNTIME_KEYS = ("engine.n_jobs", "engine.reuse_libraries", "engine.filmstrip_repetition")  # speed, reuse, who is filmed
 TEST_KEYS = ()
 
@@ -93,8 +94,6 @@ def trained_count(cfg) -> tuple[int, str]:
 # library for both situations); the seed is compared apart. The other keys act only in Fig. 7.6.
 LIBRARY_GROUPS = ("world", "acquisition")
 LIBRARY_KEYS = ("brain.c2_eta", "engine.share_library_across_situations")
-# settings that change no result (how the work is spread, where libraries come from)
-ENGINE_KEYS = ("engine.n_jobs", "engine.reuse_libraries")
 _WORKER_ENV: dict[tuple, object] = {}  # one world per worker process, reused by its tasks
 
 
@@ -467,14 +466,34 @@ def evaluate(cfg, run, trained) -> dict:
     summary["effects"] = rates["effects"]
     for i, r in enumerate(grp_rows):
         run.logger.scalar(f"success/{r['hypothesis']}/{r['situation']}/{r['strategy']}", r["success_rate"], r["level"])
-    figs.draw_all(cfg, run, df, summary, results)
+    figs.draw_all(cfg, run, df, summary, results, situation_views(e) if e.world.environment == "robot" else None)
     return summary
+
+
+def situation_views(e: Exp5Config) -> dict:
+    """The four initial situations as the robot sees them, for the figures: ``eye`` the eye's
+    images (None for a world without them) and ``pc`` the colour-filtered PC maps."""
+    env = make_environment(e)
+    try:
+        starts = [env.start(p) for p in range(1, N_POSTURES + 1)]
+        return {"eye": [env.eye_image(s) for s in starts] if hasattr(env, "eye_image") else None,
+                "pc": [env.perceive(s) for s in starts]}
+    finally:
+        env.close()
 
 
 def report(cfg, run, summary) -> None:
     from . import exp5_figures as figs
 
     figs.write_report(cfg, run, summary)
+
+
+def pool_runs(run_dirs: list) -> tuple:
+    """The pooling hook of :mod:`neuroimagery.pool`: the pooled summary, individuals and report of
+    finished runs (:func:`neuroimagery.experiments.exp5_pool.pool_runs`)."""
+    from . import exp5_pool
+
+    return exp5_pool.pool_runs(run_dirs)
 
 
 __all__ = ["Exp5Config", "CONFIG", "train", "load", "evaluate", "report", "run_task", "groups", "tasks",

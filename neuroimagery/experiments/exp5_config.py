@@ -21,6 +21,11 @@ from ..thesis import EXP5, EXP5_TABLE_7_1
 SITUATIONS = {"behind": 1, "far": 4}  # thesis: posture 1 = tool behind toy, posture 4 = tool far from toy
 THESIS = EXP5  # the thesis's HP1 / HP2 numbers (neuroimagery.thesis, "Experiment 5")
 THESIS_TABLE_7_1 = EXP5_TABLE_7_1
+# settings that change no result (how the work is spread, where libraries come from)
+ENGINE_KEYS = ("engine.n_jobs", "engine.reuse_libraries")
+# settings that may differ between pooled runs besides the seed: how the work was spread, and how
+# many robots (neuroimagery.pool)
+POOL_FREE_KEYS = ENGINE_KEYS + ("engine.filmstrip_repetition", "repetitions", "quick.repetitions")
 
 
 @dataclass

@@ -11,6 +11,8 @@ from ..analysis.figures import plt, save
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.robots import ROBOT_EFFECTS_INTRO
 from ..models.tool_use import EVENTS, N_POSTURES, SKILL_LETTERS
+from .exp5_config import THESIS, THESIS_TABLE_7_1
+from .exp5_summary import group_rates
 
 COLOURS = {"behind": "tab:blue", "far": "tab:red"}
 
@@ -31,8 +33,6 @@ def _pc_rgb(img) -> np.ndarray:
 
 def success_curves(summary: dict, hypothesis: str, path: Path, xkey: str, xlabel: str, title: str) -> Path:
     """Success rate (%) per group, one panel per strategy, a line per situation (as Fig. 7.9/7.10)."""
-    from .exp5 import THESIS
-
     g = pd.DataFrame([r for r in summary["groups"] if r["hypothesis"] == hypothesis])
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), sharey=True)
     for ax, strat in zip(axes, ("reactive", "planning")):
@@ -57,17 +57,17 @@ def success_curves(summary: dict, hypothesis: str, path: Path, xkey: str, xlabel
     return save(fig, path)
 
 
-def situations_figure(env, path: Path) -> Path | None:
-    """The eye's view of the four initial situations with their colour-filtered PC maps."""
-    if not hasattr(env, "eye_image"):
+def situations_figure(views: dict, path: Path) -> Path | None:
+    """The eye's view of the four initial situations with their colour-filtered PC maps (``views``:
+    :func:`neuroimagery.experiments.exp5.situation_views`); none without the eye's images."""
+    if views["eye"] is None:
         return None
     fig, axes = plt.subplots(2, N_POSTURES, figsize=(11, 4.6))
     for p in range(1, N_POSTURES + 1):
-        st = env.start(p)
-        axes[0, p - 1].imshow(env.eye_image(st))
+        axes[0, p - 1].imshow(views["eye"][p - 1])
         axes[0, p - 1].set_title(f"posture-{p}" + (" (tool behind toy)" if p == 1 else " (tool far from toy)" if p == 4 else ""),
                                  fontsize=8)
-        axes[1, p - 1].imshow(_pc_rgb(env.perceive(st).numpy()))
+        axes[1, p - 1].imshow(_pc_rgb(views["pc"][p - 1].numpy()))
         for ax in axes[:, p - 1]:
             ax.set_xticks([])
             ax.set_yticks([])
@@ -98,7 +98,9 @@ def filmstrip(film: dict, path: Path) -> Path:
 
 
 @figures.timed
-def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> None:
+def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict], views: dict | None = None) -> None:
+    """Every figure and TensorBoard image of a run; ``views`` are the initial situations as the robot
+    sees them (:func:`neuroimagery.experiments.exp5.situation_views`), none off the robot world."""
     figs = {}
     figs["fig_7_9"] = success_curves(summary, "hp1", run.figures / "fig_7_9_hp1_skills.png", "age",
                                      "age (months) = 2..6 IM detectors", "HP1: success vs number of skills")
@@ -109,18 +111,12 @@ def draw_all(cfg, run, df: pd.DataFrame, summary: dict, results: list[dict]) -> 
     if film is not None:
         figs["filmstrip"] = filmstrip(film, run.figures / "retrieval_filmstrip.png")
         log_film(run.logger, film)
-    if cfg.experiment.world.environment == "robot":
-        from .exp5 import make_environment
-
-        env = make_environment(cfg.experiment)
-        try:
-            p = situations_figure(env, run.figures / "situations.png")
-            if p is not None:
-                figs["situations"] = p
-            for k in range(1, N_POSTURES + 1):
-                run.logger.image(f"situations/posture-{k}", _pc_rgb(env.perceive(env.start(k)).numpy()), 0)
-        finally:
-            env.close()
+    if views is not None:
+        p = situations_figure(views, run.figures / "situations.png")
+        if p is not None:
+            figs["situations"] = p
+        for k in range(1, N_POSTURES + 1):
+            run.logger.image(f"situations/posture-{k}", _pc_rgb(views["pc"][k - 1].numpy()), 0)
     summary["figures"] = {k: str(Path(v).relative_to(run.root)) for k, v in figs.items()}
 
 
@@ -190,8 +186,6 @@ def log_film(logger, film: dict) -> None:
 def group_table(e, h: str, cell) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the success table of hypothesis ``h`` (one row per group; per situation
     the reactive and planning cells from ``cell(h, level, situation, strategy)``, then the thesis)."""
-    from .exp5 import THESIS
-
     levels, ages, xl = ((e.hp1_levels, e.hp1_ages, "IM detectors") if h == "hp1"
                         else (e.hp2_trials, e.hp2_ages, "training trials"))
     rows = []
@@ -209,8 +203,6 @@ def group_table(e, h: str, cell) -> tuple[list[str], list[list[str]]]:
 
 
 def write_report(cfg, run, summary: dict) -> None:
-    from .exp5 import THESIS_TABLE_7_1, group_rates
-
     e = cfg.experiment
     rate = group_rates(summary["groups"])
     rep = Report("Experiment 5: tool-use development in infant robots")

@@ -8,8 +8,7 @@ with different seeds (``evaluate.py -m experiment=exp5 seed=0,1,2``) are pooled 
 
     python -m neuroimagery.pool RUN_DIR RUN_DIR ... [--out DIR]
 
-(or ``python -m neuroimagery.experiments.exp5_pool``, the same command) prints the pooled table and
-claims (a Hydra sweep directory stands for its numbered runs); ``--out`` also writes
+prints the pooled table and claims (a Hydra sweep directory stands for its numbered runs); ``--out`` also writes
 ``individuals.csv`` (with a ``run`` column), ``summary.json`` and ``report.md`` into DIR. The
 command first checks the runs' manifests (:mod:`neuroimagery.pool`). The runs must agree on every experiment
 setting except the engine's (``engine.n_jobs``, ``engine.reuse_libraries``,
@@ -29,12 +28,9 @@ from ..analysis.report import Report
 from ..analysis.robots import ROBOT_EFFECTS_INTRO
 from ..analysis.tables import read_whole_csv
 from ..errors import UserInputError
-from .exp5 import ENGINE_KEYS, STRATEGIES, Exp5Config, group_rates, summarise
-from .exp5_config import dotted, from_dict, nest
+from .exp5_config import POOL_FREE_KEYS, Exp5Config, dotted, from_dict, nest
 from .exp5_figures import group_table
-
-# settings that may differ between pooled runs: how the work was spread, and how many robots
-_FREE_KEYS = ENGINE_KEYS + ("engine.filmstrip_repetition", "repetitions", "quick.repetitions")
+from .exp5_summary import STRATEGIES, group_rates, summarise
 
 
 def read_yaml(path: Path) -> dict:
@@ -163,7 +159,7 @@ def pool(run_dirs: list[str | Path]) -> tuple[dict, pd.DataFrame]:
     seen: dict[int, str] = {}
     for d, e, seed, _ in runs:
         now = dotted(dataclasses.asdict(e))
-        diff = [k for k in ref if k not in _FREE_KEYS and now.get(k) != ref[k]]
+        diff = [k for k in ref if k not in POOL_FREE_KEYS and now.get(k) != ref[k]]
         if diff:
             k = diff[0]
             raise UserInputError(f"pool: experiment.{k} is {now.get(k)!r} in {d} but {ref[k]!r} in {d0}; "
@@ -221,15 +217,8 @@ def report(summary: dict, e: Exp5Config) -> Report:
     return rep
 
 
-def main(argv: list[str] | None = None) -> None:
-    """``python -m neuroimagery.experiments.exp5_pool``: the same command as ``python -m neuroimagery.pool``,
-    which pools the runs of every experiment (an Exp. 5 run through :func:`pool` and :func:`report`)."""
-    from .. import pool as pooling  # the command sits above the experiments; imported only when run
-
-    pooling.main(argv, prog="python -m neuroimagery.experiments.exp5_pool")
-
-
-if __name__ == "__main__":
-    from ..cli import friendly_errors
-
-    friendly_errors(main)()
+def pool_runs(run_dirs: list[str | Path]) -> tuple[dict, pd.DataFrame, Report]:
+    """:func:`pool` and its :func:`report` (on the first run's settings): Experiment 5's pooling hook
+    (:func:`neuroimagery.experiments.exp5.pool_runs`)."""
+    summary, df = pool(run_dirs)
+    return summary, df, report(summary, read_config(expand(run_dirs)[0])[0])

@@ -20,7 +20,7 @@ from ..vision import shepard_metzler as sm
 from . import exp6_data as data
 from .exp6_checks import check_inputs, memory_estimate  # noqa: F401  (checks before work: neuroimagery.validation)
 from .exp6_config import CONDITIONS, MOVED, TESTS, Exp6Config  # noqa: F401  (the schema and its moved keys)
-from .exp6_data import cube_voxels, grid_side, make_scene, objects, see  # noqa: F401
+from .exp6_data import cube_voxels, grid_side, make_scene, objects, pair_bank, see  # noqa: F401
 
 CONFIG = Exp6Config
 INPUTS = ()  # the eye camera of this experiment is set by its own keys (eye, fov_deg, image_*)
@@ -86,34 +86,6 @@ def train_forward_models(model, cfg, ids) -> None:
             model.fit_forward_models(m, x, y)
 
 
-def pair_bank(model, cfg, scene, cells_list, names, kinds, ids, angles_of) -> tuple[torch.Tensor, dict]:
-    """Images ``(P, N, n)`` (coded, completed, centred by each participant) of every view the pairs of
-    ``cells_list`` need, and ``{(object, kind, angle, appearance): row}``."""
-    e = cfg.experiment
-    occ, index = [], {}
-    for cells, name in zip(cells_list, names):
-        for app in ("basic", "mirror"):
-            for kind in kinds:
-                for ang in angles_of(kind):
-                    key = (name, kind, float(ang), app)
-                    zero = (name, None, 0.0, app)
-                    if ang == 0 and zero in index:
-                        index[key] = index[zero]
-                        continue
-                    index[key] = len(occ)
-                    if ang == 0:
-                        index[zero] = len(occ)
-                    occ.append(see(scene, e, model.side, model.cube_voxels, cells, app, kind, ang))
-            if (name, None, 0.0, "basic") not in index:
-                index[(name, None, 0.0, "basic")] = len(occ)
-                occ.append(see(scene, e, model.side, model.cube_voxels, cells, "basic", None, 0.0))
-    occ = torch.stack(occ)
-    P = len(ids)
-    part = torch.arange(P).repeat_interleave(len(occ))
-    images = model.image(occ.repeat(P, 1), part).reshape(P, len(occ), -1)
-    return images, index
-
-
 def angles(e, kind: str) -> list[float]:
     return list(e.oblique_angles) if kind == "oblique" else list(e.test_angles)
 
@@ -169,7 +141,7 @@ def train(cfg, run):
 
 
 def load(cfg, checkpoint_dir):
-    from ..run import load_checkpoint
+    from ..checkpoints import load_checkpoint
 
     ck = load_checkpoint(checkpoint_dir, "exp6")
     model = _model(cfg, ck["participants"])
@@ -267,9 +239,28 @@ def effects(df: pd.DataFrame) -> list[dict]:
 
 
 def evaluate(cfg, run, trained) -> dict:
-    from . import exp6_report
+    """The tests (``trials.csv``), the stimuli's contact sheet and the stage measures (``exp6_stages``),
+    summarised, drawn and logged by ``exp6_report.summarise``."""
+    from . import exp6_report, exp6_stages
 
-    return exp6_report.evaluate(cfg, run, trained)
+    e = cfg.experiment
+    scene = make_scene(e)
+    try:
+        df, histories, _ = run_tests(cfg, trained, scene, record=cfg.logger.sample_trials)
+        train_objs, tnames, test_objs, names = objects(e)
+        used = sorted(set(df["target_object"]), key=names.index)  # the test objects of this run (preset)
+        extra = [u for u in used if u not in tnames]
+        sm.contact_sheet(scene, list(train_objs) + [test_objs[names.index(u)] for u in extra], list(tnames) + extra,
+                         run.figures / "exp6_stimuli.png", tilt_deg=e.view_tilt_deg, turn_deg=e.view_turn_deg)
+    finally:
+        scene.close()
+    run.write_csv("trials.csv", df)
+    scene = make_scene(e)
+    try:
+        stages = exp6_stages.measure(trained, cfg, scene)
+    finally:
+        scene.close()
+    return exp6_report.summarise(run, trained, df, histories, stages)
 
 
 def report(cfg, run, summary) -> None:

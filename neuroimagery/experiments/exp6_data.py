@@ -1,6 +1,7 @@
 """What Experiment 6's eye sees and what its stages learn from: the objects, the 3-D surface map of
 a view, the whole-volume map of the same view (the completion map's target), random cube chains
-in random poses, and graded dot images for the forward models."""
+in random poses, graded dot images for the forward models, and the bank of views (as the model
+sees them) that a set of same / mirror pairs needs."""
 from __future__ import annotations
 
 import math
@@ -116,3 +117,31 @@ def dot_pair(gens, n: int, dots: int, side: int, sigma: float, R: torch.Tensor) 
     x = vc.blobs(flat.float(), side, sigma)
     y = vc.blobs((flat @ R.T).float(), side, sigma)
     return x.reshape(P, n, -1), y.reshape(P, n, -1)
+
+
+def pair_bank(model, cfg, scene, cells_list, names, kinds, ids, angles_of) -> tuple[torch.Tensor, dict]:
+    """Images ``(P, N, n)`` (coded, completed, centred by each participant) of every view the pairs of
+    ``cells_list`` need, and ``{(object, kind, angle, appearance): row}``."""
+    e = cfg.experiment
+    occ, index = [], {}
+    for cells, name in zip(cells_list, names):
+        for app in ("basic", "mirror"):
+            for kind in kinds:
+                for ang in angles_of(kind):
+                    key = (name, kind, float(ang), app)
+                    zero = (name, None, 0.0, app)
+                    if ang == 0 and zero in index:
+                        index[key] = index[zero]
+                        continue
+                    index[key] = len(occ)
+                    if ang == 0:
+                        index[zero] = len(occ)
+                    occ.append(see(scene, e, model.side, model.cube_voxels, cells, app, kind, ang))
+            if (name, None, 0.0, "basic") not in index:
+                index[(name, None, 0.0, "basic")] = len(occ)
+                occ.append(see(scene, e, model.side, model.cube_voxels, cells, "basic", None, 0.0))
+    occ = torch.stack(occ)
+    P = len(ids)
+    part = torch.arange(P).repeat_interleave(len(occ))
+    images = model.image(occ.repeat(P, 1), part).reshape(P, len(occ), -1)
+    return images, index

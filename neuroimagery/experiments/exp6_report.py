@@ -9,7 +9,7 @@ from scipy import stats
 from ..analysis import figures
 from ..analysis.report import Report, reproducibility_note
 from ..analysis.summary import effect, holm, one_sample, paired_by_participant, slope_by_participant, summarise_trials
-from . import exp6
+from .exp6_config import TESTS
 
 # Shepard & Metzler (1971), Fig. 2 and text: same-pair RT linear in angle, r about 0.97 in both
 # conditions; slopes nearly equal; about 1 s per 50-60 deg (here 55 deg: 18.2 ms per deg)
@@ -70,7 +70,7 @@ def proprioception_effects(df: pd.DataFrame) -> list[dict]:
     same pairs, an incongruent one (``mismatch``) lengthens it, as in Exp 4."""
     ok = df[df["same"].astype(bool) & df["correct"].astype(bool)]
     rows = []
-    for test in [t for t in exp6.TESTS if t in set(df["test"])]:
+    for test in [t for t in TESTS if t in set(df["test"])]:
         base = ok[(ok["test"] == test) & (ok["condition"] == "none")]
         for cond, sign in (("match", "<0"), ("mismatch", ">0")):
             d = ok[(ok["test"] == test) & (ok["condition"] == cond)]
@@ -100,21 +100,9 @@ def headline(tests: dict, df: pd.DataFrame) -> dict:
     return h
 
 
-def evaluate(cfg, run, trained) -> dict:
-    e = cfg.experiment
-    scene = exp6.make_scene(e)
-    try:
-        df, histories, _ = exp6.run_tests(cfg, trained, scene, record=cfg.logger.sample_trials)
-        train_objs, tnames, test_objs, names = exp6.objects(e)
-        used = sorted(set(df["target_object"]), key=names.index)  # the test objects of this run (preset)
-        from ..vision import shepard_metzler as sm
-
-        extra = [u for u in used if u not in tnames]
-        sm.contact_sheet(scene, list(train_objs) + [test_objs[names.index(u)] for u in extra], list(tnames) + extra,
-                         run.figures / "exp6_stimuli.png", tilt_deg=e.view_tilt_deg, turn_deg=e.view_turn_deg)
-    finally:
-        scene.close()
-    run.write_csv("trials.csv", df)
+def summarise(run, trained, df: pd.DataFrame, histories: dict, stages: dict) -> dict:
+    """``summary.json`` of the tests' rows ``df`` and the stage measures, with the figures and the
+    TensorBoard series of the sample trials' ``histories``."""
     tests = summarise_trials(df)
     still = df[df["condition"] == "none"]  # Shepard & Metzler's measures: the wrist kept still
     for key, v in tests.items():
@@ -124,13 +112,6 @@ def evaluate(cfg, run, trained) -> dict:
         v["same_pairs"] = same_pair_rt(d)
         v["mirror_different_rate"] = round(float((d[~d["same"].astype(bool)]["answer"] == "no").mean()), 4)
     side = trained.side
-    from . import exp6_stages
-
-    scene = exp6.make_scene(e)
-    try:
-        stages = exp6_stages.measure(trained, cfg, scene)
-    finally:
-        scene.close()
     shepard = {k: v for k, v in tests.items() if k.split("/")[0] in ("picture", "depth") and k.endswith("/none")}
     summary = {"experiment": "exp6", "participants": int(df["participant"].nunique()), "tests": tests,
                "targets": {k: {"rt_r": HUMAN["rt_r"]} for k in shepard},  # Shepard & Metzler's r, each kind of rotation
@@ -196,7 +177,7 @@ def _fig2(df: pd.DataFrame, path, tests) -> None:
 @figures.timed
 def _figures(run, df, histories, side) -> None:
     f = run.figures
-    tests = [t for t in exp6.TESTS if t in set(df["test"])]
+    tests = [t for t in TESTS if t in set(df["test"])]
     _fig2(df, f / "exp6_fig2_rt.png", tests)
     figures.rate_by_disparity(df.assign(kind=np.where(df["same"], "same", "mirror")), f / "exp6_error.png",
                               groups=("test", "kind"), title="error rate by angle")

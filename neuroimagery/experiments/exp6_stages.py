@@ -55,9 +55,7 @@ def transform(model, cfg, scene, count: int = 20) -> dict:
 
 def _pairs(model, cfg, scene, cells, kinds, angle_list, ids):
     names = [f"C{i}" for i in range(len(cells))]
-    from .exp6 import pair_bank
-
-    images, index = pair_bank(model, cfg, scene, cells, names, kinds, ids, lambda k: angle_list)
+    images, index = data.pair_bank(model, cfg, scene, cells, names, kinds, ids, lambda k: angle_list)
     rows = []
     for name, c in zip(names, cells):
         for kind in kinds:

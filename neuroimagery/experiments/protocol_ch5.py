@@ -113,7 +113,7 @@ def load_model(cfg, checkpoint_dir, model_cls, e):
     from pathlib import Path
 
     from ..errors import UserInputError
-    from ..run import load_checkpoint
+    from ..checkpoints import load_checkpoint
 
     path = Path(checkpoint_dir) / "checkpoints" / "model.pt"
     state = load_checkpoint(checkpoint_dir, "model")

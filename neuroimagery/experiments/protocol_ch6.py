@@ -319,7 +319,7 @@ def save_model(run, name: str, model, ids) -> None:
 
 def load_model(checkpoint_dir, name: str, build):
     """Rebuild a model with ``build(participant_ids)`` from a training run, in eval mode for testing."""
-    from ..run import load_checkpoint
+    from ..checkpoints import load_checkpoint
 
     ck = load_checkpoint(checkpoint_dir, name)
     model = build(ck["participants"])

@@ -26,6 +26,8 @@ Algorithms
                      competence stopping rule, training of C1, C2, C3).
     ``sequencing``   action sequencing, Fig. 7.6 (softmax over C1 + C4, a reactive child moves,
                      a planning child imagines the outcome through C3, Q-learning).
+    ``skills``       a learnt primitive (``Skill``) and the real outcomes of sequences of
+                     primitives (``Outcomes``, the rollout cache both share).
 
 The model talks to the world through the small :class:`Environment` protocol (``common``), so the
 same code runs on the pybullet rake-and-toy world (``robot.environment.ToolWorldEnvironment``) and
@@ -34,10 +36,11 @@ on cheap stand-ins in the tests.  Weight tensors live in buffers of :class:`Tool
 from __future__ import annotations
 
 from ...robot.environment import ToolWorldEnvironment
-from .acquisition import AcquisitionParams, Library, Skill, acquire_skills, build_brain
+from .acquisition import AcquisitionParams, Library, acquire_skills, build_brain
 from .brain import BrainParams, GatedHebbian, ToolUseBrain
 from .common import CHOICES, EVENTS, N_POSTURES, SKILL_LETTERS, Environment, Result, State, check_choice, check_params
-from .sequencing import Outcomes, SequencingParams, TrialRecord, run_trial, sequence_trial
+from .sequencing import SequencingParams, TrialRecord, run_trial, sequence_trial
+from .skills import Outcomes, Skill
 
 __all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "CHOICES", "check_choice", "check_params", "State", "Result", "Environment",
            "ToolUseBrain", "BrainParams", "GatedHebbian", "AcquisitionParams", "SequencingParams", "run_trial", "Skill", "Library", "acquire_skills", "build_brain",

@@ -8,16 +8,14 @@ The task is kept apart from the solver: what a rollout is worth for learning an 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import Callable, Sequence
 
 import torch
 
 from ...motor.pibb import PIBB, event_costs
 from .brain import ToolUseBrain
 from .common import EVENTS, N_POSTURES, Environment, Result, State, check_params
-
-if TYPE_CHECKING:
-    from .sequencing import Outcomes
+from .skills import Outcomes, Skill
 
 
 @dataclass
@@ -64,25 +62,6 @@ class AcquisitionParams:
                              f"got {self.n_dmps!r}")
         if not 0 < self.pibb_decay <= 1:
             raise ValueError(f"experiment.acquisition.pibb_decay must be in (0, 1], got {self.pibb_decay!r}")
-
-
-@dataclass
-class Skill:
-    """One learnt primitive: the event it achieves, its DMP parameters and its training history."""
-
-    event: str
-    unit: int
-    theta: torch.Tensor
-    found_from: int  # posture where exploration first produced the event
-    competence: list[float] = field(default_factory=list)  # per epoch (successes / (4 K))
-    succeeds_from: tuple[bool, ...] = (False,) * N_POSTURES  # last competence check, per posture
-    log: list[tuple] = field(default_factory=list)  # ("c1", posture, signal) | ("c23", posture, State)
-    copy: int = 0  # 0: the event's first skill; k: its (k+1)-th, learnt by a spare DMP
-
-    @property
-    def name(self) -> str:
-        """The primitive's name in sequences and tables: the event, numbered from its second DMP on."""
-        return self.event if self.copy == 0 else f"{self.event}{self.copy + 1}"
 
 
 @dataclass

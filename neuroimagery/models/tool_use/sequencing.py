@@ -3,15 +3,15 @@ reactive child performs them, a planning child imagines their outcome through C3
 by Q-learning (eq. 7.1)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from typing import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Sequence
 
 import torch
 
 from ...nn.functional import softmax_select
-from .acquisition import Skill
 from .brain import ToolUseBrain
-from .common import Environment, Result, State, check_choice, check_params
+from .common import check_choice, check_params
+from .skills import Outcomes, Skill
 
 
 @dataclass
@@ -46,39 +46,6 @@ class TrialRecord:
     success: bool  # the toy was really retrieved
     imagined_success: bool = False  # planning: the plan reached the goal in mind
     frames: list[dict] = field(default_factory=list)  # optional film strip (real / imagined PC)
-
-
-class Outcomes:
-    """Deterministic real outcomes of skill sequences from an initial posture, computed once.
-
-    ``skills`` maps each primitive's name (:attr:`Skill.name`) to its skill. The physics is
-    deterministic, so the scene after primitives ``(a1, ..., an)`` (names) from posture ``p``
-    depends on nothing else; every individual sharing a skill library shares this cache.
-    """
-
-    def __init__(self, env: Environment, skills: dict[str, Skill], perceive: Callable[[State], torch.Tensor]):
-        self.env, self.skills, self.perceive = env, skills, perceive
-        self.table: dict[tuple, Result] = {}
-        self.rollouts = 0
-
-    def after(self, posture: int, events: tuple[str, ...]) -> Result | None:
-        if not events:
-            return None
-        key = (posture, events)
-        if key not in self.table:
-            prev = self.after(posture, events[:-1])
-            state = self.env.start(posture) if prev is None else prev.next_state
-            s = self.skills[events[-1]]
-            r = self.env.execute(s.theta.unsqueeze(0), state, s.event)[0]
-            if prev is not None and prev.retrieved:  # once in reach, the toy stays retrieved
-                r = replace(r, events=(True,) + r.events[1:])
-            self.table[key] = r
-            self.rollouts += 1
-        return self.table[key]
-
-    def image(self, posture: int, events: tuple[str, ...]) -> torch.Tensor:
-        r = self.after(posture, events)
-        return self.perceive(self.env.start(posture) if r is None else r.next_state)
 
 
 def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Skill], posture: int, strategy: str,
