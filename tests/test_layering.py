@@ -49,14 +49,6 @@ LAYERS = {
     **{s: ENTRY for s in ENTRY_SCRIPTS},
 }
 
-# Import cycles known at the time this test was written, each a set of modules importing each
-# other: the rule kernels of nn/ registered from learning.py, and the SOM trainers. They are being
-# removed (one registry of rule implementations); once they are, empty this list. Any OTHER cycle
-# fails the test.
-KNOWN_CYCLES = [
-    {"nn.learning", "nn.binary_delta", "nn.hebbian_closed_form", "nn.connections"},
-    {"nn.som_trainers", "nn.som_factored", "nn.som_online", "nn.som_repeated"},
-]
 
 
 def _module_name(path: Path, root: Path) -> str:
@@ -203,15 +195,8 @@ def test_no_import_goes_from_a_lower_layer_to_a_higher_one():
     assert upward_imports(import_graph()) == []
 
 
-def test_no_import_cycle_but_the_known_ones():
-    found = cycles(import_graph())
-    assert [sorted(c) for c in found if c not in KNOWN_CYCLES] == []
-
-
-def test_the_known_cycles_are_still_there():
-    """A known cycle that is gone leaves the list (so the list never hides a new one)."""
-    found = cycles(import_graph())
-    assert [sorted(c) for c in KNOWN_CYCLES if c not in found] == []
+def test_no_import_cycle():
+    assert [sorted(c) for c in cycles(import_graph())] == []
 
 
 def test_the_graph_reader_sees_relative_lazy_and_cyclic_imports_and_skips_type_only_ones(tmp_path):
