@@ -93,9 +93,12 @@ class GeneralisingParams:
     # <= 5 % of the target uncovered); 0 = the literal one-to-one reading, under which a resampled 45-deg
     # rotation of a 1-2-unit edge leaves about a quarter of the target uncovered.
     match_tolerance: int = bounded(1, ge=0)
-    match_threshold: float = 0.05  # NO when PMC_2 > this fraction of PFC_1's active units (thesis 5 %)
+    match_threshold: float = bounded(0.05, ge=0, le=1)  # NO when PMC_2 > this fraction of PFC_1's active units (thesis 5 %)
     # M1_2's softmax temperature (thesis 0.3) and the rotation steps before answering NO (thesis 15)
     selection: GeneralisingSelectionParams = dc_field(default_factory=GeneralisingSelectionParams)
+
+    RULES = (Rule("fm.dot_inner", lambda c: c.fm.dot_inner <= c.map_size - 2, "must lie in [1, map_size - 2]",
+                  show=False),)
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.", recursive=False)
