@@ -52,7 +52,6 @@ TEST_KEYS = ("fm.threshold", "recog_set", "gen1_set", "gen2_set", "m1_sigma", "m
              "match_threshold", "match_tolerance", "selection.max_steps", "posture.code_sigma", "quick.objects", "selection.tau")
 
 
-
 def ineffective_keys(cfg) -> dict[str, str]:
     e, out = cfg.experiment, {}
     out["m1_centre_sigma" if e.m1_readout == "pattern" else "m1_sigma"] = f"not read with m1_readout={e.m1_readout}"

@@ -5,7 +5,7 @@ models, posture maps, action selection, decision and embodiment. The groups ``se
 from __future__ import annotations
 
 from dataclasses import dataclass, field as dc_field
-from typing import List, Optional
+from typing import List
 
 from ..bounds import Rule, bounded, check_declared
 from .params import ForwardModelParams, LcaParams, PostureMapParams, PpcParams, SelectionParams
