@@ -11,6 +11,13 @@ A field states its bounds where it is declared, in the dataclass field's metadat
 walks the whole configuration with it before any work, naming each key by its full path
 (``experiment.som.iterations must be >= 1, got 0``). A new parameter gets its check by declaring
 its bounds; nothing else is written for it.
+
+What bounds cannot say (a value against another field, an angle that must divide 180) is a
+:class:`Rule` the group declares once, in its ``RULES`` class attribute; :func:`check_declared`
+checks the rules after the bounds, so a group holds no hand-written range check::
+
+    RULES = (Rule("hp1_ages", lambda c: len(c.hp1_ages) == len(c.hp1_levels),
+                  "must give one age per entry of hp1_levels"),)
 """
 from __future__ import annotations
 
@@ -94,6 +101,26 @@ def bounded(default: Any = MISSING, *, factory: Optional[Callable[[], Any]] = No
     return field(default=default, metadata=meta)
 
 
+@dataclass(frozen=True)
+class Rule:
+    """A declared check that bounds cannot express: ``holds(group)`` is true of a valid group; a
+    refusal reads ``<prefix><key> <must>, got <value>`` (``show=False``: without the value)."""
+
+    key: str
+    holds: Callable[[Any], bool]
+    must: str
+    show: bool = True
+
+    def check(self, obj: Any, prefix: str) -> None:
+        """Raise :class:`UserInputError` naming the key if the rule does not hold of ``obj``."""
+        if not self.holds(obj):
+            value = obj
+            for part in self.key.split("."):
+                value = getattr(value, part, None)
+            got = f", got {value!r}" if self.show else ""
+            raise UserInputError(f"{prefix}{self.key} {self.must}{got}")
+
+
 def bounds_of(cls_or_obj) -> dict[str, Bounds]:
     """``{field name: Bounds}`` of the fields of a dataclass that declare bounds."""
     return {f.name: f.metadata["bounds"] for f in dataclasses.fields(cls_or_obj) if "bounds" in f.metadata}
@@ -101,7 +128,8 @@ def bounds_of(cls_or_obj) -> dict[str, Bounds]:
 
 def check_declared(obj: Any, prefix: str = "", recursive: bool = True) -> None:
     """Check every declared bound of the dataclass ``obj`` (and, ``recursive``, of the dataclasses
-    it holds); a refusal names the key as ``prefix + field`` (``prefix``: ``"experiment.fm."``)."""
+    it holds), then its declared :class:`Rule` s (``RULES``); a refusal names the key as
+    ``prefix + field`` (``prefix``: ``"experiment.fm."``)."""
     if not dataclasses.is_dataclass(obj) or isinstance(obj, type):
         return
     for f in dataclasses.fields(obj):
@@ -111,3 +139,5 @@ def check_declared(obj: Any, prefix: str = "", recursive: bool = True) -> None:
             b.check(f"{prefix}{f.name}", value)
         if recursive and dataclasses.is_dataclass(value) and not isinstance(value, type):
             check_declared(value, f"{prefix}{f.name}.", recursive=True)
+    for rule in getattr(type(obj), "RULES", ()):
+        rule.check(obj, prefix)

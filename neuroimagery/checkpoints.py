@@ -15,6 +15,7 @@ import torch
 
 from . import console, manifest as mf
 from .errors import UserInputError
+from .moved_keys import rename
 
 # torch's refusal of an unsafe pickle advises loading it unsafely; never repeat that advice
 _UNSAFE_ADVICE = ("weights_only", "trust the source", "torch.serialization", "add_safe_globals", "safe_globals",
@@ -98,7 +99,8 @@ def verify_checkpoint(checkpoint: str | Path, name: str, manifest: dict) -> None
     if not isinstance(training, dict):
         raise UserInputError(f"checkpoint {path}: its manifest has no 'training' settings (not a checkpoint this "
                              "package wrote)")
-    diff = mf.differences(manifest["training"], training)
+    # settings stored under a key's earlier name are compared under its name now (neuroimagery.moved_keys)
+    diff = mf.differences(manifest["training"], rename(training, manifest["experiment"]))
     if diff:
         raise UserInputError(f"checkpoint {path} was trained with other settings: {'; '.join(diff)} "
                              "(set them as in training, or train again)")

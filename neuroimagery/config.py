@@ -22,6 +22,7 @@ from omegaconf.errors import OmegaConfBaseException
 from .bounds import bounded, check_declared
 from .errors import UserInputError
 from .manifest import flatten
+from .moved_keys import MOVED, REMOVED
 from .vision.config import StimuliConfig, VisionConfig
 
 EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "exp6", "demo")
@@ -98,18 +99,15 @@ def register_configs() -> None:
             cs.store(group="experiment", name=f"{name}_schema", node=schema)
 
 
-REMOVED = "removed; "  # a MOVED value that starts so says why the key went, instead of naming its new place
-
-
 def moved_keys(experiment: str | None = None) -> dict[str, str]:
     """``{old key: new key}`` of every experiment, or of ``experiment`` only (``experiment.field_tau``
-    -> ``experiment.field.tau``): the keys that moved into a group, declared by each experiment
-    module as ``MOVED``; a key that was removed maps to the reason, ``"removed; ..."``."""
+    -> ``experiment.field.tau``), from the one table :data:`neuroimagery.moved_keys.MOVED`; a key
+    that was removed maps to the reason, ``"removed; ..."``."""
     out: dict[str, str] = {}
-    for name, mod in experiment_modules():
+    for name, table in MOVED.items():
         if experiment is not None and name != experiment:
             continue
-        for old, new in getattr(mod, "MOVED", {}).items():
+        for old, new in table.items():
             out[f"experiment.{old}"] = new if new.startswith(REMOVED) else f"experiment.{new}"
     return out
 

@@ -40,6 +40,7 @@ from .analysis.tables import read_whole_csv
 from .config import EXPERIMENTS, experiment_module
 from .errors import UserInputError
 from .files import writable_folder, write_atomic
+from .moved_keys import rename
 
 # per test: (key in summary.json, label in report.md, a rate shown in %?)
 MEASURES = (("correct_rate", "correct", True), ("error_rate", "error", True),
@@ -116,7 +117,8 @@ def check_runs(runs: list[Run], free: tuple[str, ...] = ()) -> None:
         if r.experiment != first.experiment:
             raise UserInputError(f"pool: {r.dir} is a run of {r.experiment}, {first.dir} of {first.experiment}; "
                                  "pool runs of one experiment")
-        a, b = first.manifest["settings"], r.manifest["settings"]
+        # settings stored under a key's earlier name are compared under its name now
+        a, b = (rename(x.manifest["settings"], x.experiment) for x in (first, r))
         diff = [f"{k} {a.get(k, '<absent>')!r} in {first.dir} but {b.get(k, '<absent>')!r} in {r.dir}"
                 for k in sorted(set(a) | set(b)) if k != "seed" and k not in free and a.get(k) != b.get(k)]
         if diff:

@@ -72,7 +72,7 @@ def test_the_objects_the_generator_cannot_find_are_refused_before_training(tmp_p
 
 
 MESSAGE_CASES = [  # keys: misspelt, moved, or an experiment's own key with a bad value
-    (["experiment=exp6", "experiment.max_steps=abc"], "experiment.max_steps", "has moved"),
+    (["experiment=exp6", "experiment.selection.max_steps=abc"], "experiment.selection.max_steps", "has moved"),
     (["experiment=exp6", "experiment.posture_iterations=5"], "experiment.posture_iterations is no longer a setting", None),
     (["experiment=exp6", "experiment.eta_fm=0.2"], "it is experiment.fm.eta now", None),
     (["experiment=exp3", "experiment.map_sise=3"], "did you mean experiment.map_size?", None),
@@ -100,14 +100,14 @@ def test_a_misspelt_key_added_with_plus_gets_the_closest_key(tmp_path, capsys, n
 # ------------------------------------------------- numbers, choices and keys of every experiment
 CONFIG_CASES = [
     # numbers that are not finite, or out of range
-    (["experiment=exp4", "experiment.noise_amplitude=inf"], "experiment.noise_amplitude"),
+    (["experiment=exp4", "experiment.ppc.noise_amplitude=inf"], "experiment.ppc.noise_amplitude"),
     (["experiment=exp2", "experiment.proprio_gain=nan"], "experiment.proprio_gain"),
     (["experiment=exp1", "experiment.hebb_eta=nan"], "experiment.hebb_eta"),
     (["experiment=exp3", "experiment.m1_centre_sigma=inf"], "experiment.m1_centre_sigma"),
     (["experiment=exp5", "experiment.brain.eta=nan"], "experiment.brain.eta"),
     (["experiment=demo", "experiment.noise=inf"], "experiment.noise"),
     (["experiment=exp4", "vision.gamma=nan"], "vision.gamma"),
-    (["experiment=exp4", "experiment.ppc_angles=[0,nan]"], "experiment.ppc_angles"),
+    (["experiment=exp4", "experiment.ppc.angles=[0,nan]"], "experiment.ppc.angles"),
     (["experiment=exp5", "experiment.acquisition.explore_patience=0"], "experiment.acquisition.explore_patience"),
     (["experiment=exp1", "participants=0"], "participants"),
     (["experiment=exp3", "seed=-1"], "seed"),
@@ -134,7 +134,7 @@ CONFIG_CASES = [
     (["experiment=exp3", "experiment.quick.objects=2"], "experiment.quick.objects"),
     (["experiment=exp4", "preset=quick", "experiment.fm.images=100"], "experiment.fm.images"),
     (["experiment=exp3", "experiment.m1_sigma=0.3"], "experiment.m1_sigma"),  # not read with the default m1_readout=centre
-    (["experiment=exp4", "experiment.noise_tests=[]", "experiment.noise_amplitude=0.3"], "experiment.noise_amplitude"),
+    (["experiment=exp4", "experiment.noise_tests=[]", "experiment.ppc.noise_amplitude=0.3"], "experiment.ppc.noise_amplitude"),
     (["experiment=exp5", "preset=quick", "experiment.repetitions=5"], "experiment.repetitions"),
     (["experiment=exp2", "threads=1", "experiment.auto_threads=2"], "experiment.auto_threads"),
 ]

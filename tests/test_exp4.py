@@ -21,12 +21,14 @@ def _cfg(*overrides, quick=True):
 
 
 def test_config_rejects_bad_values():
-    with pytest.raises(ValueError, match="lca_k"):
-        exp4.Exp4Config(lca_k=-0.1)
+    from neuroimagery.models.rotation_embodied import EmbodiedLcaParams, EmbodiedPpcParams
+
+    with pytest.raises(ValueError, match=r"experiment\.lca\.k"):
+        exp4.Exp4Config(lca=EmbodiedLcaParams(k=-0.1))
     with pytest.raises(ValueError, match="noise_tests"):
         exp4.Exp4Config(noise_tests=["nope"])
-    with pytest.raises(ValueError, match="ppc_angles"):
-        exp4.Exp4Config(ppc_angles=[30.0, 0.0])
+    with pytest.raises(ValueError, match=r"experiment\.ppc\.angles"):
+        exp4.Exp4Config(ppc=EmbodiedPpcParams(angles=[30.0, 0.0]))
 
 
 def test_binary_matmul_equals_bmm():
@@ -194,10 +196,12 @@ def _tiny_model(**over):
     from neuroimagery.nn import seeding
 
     from neuroimagery.models.params import ForwardModelParams
-    from neuroimagery.models.rotation_embodied import EmbodiedPostureParams
+    from neuroimagery.models.rotation_embodied import EmbodiedPostureParams, EmbodiedPpcParams
 
     post = {"tau": over.pop("posture_tau")} if "posture_tau" in over else {}
-    e = exp4.Exp4Config(map_size=8, fm=ForwardModelParams(dot_inner=4), posture=EmbodiedPostureParams(**post), **over)
+    ppc = {"proprio_stage": over.pop("proprio_stage")} if "proprio_stage" in over else {}
+    e = exp4.Exp4Config(map_size=8, fm=ForwardModelParams(dot_inner=4), posture=EmbodiedPostureParams(**post),
+                        ppc=EmbodiedPpcParams(**ppc), **over)
     return RotationEmbodied(e, seeding.participant_generators(0, [0], stream=0))
 
 
@@ -241,8 +245,10 @@ def test_posture_winner_is_uncertain_only_for_flat_potentials():
 
 
 def test_config_rejects_bad_proprio_stage():
-    with pytest.raises(ValueError, match="proprio_stage"):
-        exp4.Exp4Config(proprio_stage="late")
+    from neuroimagery.models.rotation_embodied import EmbodiedPpcParams
+
+    with pytest.raises(ValueError, match=r"experiment\.ppc\.proprio_stage"):
+        EmbodiedPpcParams(proprio_stage="late")
     with pytest.raises(ValueError, match="flip_axis"):
         exp4.Exp4Config(flip_axis="principal")
 

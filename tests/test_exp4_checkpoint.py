@@ -15,7 +15,7 @@ from neuroimagery.run import evaluate, train
 
 SMALL = ("experiment=exp4", "preset=quick", "participants=2", "logger=none", "progress=false",
          "experiment.quick.fm_images=200", "experiment.posture.iterations=50", "experiment.noise_tests=[]",
-         "experiment.max_steps=3")
+         "experiment.selection.max_steps=3")
 
 
 def test_active_units_round_trip():

@@ -60,7 +60,7 @@ def test_config_rejects_bad_values_naming_the_key(key, value):
     import re
 
     group, _, k = key.rpartition(".")
-    with pytest.raises(ValueError, match=re.escape(f"experiment.{key} ")):
+    with pytest.raises(ValueError, match=re.escape(f"experiment.{key}") + r"(\[\d+\])? "):  # a list item by index
         if group:
             {"quick": exp5_config.QuickParams, **exp5_config.GROUPS}[group](**{k: value})
         else:

@@ -200,7 +200,7 @@ def test_wrist_signal_joins_the_line_of_sight_rotation_code_only():
     for cond, w in (("match", done[:, z]), ("mismatch", -done[:, z])):
         code = model.ppc_code(done, cond, done[:, z])
         assert torch.equal(code[:, :z], still[:, :z])  # the other axes' codes are untouched
-        want = (still[:, z] + cfg.experiment.proprio_gain * model.ppc.encode(w.unsqueeze(-1)).reshape(2, -1)).clamp(0, 1)
+        want = (still[:, z] + cfg.experiment.ppc.proprio_gain * model.ppc.encode(w.unsqueeze(-1)).reshape(2, -1)).clamp(0, 1)
         assert torch.allclose(code[:, z], want)
     assert not torch.equal(model.ppc_code(done, "mismatch", done[:, z]), still)
     with pytest.raises(ValueError, match="proprioception"):

@@ -77,7 +77,7 @@ def test_a_quick_run_shows_training_and_test_bars_and_progress_false_none(tmp_pa
     assert any(m.startswith("exp4 train: done in") for m in logged)
     assert any(m.startswith("exp4 test: 2160 trials done in") for m in logged)
     # fewer trials: whether bars are drawn does not depend on how many
-    evaluate(make_cfg(*QUICK, "progress=false", "experiment.noise_tests=[]", "experiment.max_steps=3"),
+    evaluate(make_cfg(*QUICK, "progress=false", "experiment.noise_tests=[]", "experiment.selection.max_steps=3"),
              out_dir=tmp_path / "quiet")
     err = capsys.readouterr().err
     assert (tmp_path / "quiet" / "trials.csv").is_file()  # it trained and tested

@@ -20,7 +20,7 @@ from ..analysis.report import Report
 from ..analysis.summary import effect, holm, slope_by_participant, summarise_trials
 from ..thesis import EXP1 as THESIS
 from ..bounds import bounded
-from ..models.params import FieldParams, SomParams, moved_keys
+from ..models.params import FieldParams, SomParams
 from ..models.rotation_affordance import AffordanceParams, AffordanceRotationModel
 from .ch5_checks import weights_estimate
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of,
@@ -44,11 +44,6 @@ INPUTS = ("vision", "stimuli")
 MIN_OBJECTS = 2  # a user folder must hold a shape and its mirror
 CHECKPOINTS = ("model",)
 RUNTIME_KEYS = ("som.threads", "auto_threads")  # thread counts: speed only
-# keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
-MOVED = {**moved_keys({"field": ("field_", FieldParams), "som": ("som_", SomParams)}),
-         "som_filter_sigma": "som.cluster_sigma"}
-for _k in ("som_cutoff", "som_cluster_sigma"):  # never keys of Exp. 1
-    MOVED.pop(_k)
 TEST_KEYS = ()  # the model is built from every key, so each one counts as a training setting
 
 def _t(key: str) -> float:

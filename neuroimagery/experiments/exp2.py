@@ -20,7 +20,7 @@ from ..analysis.summary import (compare_rates, compare_rt, effect, equivalent_le
                                 slope_by_participant, summarise_trials)
 from ..thesis import EXP2 as THESIS
 from ..bounds import bounded, check_declared
-from ..models.params import FieldParams, SomParams, moved_keys
+from ..models.params import FieldParams, SomParams
 from ..models.rotation_motor import ANGLES, MotorRotationModel, MotorRotationParams
 from .ch5_checks import weights_estimate
 from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of,
@@ -55,10 +55,6 @@ INPUTS = ("vision", "stimuli")
 MIN_OBJECTS = 2  # a user folder must hold a shape and its mirror
 CHECKPOINTS = ("model",)
 RUNTIME_KEYS = ("som.threads", "auto_threads")  # thread counts: speed only
-# keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
-MOVED = {**moved_keys({"field": ("field_", FieldParams), "som": ("som_", SomParams)}),
-         "cluster_sigma": "som.cluster_sigma", "quick_som_iterations": "quick.som_iterations"}
-MOVED.pop("som_cluster_sigma")  # never a key of Exp. 2
 TEST_KEYS = ()  # the model is built from every key, so each one counts as a training setting
 CONDITIONS = ("none", "match", "mismatch")
 TARGETS = {"all/none": {"rotation_success_rate": THESIS["rotation success"].value,

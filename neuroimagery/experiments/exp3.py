@@ -49,10 +49,7 @@ INPUTS = ("vision", "stimuli")
 CHECKPOINTS = ("exp3",)
 # read only by the tests: a trained model (forward model C6, posture maps C2/C3) does not depend on them
 TEST_KEYS = ("fm.threshold", "recog_set", "gen1_set", "gen2_set", "m1_sigma", "m1_readout", "m1_centre_sigma",
-             "match_threshold", "match_tolerance", "max_steps", "posture.code_sigma", "quick.objects", "softmax_tau")
-# keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
-MOVED = {**pc.MOVED_CH6, "fm_threshold": "fm.threshold", "posture_angles": "posture.angles",
-         "posture_code_sigma": "posture.code_sigma"}
+             "match_threshold", "match_tolerance", "selection.max_steps", "posture.code_sigma", "quick.objects", "selection.tau")
 
 
 def ineffective_keys(cfg) -> dict[str, str]:

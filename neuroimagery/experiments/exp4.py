@@ -16,6 +16,7 @@ import pandas as pd
 import torch
 
 from .. import progress
+from ..bounds import bounded
 from ..analysis import figures
 from ..models.rotation_embodied import PROPRIOCEPTION as CONDITIONS, EmbodiedParams
 from ..analysis.report import Report, fmt_p, reproducibility_note
@@ -42,14 +43,8 @@ class Exp4Config(EmbodiedParams):
     recog_set: str = "exp4-A"  # Recog test set
     gen1_set: str = "exp4-B"  # Gen1 test set (exp4-B-long: bars as elongated as set A's, see docs/exp4.md)
     gen2_set: str = "exp4-C"  # Gen2 test set
-    noise_tests: List[str] = field(default_factory=lambda: ["recog", "gen1"])  # tests repeated with noise
+    noise_tests: List[str] = bounded(factory=lambda: ["recog", "gen1"], choices=TESTS, each=True)  # tests repeated with noise
     quick: pc.QuickParams = field(default_factory=pc.QuickParams)  # objects per test set (full: all 3), images
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        bad = [t for t in self.noise_tests if t not in TESTS]
-        if bad:
-            raise ValueError(f"experiment.noise_tests: unknown tests {bad}; choose from {list(TESTS)}")
 
 
 CONFIG = Exp4Config
@@ -60,11 +55,9 @@ CONFIG = Exp4Config
 INPUTS = ("vision", "stimuli")
 CHECKPOINTS = ("exp4",)
 # read only by the tests: a trained model (forward models, posture maps C16/C17) does not depend on them
-TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "posture.tau", "ppc_sigma", "softmax_tau",
-             "max_steps", "proprio_gain",
-             "proprio_stage", "noise_amplitude", "noise_tests", "quick.objects")
-# keys that moved into a group: refused under the old name, with the new one (neuroimagery.config)
-MOVED = {**pc.MOVED_CH6, "posture_tau": "posture.tau"}
+TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "posture.tau", "ppc.sigma", "selection.tau",
+             "selection.max_steps", "ppc.proprio_gain",
+             "ppc.proprio_stage", "ppc.noise_amplitude", "noise_tests", "quick.objects")
 
 
 def ineffective_keys(cfg) -> dict[str, str]:
@@ -72,7 +65,7 @@ def ineffective_keys(cfg) -> dict[str, str]:
     if cfg.stimuli.kind == "folder":
         out.update({k: "stimuli=folder tests the user's folder only" for k in ("gen1_set", "gen2_set", "noise_tests")})
     elif not e.noise_tests:
-        out["noise_amplitude"] = "noise_tests is empty"
+        out["ppc.noise_amplitude"] = "noise_tests is empty"
     if cfg.preset == "quick":
         out["fm.images"] = "preset=quick trains on quick.fm_images"
     return {f"experiment.{k}": v for k, v in out.items()}
@@ -96,7 +89,7 @@ def train_model(cfg, ids, eye=None):
     n_img = e.quick.fm_images if cfg.preset == "quick" else e.fm.images
     X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.fm.dot_inner)
     model.fit_forward_models(X, Y, moves, e.fm.batch, progress=pc.batches_bar("forward model"))
-    return pc.train_posture_maps(cfg, eye, model, e.ppc_angles, gens)
+    return pc.train_posture_maps(cfg, eye, model, e.ppc.angles, gens)
 
 
 def train(cfg, run):
@@ -393,9 +386,9 @@ def report(cfg, run, summary) -> None:
         f"The flipped target (C10, `flip_axis` = {e.flip_axis}) is made from the target image alone "
         "('image': a reflection about the map's principal axis; 'ppct': about the axis of the orientation "
         "PPCt reads); no trial label reaches the model.",
-        "PMCd's evidence is the overlap as a fraction of the target's units times a gain (`lca_input_gain`; by "
+        "PMCd's evidence is the overlap as a fraction of the target's units times a gain (`lca.input_gain`; by "
         "default, per participant, the smallest with which the mean evidence of identical 0-deg training pairs "
-        "decides within one step, `lca_gain_rule` = " + e.lca_gain_rule + "); POCp is read as a population code "
+        "decides within one step, `lca.gain_rule` = " + e.lca.gain_rule + "); POCp is read as a population code "
         f"of reach {e.match_tolerance} (`match_tolerance`).",
         "Eq. 6.14 puts a fixed bump on the arg-max posture, which discards the flatter C16 potentials of "
         f"unfamiliar shapes (`posture.tau` = {e.posture.tau}; 0 = arg-max).",

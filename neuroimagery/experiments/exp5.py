@@ -47,15 +47,6 @@ from .exp5_summary import (ROUTES, STRATEGIES, group_rates, library_columns, suc
 
 
 CONFIG = Exp5Config
-# keys of earlier versions and where they went (named in the refusal of a run that still sets one):
-# every key of the flat layout into its group, and the keys that are gone, with the reason
-MOVED = {**MOVED_KEYS,  # neuroimagery.config.moved_message
-    "retrieve_x": "removed; the reachable area is the free left hand's reach, from its kinematics (docs/robot.md)",
-    "posture_4": "removed; the four postures are fitted to the scene criteria of docs/robot.md",
-    "reach_bound": "removed; a movement is bounded by the joint limits only (docs/robot.md)",
-    "goal_frame": "removed; DMP goals are joint angles (docs/exp5.md)",
-    "explore_goal_sigma": "removed; goal noise is 1/10 of each joint's range (WorldConfig.goal_noise_share)",
-}
 
 # what validation and the manifests need to know (neuroimagery.validation, neuroimagery.manifest)
 INPUTS = ()  # the robot's eye is part of the world (neuroimagery.robot), not the vision group

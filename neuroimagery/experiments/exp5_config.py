@@ -14,8 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-from ..bounds import bounded, check_declared
-from ..models.tool_use import EVENTS, AcquisitionParams, BrainParams, SequencingParams, check_params
+from ..bounds import Rule, bounded, check_declared
+from ..moved_keys import moved
+from ..models.tool_use import CHOICES, EVENTS, AcquisitionParams, BrainParams, SequencingParams
 from ..thesis import EXP5, EXP5_TABLE_7_1
 
 SITUATIONS = {"behind": 1, "far": 4}  # thesis: posture 1 = tool behind toy, posture 4 = tool far from toy
@@ -34,29 +35,25 @@ class WorldParams:
     of the environment (``robot.environment.ToolWorldEnvironment``)."""
 
     environment: str = "robot"  # 'robot' (pybullet ToolWorld) or 'module:Class' of another Environment
-    duration_s: float = 1.5  # duration of one primitive (DMP time constant, eq. 7.2-7.5)
-    explore_weight_sigma: float = 300.0  # std of a random DMP's shape weights (goals: docs/robot.md)
-    search_goal_sigma: float = 0.05  # rad, PI^BB exploration std of the goals (eq. 7.6)
-    search_weight_sigma: float = 30.0  # PI^BB exploration std of the shape weights (eq. 7.6)
+    duration_s: float = bounded(1.5, gt=0)  # duration of one primitive (DMP time constant, eq. 7.2-7.5)
+    explore_weight_sigma: float = bounded(300.0, gt=0)  # std of a random DMP's shape weights (goals: docs/robot.md)
+    search_goal_sigma: float = bounded(0.05, gt=0)  # rad, PI^BB exploration std of the goals (eq. 7.6)
+    search_weight_sigma: float = bounded(30.0, gt=0)  # PI^BB exploration std of the shape weights (eq. 7.6)
     # whether a scene between moves keeps the toy's turn about the vertical: 'keep' = as the last
     # move left it | 'reset' = square again (its place is kept either way). See docs/exp5.md.
-    toy_turn: str = "keep"
+    toy_turn: str = bounded("keep", choices=CHOICES["toy_turn"])
     # m; no rake point travels farther in one physics step (robot.config.WorldConfig, docs/robot.md,
     # physics step criterion); null: two fixed 10 ms steps per control step
-    max_substep_travel: Optional[float] = 0.008
+    max_substep_travel: Optional[float] = bounded(0.008, gt=0)
     # an exploratory movement's goal before the noise (robot.config.WorldConfig, docs/contracts.md
     # W9): 'posture' = the chosen initial posture (Fig. 7.5, section 7.1.2) | 'anywhere' = the DMP's own
-    explore_goals: str = "posture"
+    explore_goals: str = bounded("posture", choices=("posture", "anywhere"))
+
+    RULES = (Rule("environment", lambda w: w.environment == "robot" or ":" in w.environment,
+                  "must be 'robot' or 'module:Class'"),)
 
     def __post_init__(self) -> None:
-        if self.explore_goals not in ("posture", "anywhere"):
-            raise ValueError(f"experiment.world.explore_goals must be 'posture' or 'anywhere', got {self.explore_goals!r}")
-        check_params("world", self, positive=("duration_s", "explore_weight_sigma", "search_goal_sigma",
-                                              "search_weight_sigma"), choices=("toy_turn",))
-        if self.environment != "robot" and ":" not in self.environment:
-            raise ValueError(f"experiment.world.environment must be 'robot' or 'module:Class', got {self.environment!r}")
-        if self.max_substep_travel is not None and not float(self.max_substep_travel) > 0:
-            raise ValueError(f"experiment.world.max_substep_travel must be > 0 or null, got {self.max_substep_travel!r}")
+        check_declared(self, "experiment.world.")
 
     def env_kwargs(self) -> dict:
         """The keyword arguments of ``ToolWorldEnvironment`` (all but ``environment`` and the
@@ -75,10 +72,10 @@ class WorldParams:
 class EngineParams:
     """How the work is organised (``experiment.engine``)."""
 
-    n_jobs: int = 2  # parallel tasks (joblib processes); 1 runs in this process
+    n_jobs: int = bounded(2, ge=1)  # parallel tasks (joblib processes); 1 runs in this process
     # one skill library per repetition for both situations (changes the results: docs/exp5.md)
     share_library_across_situations: bool = False
-    filmstrip_repetition: int = 0  # repetition whose planning test is filmed (imagined vs real)
+    filmstrip_repetition: int = bounded(0, ge=0)  # repetition whose planning test is filmed (imagined vs real)
     # a run directory whose skill libraries are reused when every setting of skill acquisition
     # (Fig. 7.5: the world and acquisition groups, brain.c2_eta, share_library_across_situations,
     # the seed) matches; only action sequencing (Fig. 7.6) is then run again, e.g. in a sweep over
@@ -86,28 +83,27 @@ class EngineParams:
     # always reused that way.
     reuse_libraries: str = ""
 
+    RULES = (Rule("reuse_libraries", lambda e: not e.reuse_libraries or (Path(e.reuse_libraries) / "checkpoints").is_dir(),
+                  "must be a run directory with a checkpoints/ folder"),)
+
     def __post_init__(self) -> None:
-        check_params("engine", self, at_least_one=("n_jobs",), non_negative=("filmstrip_repetition",))
-        if self.reuse_libraries and not (Path(self.reuse_libraries) / "checkpoints").is_dir():
-            raise ValueError(f"experiment.engine.reuse_libraries must be a run directory with a checkpoints/ folder, "
-                             f"got {self.reuse_libraries!r}")
+        check_declared(self, "experiment.engine.")
 
 
 @dataclass
 class QuickParams:
     """What ``preset=quick`` shrinks (``experiment.quick``)."""
 
-    repetitions: int = 3  # repetitions per group and situation (a first look in a few minutes)
+    repetitions: int = bounded(3, ge=1)  # repetitions per group and situation (a first look in a few minutes)
 
     def __post_init__(self) -> None:
-        check_params("quick", self, at_least_one=("repetitions",))
+        check_declared(self, "experiment.quick.")
 
 
 GROUPS = {"world": WorldParams, "acquisition": AcquisitionParams, "brain": BrainParams,
           "sequencing": SequencingParams, "engine": EngineParams}
-# every key of the earlier flat layout and its place now (neuroimagery.config.moved_message)
-MOVED_KEYS = {"quick_repetitions": "quick.repetitions",
-              **{f.name: f"{g}.{f.name}" for g, cls in GROUPS.items() for f in dataclasses.fields(cls)}}
+# every key of the earlier flat layout and its place now (the table of neuroimagery.moved_keys)
+MOVED_KEYS = moved("exp5")
 
 
 @dataclass
@@ -119,13 +115,13 @@ class Exp5Config:
     name: str = "exp5"
     # --- simulations (section 7.1.3)
     repetitions: int = bounded(30, ge=1)  # repetitions per group and situation (thesis: 30)
-    hp1_levels: list[int] = field(default_factory=lambda: [2, 3, 4, 5, 6])  # IM detectors per HP1 group
+    hp1_levels: list[int] = bounded(factory=lambda: [2, 3, 4, 5, 6], le=len(EVENTS), each=True, nonempty=True)  # IM detectors per HP1 group
     hp1_ages: list[int] = bounded(factory=lambda: [14, 16, 18, 20, 22], ge=0, each=True)  # months, one per HP1 level
     hp1_training_trials: int = bounded(10, ge=0)  # training trials of every HP1 robot
-    hp2_trials: list[int] = bounded(factory=lambda: [0, 2, 4, 6, 8, 10], ge=0, each=True)  # training trials per HP2 group
+    hp2_trials: list[int] = bounded(factory=lambda: [0, 2, 4, 6, 8, 10], ge=0, each=True, nonempty=True)  # training trials per HP2 group
     hp2_ages: list[int] = bounded(factory=lambda: [14, 14, 16, 18, 20, 22], ge=0, each=True)  # months, one per HP2 level
-    base_detectors: list[str] = field(default_factory=lambda: ["retrieve", "touch"])  # always on under HP1
-    situations: list[str] = field(default_factory=lambda: ["behind", "far"])  # tool behind / far from toy
+    base_detectors: list[str] = bounded(factory=lambda: ["retrieve", "touch"], choices=EVENTS, each=True)  # always on under HP1
+    situations: list[str] = bounded(factory=lambda: ["behind", "far"], choices=tuple(SITUATIONS), each=True, nonempty=True)  # tool behind / far from toy
     quick: QuickParams = field(default_factory=QuickParams)  # what preset=quick shrinks
     world: WorldParams = field(default_factory=WorldParams)  # the environment and its movements
     acquisition: AcquisitionParams = field(default_factory=AcquisitionParams)  # skill acquisition (Fig. 7.5)
@@ -133,23 +129,19 @@ class Exp5Config:
     sequencing: SequencingParams = field(default_factory=SequencingParams)  # action sequencing (Fig. 7.6)
     engine: EngineParams = field(default_factory=EngineParams)  # parallel tasks, reuse, filming
 
-    def __post_init__(self) -> None:
-        def bad(key, why):
-            raise ValueError(f"experiment.{key} {why}, got {getattr(self, key)!r}")
+    RULES = (
+        Rule("name", lambda c: c.name == "exp5", "must be 'exp5'"),
+        Rule("hp1_ages", lambda c: len(c.hp1_ages) == len(c.hp1_levels), "must give one age per entry of hp1_levels"),
+        Rule("hp2_ages", lambda c: len(c.hp2_ages) == len(c.hp2_trials), "must give one age per entry of hp2_trials"),
+        Rule("base_detectors", lambda c: len(set(c.base_detectors)) == len(c.base_detectors),
+             f"must be distinct events of {EVENTS}"),
+        Rule("hp1_levels", lambda c: all(len(c.base_detectors) <= k for k in c.hp1_levels),
+             "must each be at least the number of base_detectors"),
+        Rule("situations", lambda c: len(set(c.situations)) == len(c.situations), "must be distinct"),
+    )
 
-        if self.name != "exp5":
-            bad("name", "must be 'exp5'")
+    def __post_init__(self) -> None:
         check_declared(self, "experiment.", recursive=False)
-        if len(self.hp1_levels) != len(self.hp1_ages) or not self.hp1_levels:
-            bad("hp1_ages", "must give one age per entry of hp1_levels")
-        if len(self.hp2_trials) != len(self.hp2_ages) or not self.hp2_trials:
-            bad("hp2_ages", "must give one age per entry of hp2_trials")
-        if any(e not in EVENTS for e in self.base_detectors) or len(set(self.base_detectors)) != len(self.base_detectors):
-            bad("base_detectors", f"must be distinct events of {EVENTS}")
-        if any(not len(self.base_detectors) <= k <= len(EVENTS) for k in self.hp1_levels):
-            bad("hp1_levels", f"must lie in [{len(self.base_detectors)}, {len(EVENTS)}]")
-        if not self.situations or any(s not in SITUATIONS for s in self.situations) or len(set(self.situations)) != len(self.situations):
-            bad("situations", f"must be distinct names of {sorted(SITUATIONS)}")
 
 
 def from_dict(d: dict) -> Exp5Config:

@@ -244,7 +244,7 @@ def write_report(cfg, run, summary: dict) -> None:
               f"{sum(c['holds'] for c in claims)} of {len(claims)} hold. With {n} robots per group one robot "
               f"is {100 / n:.1f} points of a rate, and a rate near 30 % has a binomial standard error of "
               f"{100 * (0.21 / n) ** 0.5:.0f} points, so claims that compare single groups can change with the seed (pool runs of several seeds "
-              f"with `python -m neuroimagery.experiments.exp5_pool`).")
+              f"with `python -m neuroimagery.pool`).")
         rep.table(["claim", "this run", "holds"], [[c["claim"], c["value"], "yes" if c["holds"] else "**no**"] for c in claims])
     if summary.get("effects"):
         rep.h("Effects, the robot as the unit")

@@ -19,15 +19,15 @@ from ..nn import seeding
 from ..vision import shepard_metzler as sm
 from . import exp6_data as data
 from .exp6_checks import check_inputs, memory_estimate  # noqa: F401  (checks before work: neuroimagery.validation)
-from .exp6_config import CONDITIONS, MOVED, TESTS, Exp6Config  # noqa: F401  (the schema and its moved keys)
+from .exp6_config import CONDITIONS, TESTS, Exp6Config  # noqa: F401  (the schema)
 from .exp6_data import cube_voxels, grid_side, make_scene, objects, pair_bank, see  # noqa: F401
 
 CONFIG = Exp6Config
 INPUTS = ()  # the eye camera of this experiment is set by its own keys (eye, fov_deg, image_*)
 CHECKPOINTS = ("exp6",)
 TEST_KEYS = ("test_objects", "test_cubes", "test_set", "test_angles", "oblique_angles", "tests", "conditions",
-             "proprio_gain", "softmax_tau", "max_steps", "strategy", "search.method", "search.eta",
-             "search.iterations", "search.coarse", "ppc_sigma", "lca.k", "lca.w", "lca.threshold", "lca.dt",
+             "ppc.proprio_gain", "selection.tau", "selection.max_steps", "strategy", "search.method", "search.eta",
+             "search.iterations", "search.coarse", "ppc.sigma", "lca.k", "lca.w", "lca.threshold", "lca.dt",
              "lca.cycles", "lca.input_gain", "quick.objects")
 RUNTIME_KEYS = ("train_threads",)
 
@@ -47,7 +47,7 @@ def ineffective_keys(cfg) -> dict[str, str]:
     if "oblique" not in e.tests:
         out["oblique_angles"] = "the oblique test is not among experiment.tests"
     if e.strategy == "parity":
-        out["max_steps"] = "strategy=parity does not turn the image"
+        out["selection.max_steps"] = "strategy=parity does not turn the image"
     return {f"experiment.{k}": v for k, v in out.items()}
 
 

@@ -39,12 +39,6 @@ class QuickParams:
         check_declared(self, "experiment.quick.")
 
 
-# keys of Experiments 3 and 4 that moved into a group (both experiments' MOVED)
-MOVED_CH6 = {"eta_fm": "fm.eta", "fm_images": "fm.images", "fm_batch": "fm.batch", "dot_inner": "fm.dot_inner",
-             "eta_posture": "posture.eta", "eta_posture_final": "posture.eta_final", "posture_sigma": "posture.sigma",
-             "posture_iterations": "posture.iterations", "quick_objects": "quick.objects",
-             "quick_fm_images": "quick.fm_images"}
-
 
 # ---------------------------------------------------------------------------------- vision
 def _vision():

@@ -1,11 +1,13 @@
-"""Parameter groups the models of Experiments 1-4 share, each a typed dataclass that an
+"""Parameter groups the models of Experiments 1-4 and 6 share, each a typed dataclass that an
 experiment's configuration nests under one key (``experiment.field``, ``experiment.som``,
-``experiment.fm``, ``experiment.posture``). A model reads only its own groups; the range checks
-are declared on the fields (:mod:`neuroimagery.bounds`) and run when the group is built, naming
-the key where it lives."""
+``experiment.fm``, ``experiment.posture``, ``experiment.selection``, ``experiment.lca``,
+``experiment.ppc``). A key that means the same in two experiments lives in the same group under
+the same name. A model reads only its own groups; the range checks are declared on the fields
+(:mod:`neuroimagery.bounds`) and run when the group is built, naming the key where it lives."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 from ..bounds import bounded, check_declared
 
@@ -100,13 +102,51 @@ class PostureMapParams:
         check_declared(self, "experiment.posture.")
 
 
-def moved_keys(groups: dict[str, tuple[str, type]]) -> dict[str, str]:
-    """``{old flat key: new dotted key}`` for groups ``{group: (old prefix, dataclass)}``: e.g.
-    ``field_tau`` -> ``field.tau``. Old names that do not follow the prefix are added by the caller."""
-    import dataclasses
+@dataclass
+class SelectionParams:
+    """How the next move is chosen and for how long (``experiment.selection``; Exp 3, 4 and 6): a
+    softmax over the move units (eq. 6.3 / 6.11), and the moves made before the answer is given
+    without a match."""
 
-    out = {}
-    for group, (prefix, cls) in groups.items():
-        for f in dataclasses.fields(cls):
-            out[f"{prefix}{f.name}"] = f"{group}.{f.name}"
-    return out
+    tau: float = bounded(0.1, gt=0)  # softmax temperature (thesis 0.1 in Exp 4)
+    max_steps: int = bounded(20, ge=1)  # rotation steps before the answer is given without a match (thesis 20 in Exp 4)
+
+    def __post_init__(self) -> None:
+        check_declared(self, "experiment.selection.")
+
+
+@dataclass
+class LcaParams:
+    """PMCd, the leaky competing accumulator that decides YES / NO (eq. 6.12-6.13;
+    ``experiment.lca``; Exp 4 and 6). ``k``, ``w``, ``threshold`` and ``dt`` lie within the bounds
+    the accumulator itself declares (``nn.LeakyCompetingAccumulator.BOUNDS``, one source)."""
+
+    k: float = 0.5  # leak (not given in the thesis)
+    w: float = 0.5  # mutual inhibition (C15, thesis 0.5)
+    threshold: float = 1.2  # decision threshold (thesis 1.2)
+    dt: float = 0.1  # Euler step per cycle (not given)
+    cycles: int = bounded(10, ge=1)  # accumulator cycles per rotation step (thesis 10)
+    # input scale: evidence = gain * the match; None = the experiment's rule (docs/choices.md)
+    input_gain: Optional[float] = bounded(None, gt=0)
+
+    KEYS = ("k", "w", "threshold", "dt")  # the accumulator's own arguments
+
+    def __post_init__(self) -> None:
+        from ..nn.decision import LeakyCompetingAccumulator
+        from ..nn.functional import check_bounds
+
+        check_bounds({k: LeakyCompetingAccumulator.BOUNDS[k] for k in self.KEYS},
+                     {k: getattr(self, k) for k in self.KEYS}, {k: f"experiment.lca.{k}" for k in self.KEYS})
+        check_declared(self, "experiment.lca.")
+
+
+@dataclass
+class PpcParams:
+    """PPCp / PPCt, the wrist-posture population (eq. 6.14; ``experiment.ppc``; Exp 4 and 6): the
+    bump around the posture read from an image, and the wrist signal added to PPCp."""
+
+    sigma: float = bounded(0.5, gt=0)  # width (units) of the Gaussian bump around the winner (not given)
+    proprio_gain: float = bounded(1.0, ge=0)  # strength of the wrist signal added to PPCp (scaled encoder signal; not given)
+
+    def __post_init__(self) -> None:
+        check_declared(self, "experiment.ppc.")

@@ -72,7 +72,7 @@ def grid_for_budget(budget_mb: float, step_deg: float, moves: int = len(MOVES) -
         if fm_bytes(g, step_deg, moves) <= budget_mb * 1e6:
             best = g
     if best is None:
-        raise ValueError(f"experiment.fm.memory_mb = {budget_mb} holds no grid of side >= 8")
+        raise ValueError(f"a forward-model budget of {budget_mb} MB per participant holds no grid of side >= 8")
     return best
 
 
@@ -102,9 +102,8 @@ def c20_weights(units: int, axes: int = len(AXES)) -> torch.Tensor:
 class Rotation3D(nn.Module):
     """The Experiment 6 network for ``P`` participants (``generators``: one per participant).
 
-    ``p``: the experiment config (groups ``image``, ``fm``, ``search``, ``lca``, ``confirm`` and the
-    top-level ``step_deg``, ``ppc_sigma``, ``softmax_tau``, ``max_steps``, ``proprio_gain``,
-    ``strategy``); ``cube_voxels``: voxels per cube edge (the unit of the mismatch cluster)."""
+    ``p``: the experiment config (groups ``image``, ``fm``, ``search``, ``ppc``, ``selection``,
+    ``lca``, ``confirm`` and the top-level ``step_deg``, ``strategy``); ``cube_voxels``: voxels per cube edge (the unit of the mismatch cluster)."""
 
     def __init__(self, p, side: int, generators: Sequence[torch.Generator], cube_voxels: float) -> None:
         super().__init__()
@@ -121,7 +120,7 @@ class Rotation3D(nn.Module):
         self.register_buffer("axes_init", torch.stack([torch.linalg.qr(torch.randn(3, 3, generator=g, dtype=torch.float64))[0]
                                                        for g in generators]))
         nu = int(round(360.0 / p.step_deg)) + 1  # units every step from -180 to 180 deg
-        self.ppc = PopulationMap("PPC", (nu,), -180.0, 180.0, sigma=p.ppc_sigma * 360.0 / (nu - 1))
+        self.ppc = PopulationMap("PPC", (nu,), -180.0, 180.0, sigma=p.ppc.sigma * 360.0 / (nu - 1))
         self.c20 = HardWired(c20_weights(nu), name="C20")
         self.pmcd = LeakyCompetingAccumulator(2, k=p.lca.k, w=p.lca.w, threshold=p.lca.threshold, dt=p.lca.dt)
         P = len(generators)
@@ -259,7 +258,7 @@ class Rotation3D(nn.Module):
         a = AXES.index(WRIST_AXIS)
         w = wrist if proprioception == "match" else -wrist
         bump = self.ppc.encode(w.float().clamp(-180.0, 180.0).unsqueeze(-1)).reshape(vec.shape[0], -1)
-        code[:, a] = (code[:, a] + self.p.proprio_gain * bump).clamp(0.0, 1.0)
+        code[:, a] = (code[:, a] + self.p.ppc.proprio_gain * bump).clamp(0.0, 1.0)
         return code
 
     def select(self, ppct: torch.Tensor, ppcp: torch.Tensor, uniforms: torch.Tensor) -> torch.Tensor:
@@ -267,7 +266,7 @@ class Rotation3D(nn.Module):
         R, A, nu = ppct.shape
         ppcc = torch.stack([gain_field(ppct[:, a], ppcp[:, a]) for a in range(A)], 1)
         am = self.c20(ppcc.reshape(R, A * nu * nu))
-        return softmax_select(am, self.p.softmax_tau, uniforms=uniforms)
+        return softmax_select(am, self.p.selection.tau, uniforms=uniforms)
 
     # ------------------------------------------------------------------ stage 4: confirm
     def mismatch(self, turned: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -325,7 +324,7 @@ class Rotation3D(nn.Module):
         hist: list[list[dict]] = [[] for _ in range(min(record, B))]
         img = poci.clone()
         step_rot = [None] + [(AXES.index(a), d) for a, d in self.moves[1:]]
-        for s in range(p.max_steps):
+        for s in range(p.selection.max_steps):
             draws = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(Q)
             q = live.nonzero().squeeze(-1)
             if q.numel() == 0:
@@ -354,7 +353,7 @@ class Rotation3D(nn.Module):
         """Trials ``(P, B, n)`` of images (coded, completed, centred). Randomness from ``generators``
         (one ``(B,)`` draw per step and one for a tie, in a fixed order, so a result does not depend
         on the batch). RT = accumulator cycles: ``lca.cycles`` for the search, as many per step,
-        then the cycles PMCd takes to decide (at most ``lca.cycles * max_steps``)."""
+        then the cycles PMCd takes to decide (at most ``lca.cycles * selection.max_steps``)."""
         p = self.p
         check_proprioception(proprioception)
         if torch.isnan(self.cut).any():
@@ -367,7 +366,7 @@ class Rotation3D(nn.Module):
         if p.strategy == "parity":  # the handedness of the matched axes decides: a reflection is NO evidence
             ev = torch.where(out["proper"].unsqueeze(-1), ev[:, :1].expand(-1, 2) * torch.tensor([1.0, 0.0]),
                              ev[:, :1].expand(-1, 2) * torch.tensor([0.0, 1.0]))
-        dec = self.pmcd(ev, p.lca.cycles * p.max_steps, state=self.pmcd.initial_state((P * B,)))
+        dec = self.pmcd(ev, p.lca.cycles * p.selection.max_steps, state=self.pmcd.initial_state((P * B,)))
         coin = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(P * B)
         answer = torch.where(dec.decided, dec.winner, (coin < 0.5).long())
         rt = p.lca.cycles * (1 + out["steps"]) + dec.cycles

@@ -34,7 +34,7 @@ from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participan
 from ..nn.functional import intra_op_threads
 from ..nn.row_cache import RowCache, distinct_rows
 from .factor_checkpoint import FactorCheckpoint, learnt_factors
-from ..bounds import bounded, check_declared
+from ..bounds import Rule, bounded, check_declared
 from .params import FieldParams, SomParams
 
 
@@ -57,10 +57,10 @@ class AffordanceParams:
     som: SomParams = dc_field(default_factory=SomParams)  # the PFC_2 map (not given for Exp. 1) and its cluster
     field: FieldParams = dc_field(default_factory=FieldParams)  # the PMC_1 and PMC_2 competitions
 
+    RULES = (Rule("step_deg", lambda c: 90 % c.step_deg == 0, "must divide 90"),)
+
     def __post_init__(self) -> None:
         check_declared(self, "experiment.", recursive=False)
-        if 90 % self.step_deg != 0:
-            raise ValueError(f"experiment.step_deg must divide 90, got {self.step_deg!r}")
 
 
 class AffordanceRotationModel(FactorCheckpoint, nn.Module):

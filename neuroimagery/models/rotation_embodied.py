@@ -16,7 +16,7 @@ Connections: C1-C3 forward models (AllToAll, delta rule eq. 6.4), C16/C17 superv
 (eq. 6.14-6.16), PMCm hard-wired (C20), the rest fixed relays.
 
 Conventions: angles are counter-clockwise positive (as the stimuli). PPC units are ordered by
-increasing angle (``ppc_angles``); with PPCc rows = PPCt and columns = PPCp the 15 units above
+increasing angle (``ppc.angles``); with PPCc rows = PPCt and columns = PPCp the 15 units above
 the diagonal (current angle larger than the target) drive Mr, a clockwise turn (-step), and the
 15 below drive Ml, a counter-clockwise turn (+step).
 """
@@ -34,7 +34,8 @@ from ..vision.reflection import principal_axis_flip, reflection_index
 from .recording import sample_indices
 from ..nn.decision import full_match_gain, smallest_deciding_gain
 from .posture_ch6 import fit_posture_soms, posture_maps, posture_order  # noqa: F401  (re-exported)
-from .rotation_embodied_params import EmbodiedParams, EmbodiedPostureParams  # noqa: F401  (re-exported)
+from .rotation_embodied_params import (EmbodiedLcaParams, EmbodiedParams, EmbodiedPostureParams,  # noqa: F401  (re-exported)
+                                       EmbodiedPpcParams)
 
 MOVES = ("Ml", "Ms", "Mr")
 
@@ -56,12 +57,12 @@ def check_proprioception(value: str) -> None:
 
 
 def lca_gain(p) -> float:
-    """The evidence scale of PMCd: ``p.lca_input_gain``, or when it is None the smallest gain with
+    """The evidence scale of PMCd: ``p.lca.input_gain``, or when it is None the smallest gain with
     which a full overlap (fraction 1), alone from rest, crosses the threshold within one step of
-    ``lca_cycles`` Euler cycles (docs/choices.md): ``threshold k / (1 - (1 - dt k)^cycles)``."""
-    if p.lca_input_gain is not None:
-        return float(p.lca_input_gain)
-    return full_match_gain(p.lca_threshold, p.lca_k, p.lca_dt, p.lca_cycles)
+    ``lca.cycles`` Euler cycles (docs/choices.md): ``threshold k / (1 - (1 - dt k)^cycles)``."""
+    if p.lca.input_gain is not None:
+        return float(p.lca.input_gain)
+    return full_match_gain(p.lca.threshold, p.lca.k, p.lca.dt, p.lca.cycles)
 
 
 def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int) -> tuple[torch.Tensor, torch.Tensor]:
@@ -91,12 +92,12 @@ class RotationEmbodied(nn.Module):
         self.fm = nn.ModuleList([
             AllToAll(n, n, init=(0.0, p.init_high), generators=generators, rules=Delta(p.fm.eta), name=f"C{k + 1}")
             for k in range(3)])
-        nu = len(p.ppc_angles)
+        nu = len(p.ppc.angles)
         self.c16, self.c17 = posture_maps(p.init_high, p.posture, n, nu, generators, ("C16", "C17"))
-        self.ppc = PopulationMap("PPC", (nu,), 0.0, float(nu - 1), sigma=p.ppc_sigma)
+        self.ppc = PopulationMap("PPC", (nu,), 0.0, float(nu - 1), sigma=p.ppc.sigma)
         self.c20 = HardWired(triangle_weights(nu), name="C20")
-        self.pmcd = LeakyCompetingAccumulator(2, k=p.lca_k, w=p.lca_w, threshold=p.lca_threshold, dt=p.lca_dt)
-        flips = torch.stack([reflection_index(p.map_size, 90.0 + a) for a in p.ppc_angles])
+        self.pmcd = LeakyCompetingAccumulator(2, k=p.lca.k, w=p.lca.w, threshold=p.lca.threshold, dt=p.lca.dt)
+        flips = torch.stack([reflection_index(p.map_size, 90.0 + a) for a in p.ppc.angles])
         self.register_buffer("flip_index", flips)  # (units, n) hard-wired C10 per target posture
         P = len(generators)
         # PMCd's input gain per participant (set by calibrate() after training) and the mean evidence of the
@@ -134,11 +135,11 @@ class RotationEmbodied(nn.Module):
 
     @torch.no_grad()
     def calibrate(self, maps: torch.Tensor) -> None:
-        """Fix PMCd's input gain (``input_gain``, per participant) by the rule of ``lca_gain_rule``
+        """Fix PMCd's input gain (``input_gain``, per participant) by the rule of ``lca.gain_rule``
         (docs/contracts.md, X4.9): pair every training map ``(N, n)`` with itself (target = rotated
         object, 0 deg), run the still step, take the mean PFCtm and PFCfm evidence (overlap per
         target unit) and find the smallest gain with which that mean decides YES within one step.
-        An explicit ``lca_input_gain`` or the ``full`` rule sets the same gain for everyone."""
+        An explicit ``lca.input_gain`` or the ``full`` rule sets the same gain for everyone."""
         p, P = self.p, self.participants
         self.freeze()
         x = maps.unsqueeze(0).expand(P, -1, -1)
@@ -146,10 +147,10 @@ class RotationEmbodied(nn.Module):
         t = x.sum(-1).clamp_min(1.0)
         ev = torch.stack([self.overlap(x, pocp) / t, self.overlap(self.flip_target(x), pocp) / t], -1).mean(1)
         self.identical_evidence.copy_(ev)
-        if p.lca_input_gain is not None or p.lca_gain_rule == "full":
+        if p.lca.input_gain is not None or p.lca.gain_rule == "full":
             self.input_gain.fill_(lca_gain(p))
         else:
-            self.input_gain.copy_(smallest_deciding_gain(self.pmcd, ev, p.lca_cycles))
+            self.input_gain.copy_(smallest_deciding_gain(self.pmcd, ev, p.lca.cycles))
         self._tables = None
 
     def overlap(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
@@ -187,19 +188,19 @@ class RotationEmbodied(nn.Module):
         ``a * (2u - 1)`` for ``uniforms`` u ``(R, units)`` in [0, 1), clipped to [0, 1], plus the wrist
         signal (on unit ``j`` for ``match``, on ``units-1-j`` for ``mismatch``).
 
-        ``proprio_stage='separate'``: the wrist signal is added after the clip, so on the congruent
+        ``ppc.proprio_stage='separate'``: the wrist signal is added after the clip, so on the congruent
         unit it lifts the activation above anything the noise can give another unit;
         ``'visual'``: it is added before noise and clip and saturates at 1 with the bump.
         """
-        p, nu = self.p, len(self.p.ppc_angles)
+        p, nu = self.p, len(self.p.ppc.angles)
         ppcp = self.ppc.encode(j.float())
         wrist = None
         if proprioception != "none":
-            wrist = p.proprio_gain * self.ppc.encode((j if proprioception == "match" else (nu - 1 - j)).float())
-        if wrist is not None and p.proprio_stage == "visual":
+            wrist = p.ppc.proprio_gain * self.ppc.encode((j if proprioception == "match" else (nu - 1 - j)).float())
+        if wrist is not None and p.ppc.proprio_stage == "visual":
             ppcp, wrist = ppcp + wrist, None  # one signal, noised and clipped together
         if uniforms is not None:
-            ppcp = ppcp + (2 * uniforms - 1) * p.noise_amplitude
+            ppcp = ppcp + (2 * uniforms - 1) * p.ppc.noise_amplitude
         ppcp = ppcp.clamp(0.0, 1.0)  # the image-derived posture signal lies in [0, 1]
         return ppcp if wrist is None else ppcp + wrist
 
@@ -260,7 +261,7 @@ class RotationEmbodied(nn.Module):
         ``proprioception``: ``none``, ``match`` (wrist signal on the PPCp unit of the mental
         rotation) or ``mismatch`` (on the opposite unit, ``units-1-j``). ``noise`` adds
         U[-a, a] per PPCp unit and step to the image-derived posture bump, clipped to [0, 1]; with
-        ``proprio_stage='separate'`` the wrist signal is added after that clip (the encoder is a
+        ``ppc.proprio_stage='separate'`` the wrist signal is added after that clip (the encoder is a
         second input that the noise of the image-to-posture mapping does not touch), with
         ``'visual'`` before it (both signals share the noise and the [0, 1] ceiling). Randomness (softmax selection, noise,
         time-out answers) comes from ``generators``, one per participant, drawn in a fixed order.
@@ -289,7 +290,7 @@ class RotationEmbodied(nn.Module):
         if self._tables is None:
             self.freeze()
         P, B, n = target.shape
-        C, nu, Q = len(conditions), len(p.ppc_angles), P * B
+        C, nu, Q = len(conditions), len(p.ppc.angles), P * B
         fm_table = torch.stack(self._tables, 1).reshape(P * 3, n, n)  # group = participant * 3 + move
         c16_table = self.c16.weight.transpose(1, 2).contiguous()  # (P, n, units)
         part = torch.arange(P).repeat_interleave(B)  # participant of each base row
@@ -338,7 +339,7 @@ class RotationEmbodied(nn.Module):
         still = torch.ones(Q, dtype=torch.long)
         pocp0, cover0, score0 = predict(part * 3 + 1, pack_bits(rotated.reshape(Q, n)))
         ev0, tm0, fm0 = evidence(torch.arange(Q), cover0)
-        dec = self.pmcd(ev0, p.lca_cycles, state=self.pmcd.initial_state((Q,)))
+        dec = self.pmcd(ev0, p.lca.cycles, state=self.pmcd.initial_state((Q,)))
         steps += 1
         rt += dec.cycles
         winner[:] = torch.where(dec.decided, dec.winner, winner[0])
@@ -352,7 +353,7 @@ class RotationEmbodied(nn.Module):
         cond = torch.arange(C).repeat_interleave(live_q.numel())
         q = live_q.repeat(C)
         poci, score, y = pocp0[q], score0[q], dec.state[q]
-        for s in range(p.max_steps - 1):
+        for s in range(p.selection.max_steps - 1):
             if q.numel() == 0:
                 break
             # next movement from the wrist postures (eq. 6.9-6.11), per condition
@@ -369,13 +370,13 @@ class RotationEmbodied(nn.Module):
                 ppcp = self.ppcp_code(jc, prop, torch.stack(draws_noise).reshape(Q, nu)[qc] if noisy else None)
                 ppcc = gain_field(ppct[qc], ppcp)  # rows PPCt, columns PPCp
                 am = self.c20(ppcc.reshape(-1, nu * nu))
-                move[sel] = softmax_select(am, p.softmax_tau, uniforms=draws_sel[qc])
+                move[sel] = softmax_select(am, p.selection.tau, uniforms=draws_sel[qc])
                 if rec:
                     self._note_ppc(histories[c], rec, qc, ppcp, ppcc)
             # forward model, overlap, accumulator on the live rows
             pocp, cover, score = predict(part[q] * 3 + move, poci)
             ev, tm, fm = evidence(q, cover)
-            dec = self.pmcd(ev, p.lca_cycles, state=y)
+            dec = self.pmcd(ev, p.lca.cycles, state=y)
             angle[cond, q] += step_deg[move]
             rotations[cond, q] += (move != 1).long()
             steps[cond, q] += 1

@@ -16,7 +16,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
               noise: bool = False) -> dict:
     """:meth:`RotationEmbodied.run` of ``model`` for ``target`` / ``rotated`` ``(P, B, n)``, plainly."""
     p, (P, B, _) = model.p, target.shape
-    nu = len(p.ppc_angles)
+    nu = len(p.ppc.angles)
     gain = model.input_gain  # PMCd's input gain per participant (fixed after training)
     fm = [c.weight for c in model.fm]  # C1-C3 (P, n, n): Ml, Ms, Mr
     ppct_unit = model.posture(model.c17, target)  # PPCt winner (eq. 6.14), (P, B)
@@ -34,11 +34,11 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
         return ((fm[m][pi] @ x) + 1.0 > 1.5).float()
 
     def decide(pi: int, b: int, pocp: torch.Tensor, y):
-        """PFCtm, PFCfm (the target units POCp covers), the evidence and ``lca_cycles`` cycles of PMCd (eq. 6.12-6.13)."""
+        """PFCtm, PFCfm (the target units POCp covers), the evidence and ``lca.cycles`` cycles of PMCd (eq. 6.12-6.13)."""
         t, f = target[pi, b], flipped[pi, b]
         tm, fmm = model.overlap(t, pocp), model.overlap(f, pocp)  # POCp read as a population code
         ev = gain[pi] * torch.stack([tm, fmm]) / t.sum().clamp_min(1.0)
-        return model.pmcd(ev.unsqueeze(0), p.lca_cycles, state=y)
+        return model.pmcd(ev.unsqueeze(0), p.lca.cycles, state=y)
 
     for pi in range(P):  # step 1: the "still" forward model, from rest
         for b in range(B):
@@ -49,7 +49,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
                 out["answer"][pi, b], out["decided"][pi, b] = int(d.winner[0]), True
             else:
                 trials.append([pi, b, pocp, d.state, model.c16.weight[pi] @ pocp])
-    for _ in range(p.max_steps - 1):
+    for _ in range(p.selection.max_steps - 1):
         if not trials:
             break
         draws = []  # every participant draws (B,) per step, decided trials or not, as the fused form
@@ -66,7 +66,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
             ppct = model.ppc.encode(ppct_unit[pi, b:b + 1].float())
             ppcc = gain_field(ppct, ppcp)  # PPCc (eq. 6.9): rows PPCt, columns PPCp
             am = model.c20(ppcc.reshape(1, nu * nu))  # PMCm input (eq. 6.10)
-            move = int(softmax_select(am, p.softmax_tau, uniforms=u_sel[b:b + 1])[0])  # eq. 6.11
+            move = int(softmax_select(am, p.selection.tau, uniforms=u_sel[b:b + 1])[0])  # eq. 6.11
             pocp = predict(move, pi, poci)
             d = decide(pi, b, pocp, y)
             out["rotation_deg"][pi, b] += model.step_angles[move]

@@ -28,7 +28,8 @@ from torch import nn
 from ..nn import AllToAll, Delta, SOM, population_cover
 from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul
-from .params import ForwardModelParams, PostureMapParams
+from ..bounds import Rule, bounded, check_declared
+from .params import ForwardModelParams, PostureMapParams, SelectionParams
 from .recording import sample_indices
 from .rotation_embodied import fit_posture_soms, posture_maps, triangle_weights
 
@@ -39,37 +40,36 @@ MOVES = ("n1", "n2", "n3")
 class GeneralisingForwardModel(ForwardModelParams):
     """C6 (``experiment.fm``) and the threshold of its output."""
 
-    threshold: float = 0.5  # a PP_2 unit is on when its C6 input exceeds this (not given)
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if not self.threshold > 0:
-            raise ValueError(f"experiment.fm.threshold must be > 0, got {self.threshold!r}")
+    threshold: float = bounded(0.5, gt=0)  # a PP_2 unit is on when its C6 input exceeds this (not given)
 
 
 @dataclass
 class GeneralisingPostureParams(PostureMapParams):
     """C2/C3 (``experiment.posture``): their units' wrist postures and the graded code of eq. 6.5-6.6."""
 
-    iterations: int = 960  # supervised Kohonen steps (40 passes over 24 set-a images; not given)
+    iterations: int = bounded(960, ge=1)  # supervised Kohonen steps (40 passes over 24 set-a images; not given)
     angles: List[float] = dc_field(default_factory=lambda: [45.0, 0.0, -45.0, -90.0])  # SS / PMC_1 units, decreasing
-    code_sigma: float = 0.15  # width of the Gaussian of eq. 6.5-6.6 on squared-distance differences (not given)
+    code_sigma: float = bounded(0.15, gt=0)  # width of the Gaussian of eq. 6.5-6.6 on squared-distance differences (not given)
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if not self.code_sigma > 0:
-            raise ValueError(f"experiment.posture.code_sigma must be > 0, got {self.code_sigma!r}")
-        if len(self.angles) < 2 or list(self.angles) != sorted(self.angles, reverse=True):
-            raise ValueError(f"experiment.posture.angles must be >= 2 decreasing angles, got {list(self.angles)}")
+    RULES = (Rule("angles", lambda c: len(c.angles) >= 2 and list(c.angles) == sorted(c.angles, reverse=True),
+                  "must be >= 2 decreasing angles"),)
+
+
+@dataclass
+class GeneralisingSelectionParams(SelectionParams):
+    """M1_2's softmax (eq. 6.3) and the rotations before answering NO (``experiment.selection``)."""
+
+    tau: float = bounded(0.3, gt=0)  # M1_2 softmax temperature (thesis 0.3)
+    max_steps: int = bounded(15, ge=1)  # rotation steps before answering NO (thesis 15)
 
 
 @dataclass
 class GeneralisingParams:
     """The parameters of :class:`RotationGeneralising` (``experiment.*`` of Experiment 3)."""
 
-    map_size: int = 32  # side of V1, PP_1 (x3), PP_2, PFC_1, PFC_2 (thesis 32x32)
-    step_deg: float = 45.0  # rotation of one forward-model step (n1 -45, n3 +45)
-    init_high: float = 0.01  # initial weights U[0, init_high] (small random; not given)
+    map_size: int = bounded(32, ge=1)  # side of V1, PP_1 (x3), PP_2, PFC_1, PFC_2 (thesis 32x32)
+    step_deg: float = bounded(45.0, gt=0)  # rotation of one forward-model step (n1 -45, n3 +45)
+    init_high: float = bounded(0.01, gt=0)  # initial weights U[0, init_high] (small random; not given)
     fm: GeneralisingForwardModel = dc_field(default_factory=GeneralisingForwardModel)  # C6 (delta rule, eq. 6.4)
     # C2/C3 (supervised Kohonen, eq. 6.7-6.8), their SS / PMC_1 units' postures and graded code (eq. 6.5-6.6)
     posture: GeneralisingPostureParams = dc_field(default_factory=GeneralisingPostureParams)
@@ -77,41 +77,31 @@ class GeneralisingParams:
     # [0, 2]; activity wholly in one M1_1 cell sits at least 0.82 (squared) nearer its own triangle's weights
     # than the others'. sigma^2 = 0.82 / 4 puts the other units two "standard" widths down (exp(-2) ~ 0.13),
     # i.e. a clear posture difference gives a clear move and the softmax (tau 0.3) picks it ~90 % of the time.
-    m1_sigma: float = 0.45
+    m1_sigma: float = bounded(0.45, gt=0)
     # how eq. 6.2 compares M1_1 with the weights of n1, n2, n3. 'centre' (default; contract X3.6): by where the
     # M1_1 activity is centred across the diagonal (mean SS unit - PMC_1 unit, in posture units), so that two
     # flat posture codes, like two coinciding ones, put it on the diagonal and select n2 (thesis 6.1.3: objects
     # with no clear orientation stop the rotation early). 'pattern' (the literal reading of eq. 6.2): the whole
     # 16-unit pattern as a direction (width m1_sigma), where flat codes favour the 6-unit triangles.
-    m1_readout: str = "centre"
+    m1_readout: str = bounded("centre", choices=("centre", "pattern"))
     # width of the Gaussian of the 'centre' readout, in posture units (not given): half the spacing of the
     # posture units, so that a centre one unit off the diagonal selects a turn (n2 falls to ~0.3, the softmax
     # picks the turn ~87 % of the time) and a centre on the diagonal selects n2 (the turns fall to ~0.004)
-    m1_centre_sigma: float = 0.5
+    m1_centre_sigma: float = bounded(0.5, gt=0)
     # how far a PP_2 unit reaches when C8 subtracts it from PFC_2: 1 (default) = PP_2 read as a population code
     # whose units respond over their 3x3 neighbourhood (contract X3.8: an exact rotation of a same image leaves
     # <= 5 % of the target uncovered); 0 = the literal one-to-one reading, under which a resampled 45-deg
     # rotation of a 1-2-unit edge leaves about a quarter of the target uncovered.
-    match_tolerance: int = 1
-    softmax_tau: float = 0.3  # M1_2 softmax temperature (thesis 0.3)
-    match_threshold: float = 0.05  # NO when PMC_2 > this fraction of PFC_1's active units (thesis 5 %)
-    max_steps: int = 15  # rotation steps before answering NO (thesis 15)
+    match_tolerance: int = bounded(1, ge=0)
+    match_threshold: float = bounded(0.05, ge=0, le=1)  # NO when PMC_2 > this fraction of PFC_1's active units (thesis 5 %)
+    # M1_2's softmax temperature (thesis 0.3) and the rotation steps before answering NO (thesis 15)
+    selection: GeneralisingSelectionParams = dc_field(default_factory=GeneralisingSelectionParams)
+
+    RULES = (Rule("fm.dot_inner", lambda c: c.fm.dot_inner <= c.map_size - 2, "must lie in [1, map_size - 2]",
+                  show=False),)
 
     def __post_init__(self) -> None:
-        for k in ("step_deg", "init_high", "m1_sigma", "m1_centre_sigma", "softmax_tau"):
-            if not getattr(self, k) > 0:
-                raise ValueError(f"experiment.{k} must be > 0, got {getattr(self, k)!r}")
-        for k in ("map_size", "max_steps"):
-            if int(getattr(self, k)) < 1:
-                raise ValueError(f"experiment.{k} must be >= 1, got {getattr(self, k)!r}")
-        if self.m1_readout not in ("centre", "pattern"):
-            raise ValueError(f"experiment.m1_readout must be 'centre' or 'pattern', got {self.m1_readout!r}")
-        if int(self.match_tolerance) < 0:
-            raise ValueError(f"experiment.match_tolerance must be >= 0, got {self.match_tolerance!r}")
-        if not (0.0 <= self.match_threshold <= 1.0):
-            raise ValueError(f"experiment.match_threshold must lie in [0, 1], got {self.match_threshold!r}")
-        if not (1 <= self.fm.dot_inner <= self.map_size - 2):
-            raise ValueError(f"experiment.fm.dot_inner must lie in [1, map_size - 2], got {self.fm.dot_inner}")
+        check_declared(self, "experiment.", recursive=False)
 
 
 def posture_code_distances(som: SOM, x: torch.Tensor) -> torch.Tensor:
@@ -259,15 +249,15 @@ class RotationGeneralising(nn.Module):
         step_deg = torch.tensor(self.step_angles)
         shown = sample_indices(record, B)
         history: list[list[dict]] = [[] for _ in shown]
-        for s in range(p.max_steps + 1):
+        for s in range(p.selection.max_steps + 1):
             act = ~done
             if not bool(act.any()):
                 break
             ss = self.posture(self.c2, pp2)
             m11 = gain_field(pmc1, ss).reshape(P, B, nu * nu)  # eq. 6.1
             m12 = self.m1_2(m11)  # eq. 6.2
-            move = softmax_select(m12, p.softmax_tau, generators)  # eq. 6.3
-            stop = act & ((move == 1) | (rotations >= p.max_steps))
+            move = softmax_select(m12, p.selection.tau, generators)  # eq. 6.3
+            stop = act & ((move == 1) | (rotations >= p.selection.max_steps))
             go = act & ~stop
             new = self.forward_step(pp2, move, go)
             for j, k in enumerate(shown):
@@ -282,6 +272,6 @@ class RotationGeneralising(nn.Module):
             done = done | stop
         pfc2 = self.uncovered(pfc1, pp2)  # C7 (+1), C8 (-1), rectified
         pmc2 = pfc2.sum(-1)  # C9
-        no = (pmc2 > p.match_threshold * pfc1.sum(-1)) | (rotations >= p.max_steps)
+        no = (pmc2 > p.match_threshold * pfc1.sum(-1)) | (rotations >= p.selection.max_steps)
         return {"answer": no.long(), "rt": rotations.float(), "rotation_steps": rotations, "rotations": rotations,
-                "rotation_deg": angle, "decided": rotations < p.max_steps, "history": history}
+                "rotation_deg": angle, "decided": rotations < p.selection.max_steps, "history": history}

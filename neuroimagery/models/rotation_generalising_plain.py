@@ -31,7 +31,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators) ->
     w6 = model.c6.weight  # (P, n, 3n)
     pp2 = [[rotated[pi, b].clone() for b in range(B)] for pi in range(P)]  # PP_2 starts with the seen image
     done = [[False] * B for _ in range(P)]
-    for _ in range(p.max_steps + 1):
+    for _ in range(p.selection.max_steps + 1):
         if all(all(d) for d in done):
             break
         for pi, g in enumerate(generators):
@@ -44,8 +44,8 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators) ->
                 ss = posture_code(model, model.c2, pi, x)  # SS
                 m11 = gain_field(pmc1, ss).reshape(1, 1, nu * nu)  # M1_1 (eq. 6.1)
                 m12 = model.m1_2(m11)  # M1_2 (eq. 6.2)
-                move = int(softmax_select(m12[0], p.softmax_tau, uniforms=u[b:b + 1])[0])  # eq. 6.3
-                if move == 1 or int(out["rotation_steps"][pi, b]) >= p.max_steps:
+                move = int(softmax_select(m12[0], p.selection.tau, uniforms=u[b:b + 1])[0])  # eq. 6.3
+                if move == 1 or int(out["rotation_steps"][pi, b]) >= p.selection.max_steps:
                     done[pi][b] = True
                     continue
                 pp1 = torch.zeros(3 * n)
@@ -56,6 +56,6 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators) ->
     for pi in range(P):
         for b in range(B):
             pfc2 = model.uncovered(target[pi, b], pp2[pi][b])  # C7 (+1), C8 (-1), rectified
-            no = bool(pfc2.sum() > p.match_threshold * target[pi, b].sum()) or int(out["rotation_steps"][pi, b]) >= p.max_steps
+            no = bool(pfc2.sum() > p.match_threshold * target[pi, b].sum()) or int(out["rotation_steps"][pi, b]) >= p.selection.max_steps
             out["answer"][pi, b] = int(no)
     return out

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional
 
-from ..bounds import bounded, check_declared
+from ..bounds import Rule, bounded, check_declared
 
 
 @dataclass
@@ -48,7 +48,8 @@ class StimuliConfig:
     kind: str = bounded("builtin", choices=("builtin", "folder"))
     path: Optional[str] = None  # folder of PNG/JPEG images, with kind=folder
 
+    RULES = (Rule("path", lambda s: s.kind != "folder" or bool(s.path), "must name a folder when stimuli=folder",
+                  show=False),)
+
     def __post_init__(self) -> None:
         check_declared(self, "stimuli.")
-        if self.kind == "folder" and not self.path:
-            raise ValueError("stimuli.path must name a folder when stimuli=folder")

@@ -19,7 +19,7 @@ def _move_probs(t, target, rotated):
     ss = m.posture(m.c2, rotated.unsqueeze(0).expand(P, -1, -1))
     nu = ss.shape[-1]
     m11 = gain_field(pmc1, ss).reshape(P, -1, nu * nu)
-    return softmax_probabilities(m.m1_2(m11), t.e.softmax_tau)
+    return softmax_probabilities(m.m1_2(m11), t.e.selection.tau)
 
 
 def test_x3_1_supervised_step_moves_at_the_stated_rate():
@@ -68,6 +68,6 @@ def test_x3_6_flat_codes_select_no_rotation(trained3):
     nu = len(trained3.e.posture.angles)
     for level in (0.2, 0.4, 0.6, 0.8, 1.0):
         flat = torch.full((1, 1, nu), level)
-        pr = softmax_probabilities(m.m1_2(gain_field(flat, flat).reshape(1, 1, nu * nu)), trained3.e.softmax_tau)[0, 0]
+        pr = softmax_probabilities(m.m1_2(gain_field(flat, flat).reshape(1, 1, nu * nu)), trained3.e.selection.tau)[0, 0]
         print(f"X3.6 level {level}: P(n1, n2, n3) = {[round(float(v), 3) for v in pr]}")
         assert int(pr.argmax()) == 1 and pr[1] >= 0.5

@@ -56,8 +56,8 @@ def test_x4_9_mean_identical_overlap_decides_within_oneforward_fn(trained4):
     ev = m.identical_evidence  # (P, 2) mean PFCtm / PFCfm fractions of identical 0-deg set-A pairs
     gain = m.input_gain.unsqueeze(-1)
     print(f"X4.9 identical-pair evidence {ev.tolist()}, gain {m.input_gain.tolist()}")
-    full = m.pmcd(gain * ev, e.lca_cycles, state=m.pmcd.initial_state(ev.shape[:1]))
-    half = m.pmcd(gain * ev / 2, e.lca_cycles, state=m.pmcd.initial_state(ev.shape[:1]))
+    full = m.pmcd(gain * ev, e.lca.cycles, state=m.pmcd.initial_state(ev.shape[:1]))
+    half = m.pmcd(gain * ev / 2, e.lca.cycles, state=m.pmcd.initial_state(ev.shape[:1]))
     assert bool(full.decided.all()) and bool((full.winner == 0).all())
     assert not bool(half.decided.any())
 

@@ -15,7 +15,7 @@ def test_x4_1_supervised_step_moves_at_the_stated_rate():
 
 def test_x4_2_posture_maps_read_the_trained_posture(trained4):
     m, bank = trained4.model, trained4.bank(trained4.e.train_set)
-    labels = bank.angle_labels(trained4.e.ppc_angles)
+    labels = bank.angle_labels(trained4.e.ppc.angles)
     x = bank.maps.unsqueeze(0).expand(m.participants, -1, -1)
     for som in (m.c16, m.c17):
         acc = (m.posture(som, x) == labels).float().mean(-1)
@@ -40,14 +40,14 @@ def test_x4_3_hard_shapes_give_flatter_potentials(trained4):
 
 
 def _probs(m, tau, ppct_unit, ppcp_unit):
-    nu = len(m.p.ppc_angles)
+    nu = len(m.p.ppc.angles)
     pt, pp = m.ppc.encode(ppct_unit.float()), m.ppc.encode(ppcp_unit.float())
     return softmax_probabilities(m.c20(gain_field(pt, pp).reshape(-1, nu * nu)), tau)
 
 
 def test_x4_4_gain_field_stays_at_a_match_and_turns_toward_the_target(trained4):
-    m, tau = trained4.model, trained4.e.softmax_tau
-    nu = len(trained4.e.ppc_angles)
+    m, tau = trained4.model, trained4.e.selection.tau
+    nu = len(trained4.e.ppc.angles)
     units = torch.arange(nu)
     p_same = _probs(m, tau, units, units)[:, 1]
     t, c = torch.meshgrid(units, units, indexing="ij")
@@ -70,7 +70,7 @@ def test_x4_5_first_move_turns_toward_the_target(trained4):
     P = m.participants
     target = bank.maps[tg].unsqueeze(0).expand(P, -1, -1)
     pocp = m.forward_step(bank.maps[rt].unsqueeze(0).expand(P, -1, -1), torch.ones(P, len(rt), dtype=torch.long))
-    pr = _probs(m, e.softmax_tau, m.posture(m.c17, target).reshape(-1), m.posture(m.c16, pocp).reshape(-1))
+    pr = _probs(m, e.selection.tau, m.posture(m.c17, target).reshape(-1), m.posture(m.c16, pocp).reshape(-1))
     u = torch.tensor(up).repeat(P)
     toward = torch.where(u, pr[:, 0], pr[:, 2])
     share = float(toward.mean())
@@ -80,7 +80,7 @@ def test_x4_5_first_move_turns_toward_the_target(trained4):
 
 def test_x4_11_wrist_signal_in_ppcp(trained4):
     m = trained4.model
-    nu = len(trained4.e.ppc_angles)
+    nu = len(trained4.e.ppc.angles)
     j = torch.arange(nu)
     match = m.ppcp_code(j, "match")
     mis = m.ppcp_code(j, "mismatch")

@@ -38,10 +38,10 @@ from __future__ import annotations
 from ...robot.environment import ToolWorldEnvironment
 from .acquisition import AcquisitionParams, Library, acquire_skills, build_brain
 from .brain import BrainParams, GatedHebbian, ToolUseBrain
-from .common import CHOICES, EVENTS, N_POSTURES, SKILL_LETTERS, Environment, Result, State, check_choice, check_params
+from .common import CHOICES, EVENTS, N_POSTURES, SKILL_LETTERS, Environment, Result, State, check_choice
 from .sequencing import SequencingParams, TrialRecord, run_trial, sequence_trial
 from .skills import Outcomes, Skill
 
-__all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "CHOICES", "check_choice", "check_params", "State", "Result", "Environment",
+__all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "CHOICES", "check_choice", "State", "Result", "Environment",
            "ToolUseBrain", "BrainParams", "GatedHebbian", "AcquisitionParams", "SequencingParams", "run_trial", "Skill", "Library", "acquire_skills", "build_brain",
            "Outcomes", "TrialRecord", "sequence_trial", "ToolWorldEnvironment"]

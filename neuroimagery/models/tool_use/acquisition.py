@@ -14,7 +14,8 @@ import torch
 
 from ...motor.pibb import PIBB, event_costs
 from .brain import ToolUseBrain
-from .common import EVENTS, N_POSTURES, Environment, Result, State, check_params
+from ...bounds import bounded, check_declared
+from .common import CHOICES, EVENTS, N_POSTURES, Environment, Result, State
 from .skills import Outcomes, Skill
 
 
@@ -24,44 +25,33 @@ class AcquisitionParams:
     exploration noise the world draws (its DMP goals and weights) is the world's
     (``experiment.world``)."""
 
-    n_dmps: int = 10  # M1 / PMC units, the free DMPs (thesis: 10)
-    pibb_samples: int = 10  # K samples per posture and update (thesis: 10)
-    pibb_temperature: float = 0.1  # tau of eq. 7.7 on the 0/1 costs (not given)
-    pibb_decay: float = 0.9  # exploration covariance factor per PI^BB update (not given)
+    n_dmps: int = bounded(10, ge=len(EVENTS), why="one primitive per event")  # M1 / PMC units, the free DMPs (thesis: 10)
+    pibb_samples: int = bounded(10, ge=2)  # K samples per posture and update (thesis: 10)
+    pibb_temperature: float = bounded(0.1, gt=0)  # tau of eq. 7.7 on the 0/1 costs (not given)
+    pibb_decay: float = bounded(0.9, gt=0, le=1)  # exploration covariance factor per PI^BB update (not given)
     # a PI^BB update whose K samples all cost the same (none or all achieved the event from that
     # posture): 'average' = the plain mean of the samples, eq. 7.8 with uniform weights (a random
     # step) | 'keep' = no information, mean and covariance unchanged. See docs/exp5.md.
-    pibb_flat: str = "average"
-    max_epochs: int = 10  # PI^BB epochs at most (thesis: 10)
-    competence_tolerance: float = 0.05  # stop when the competence changes by less (thesis: 0.05)
-    c1_repeats: int = 10  # C1 updates per PI^BB update (thesis: 10)
-    c2_repeats: int = 10  # C2 updates per successful competence check (thesis: 10)
-    c3_repeats: int = 50  # C3 updates per successful competence check (thesis: 50)
-    hip_threshold: float = 0.5  # a distal goal (C2 -> HIP) this active makes an event "not new"
-    explore_batch: int = 8  # exploration movements rolled out per batch (the first new event wins)
-    explore_max_rollouts: int = 400  # give up looking for further events after this many movements
+    pibb_flat: str = bounded("average", choices=CHOICES["pibb_flat"])
+    max_epochs: int = bounded(10, ge=1)  # PI^BB epochs at most (thesis: 10)
+    competence_tolerance: float = bounded(0.05, ge=0, le=1)  # stop when the competence changes by less (thesis: 0.05)
+    c1_repeats: int = bounded(10, ge=0)  # C1 updates per PI^BB update (thesis: 10)
+    c2_repeats: int = bounded(10, ge=0)  # C2 updates per successful competence check (thesis: 10)
+    c3_repeats: int = bounded(50, ge=0)  # C3 updates per successful competence check (thesis: 50)
+    hip_threshold: float = bounded(0.5, ge=0, le=1)  # a distal goal (C2 -> HIP) this active makes an event "not new"
+    explore_batch: int = bounded(8, ge=1)  # exploration movements rolled out per batch (the first new event wins)
+    explore_max_rollouts: int = bounded(400, ge=1)  # give up looking for further events after this many movements
     # rollouts of one DMP without a new event before it is given back with fresh random
     # parameters (one PI^BB epoch's worth: 4 postures x 10 samples; docs/exp5.md)
-    explore_patience: int = 40
+    explore_patience: int = bounded(40, ge=1)
     # the DMPs left free once every enabled event has its skill: 'none' = unused | 'unmastered' =
     # exploration goes on, and an enabled event firing from a situation whose distal goal (HIP) is
     # not active there is learnt again by a free DMP (thesis: the extra DMPs serve events one DMP
     # cannot achieve from every initial posture)
-    spare_dmps: str = "none"
+    spare_dmps: str = bounded("none", choices=CHOICES["spare_dmps"])
 
     def __post_init__(self) -> None:
-        check_params("acquisition", self, positive=("pibb_temperature",),
-                     at_least_one=("n_dmps", "pibb_samples", "max_epochs", "explore_batch", "explore_max_rollouts",
-                                   "explore_patience"),
-                     non_negative=("c1_repeats", "c2_repeats", "c3_repeats"),
-                     unit=("competence_tolerance", "hip_threshold"), choices=("spare_dmps", "pibb_flat"))
-        if self.pibb_samples < 2:
-            raise ValueError(f"experiment.acquisition.pibb_samples must be >= 2, got {self.pibb_samples!r}")
-        if self.n_dmps < len(EVENTS):
-            raise ValueError(f"experiment.acquisition.n_dmps must be >= {len(EVENTS)} (one primitive per event), "
-                             f"got {self.n_dmps!r}")
-        if not 0 < self.pibb_decay <= 1:
-            raise ValueError(f"experiment.acquisition.pibb_decay must be in (0, 1], got {self.pibb_decay!r}")
+        check_declared(self, "experiment.acquisition.")
 
 
 @dataclass

@@ -9,39 +9,34 @@ from torch import nn
 from ...nn.connections import AllToAll
 from ...nn.rules import GatedHebbian, QLearning
 from ...nn.som import BidirectionalSOM
-from .common import EVENTS, N_POSTURES, check_choice, check_params
+from ...bounds import bounded, check_declared
+from .common import CHOICES, EVENTS, N_POSTURES, check_choice
 
 
 @dataclass
 class BrainParams:
     """The learning rates and read-outs of C1-C4 (``experiment.brain`` of Exp 5)."""
 
-    c1_eta: float = 0.1  # C1 Hebbian rate (not given)
-    c2_eta: float = 0.1  # C2 Hebbian rate (not given)
-    c3_eta: float = 0.1  # C3 SOM rate (not given); 50 steps make the prototype the last outcome
-    c3_sigma: float = 0.1  # C3 neighbourhood width in units; small: each pair keeps its own unit
-    c3_action_gain: float = 100.0  # weight of the primitive's code against the image in C3's match ('joint')
+    c1_eta: float = bounded(0.1, gt=0, le=1)  # C1 Hebbian rate (not given)
+    c2_eta: float = bounded(0.1, gt=0, le=1)  # C2 Hebbian rate (not given)
+    c3_eta: float = bounded(0.1, gt=0, le=1)  # C3 SOM rate (not given); 50 steps make the prototype the last outcome
+    c3_sigma: float = bounded(0.1, gt=0)  # C3 neighbourhood width in units; small: each pair keeps its own unit
+    c3_action_gain: float = bounded(100.0, gt=0)  # weight of the primitive's code against the image in C3's match ('joint')
     # how C3 finds the unit that imagines "primitive a in this image": 'practised' = recognise the
     # nearest of the initial situations practised in (Fig. 7.5 B), then that situation's unit for a
     # (never trained: no change imagined) | 'situation' = the same among the situations stored in C3
     # only | 'joint' = nearest [image, gain * code] (any situation where a once succeeded answers)
-    c3_recall: str = "practised"
+    c3_recall: str = bounded("practised", choices=CHOICES["c3_recall"])
     # what C3 (the mental images) holds: 'success' = a primitive's outcome from an initial situation
     # only where it achieved its event (Fig. 7.5) | 'every' = also its outcome from the other initial
     # situations (the learnt movement performed there; applied by ``build_brain``). docs/exp5.md.
-    c3_outcomes: str = "success"
-    q_form: str = "standard"  # eq. 7.1 sign: 'standard' r + gamma maxQ (default) | 'printed' r - gamma maxQ
-    eta: float = 1e-4  # C4 Q-learning rate (thesis: 0.0001) on the 2 x 240 x 320 binary PC map
-    gamma: float = 0.8  # discount (thesis: 0.8)
+    c3_outcomes: str = bounded("success", choices=CHOICES["c3_outcomes"])
+    q_form: str = bounded("standard", choices=("standard", "printed"))  # eq. 7.1 sign: 'standard' r + gamma maxQ (default) | 'printed' r - gamma maxQ
+    eta: float = bounded(1e-4, gt=0, le=1)  # C4 Q-learning rate (thesis: 0.0001) on the 2 x 240 x 320 binary PC map
+    gamma: float = bounded(0.8, ge=0, le=1)  # discount (thesis: 0.8)
 
     def __post_init__(self) -> None:
-        check_params("brain", self, positive=("c3_sigma", "c3_action_gain"), unit=("gamma",),
-                     choices=("c3_recall", "c3_outcomes"))
-        for k in ("eta", "c1_eta", "c2_eta", "c3_eta"):
-            if not 0 < getattr(self, k) <= 1:
-                raise ValueError(f"experiment.brain.{k} must be in (0, 1], got {getattr(self, k)!r}")
-        if self.q_form not in ("standard", "printed"):
-            raise ValueError(f"experiment.brain.q_form must be 'standard' or 'printed', got {self.q_form!r}")
+        check_declared(self, "experiment.brain.")
 
 
 class ToolUseBrain(nn.Module):

@@ -23,30 +23,6 @@ def check_choice(key: str, value) -> None:
     _check(key, value, CHOICES)
 
 
-def check_params(group: str, obj, positive=(), at_least_one=(), non_negative=(), unit=(), choices=()) -> None:
-    """Range checks of a parameter group, each refusal naming the key where it lives
-    (``experiment.<group>.<key>``): ``positive`` > 0, ``at_least_one`` >= 1, ``non_negative`` >= 0,
-    ``unit`` in [0, 1], ``choices`` one of :data:`CHOICES`."""
-    def bad(key, why):
-        raise ValueError(f"experiment.{group}.{key} {why}, got {getattr(obj, key)!r}")
-
-    for k in positive:
-        if not getattr(obj, k) > 0:
-            bad(k, "must be > 0")
-    for k in at_least_one:
-        if int(getattr(obj, k)) < 1:
-            bad(k, "must be >= 1")
-    for k in non_negative:
-        if int(getattr(obj, k)) < 0:
-            bad(k, "must be >= 0")
-    for k in unit:
-        if not 0 <= getattr(obj, k) <= 1:
-            bad(k, "must be in [0, 1]")
-    for k in choices:
-        if getattr(obj, k) not in CHOICES[k]:
-            bad(k, f"must be one of {', '.join(map(repr, CHOICES[k]))}")
-
-
 class Environment(Protocol):
     """What the brain needs from a world (the pybullet robot or a stand-in).
 
@@ -78,4 +54,4 @@ class Environment(Protocol):
         """The toy-related reward read from a PC image: 1 if the toy lies in reach, else 0."""
 
 
-__all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "CHOICES", "check_choice", "check_params", "State", "Result", "Environment"]
+__all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "CHOICES", "check_choice", "State", "Result", "Environment"]

@@ -10,7 +10,8 @@ import torch
 
 from ...nn.functional import softmax_select
 from .brain import ToolUseBrain
-from .common import check_choice, check_params
+from ...bounds import bounded, check_declared
+from .common import CHOICES, check_choice
 from .skills import Outcomes, Skill
 
 
@@ -18,23 +19,20 @@ from .skills import Outcomes, Skill
 class SequencingParams:
     """Parameters of action sequencing, Fig. 7.6 (``experiment.sequencing`` of Exp 5)."""
 
-    attempts: int = 5  # primitives per trial (thesis: 5)
-    temperature: float = 0.1  # softmax temperature of action selection in training trials (not given)
-    test_temperature: float = 0.1  # softmax temperature in the test trial (not given)
+    attempts: int = bounded(5, ge=1)  # primitives per trial (thesis: 5)
+    temperature: float = bounded(0.1, gt=0)  # softmax temperature of action selection in training trials (not given)
+    test_temperature: float = bounded(0.1, gt=0)  # softmax temperature in the test trial (not given)
     # how a planning child is tested (Fig. 7.6 does not say): 'act' = each attempt chooses from the
     # real scene with the C4 learnt in mind, imagines, performs and looks again | 'plan' = the whole
     # plan is made in mind from the initial image, then performed. See docs/exp5.md.
-    planning_test: str = "act"
+    planning_test: str = bounded("act", choices=CHOICES["planning_test"])
     # Fig. 7.6 "select one active neuron of PMC": a unit is active when its PMC activity (C1 + C4)
     # is above this; 0 = above the maps' resting level (the default, docs/exp5.md). A child with
     # no active unit does not move.
-    active_threshold: float = 0.0
+    active_threshold: float = bounded(0.0, ge=0, lt=1)
 
     def __post_init__(self) -> None:
-        check_params("sequencing", self, positive=("temperature", "test_temperature"), at_least_one=("attempts",),
-                     choices=("planning_test",))
-        if not 0 <= self.active_threshold < 1:
-            raise ValueError(f"experiment.sequencing.active_threshold must be in [0, 1), got {self.active_threshold!r}")
+        check_declared(self, "experiment.sequencing.")
 
 
 @dataclass
