@@ -51,7 +51,7 @@ class SomParams:
     sigma: float = bounded(8.0, gt=0)  # initial neighbourhood radius (grid units)
     sigma_final: float = bounded(0.5, gt=0)  # final radius
     cutoff: float = bounded(1e-6, ge=0, lt=1)  # the Gaussian neighbourhood is cut to 0 below this fraction of the winner's update
-    # implementation of the online rule (nn.som_trainers): 'windowed' (per-participant window), 'factored'
+    # implementation of the online rule (the forms of nn.som_*, registered in nn.forms): 'windowed' (per-participant window), 'factored'
     # or 'online'; the same winners, other costs
     method: str = bounded("windowed", choices=("windowed", "factored", "online"))
     threads: int = bounded(1, ge=1)  # intra-op threads while a map trains (each step is small: threads only add hand-offs)
