@@ -346,7 +346,8 @@ def measure_set(name_or_path: str, like: Optional[str] = None, eye=None) -> SetR
     ref = like if like is not None else (name_or_path if name_or_path in list_stimulus_sets() else None)
     if like is not None:
         base = get_stimulus_set(like)
-        stim = stim.with_protocol(base.angles, base.appearances, base.protocol, base.rotated_side)
+        stim = stim.with_protocol(base.angles, base.appearances, base.protocol, base.rotated_side,
+                                  base.radius_fraction)
     kind = kind_of(ref) if ref is not None else "generic"
     ms = measure_object_shapes(stim, eye)
     train_name = training_set_of(ref) if ref is not None else None

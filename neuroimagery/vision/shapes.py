@@ -7,8 +7,11 @@ and without rotational symmetry, so that angle and appearance are always recover
 
 A :class:`Shape` holds a high-resolution binary mask.  It is drawn by one affine warp that
 rotates it counter-clockwise about its centroid and scales it so that its farthest point from
-the centroid lies at ``RADIUS_FRACTION`` of the canvas side: every shape fits its canvas (and
-the 32x32 map) at every angle.
+the centroid lies at ``radius_fraction`` of the canvas side (``RADIUS_FRACTION`` unless a set
+says otherwise): every shape fits its canvas (and the 32x32 map) at every angle.  The sets of
+Experiments 3 and 4 use ``CH6_RADIUS_FRACTION``, the largest scale at which every rotation of
+their edge maps stays on the units that the forward models' three-dot training images activate
+(docs/contracts.md, "Stimulus scale of Experiments 3 and 4").
 """
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ import numpy as np
 
 __all__ = [
     "RADIUS_FRACTION",
+    "CH6_RADIUS_FRACTION",
     "CANVAS",
     "RED_BGR",
     "BACKGROUND_BGR",
@@ -27,6 +31,9 @@ __all__ = [
 
 CANVAS = 128  # default side in pixels of a one-object image
 RADIUS_FRACTION = 0.40  # farthest shape point from its centroid, as a fraction of the side
+# Exp. 3-4 sets: the largest scale (steps of 0.005) whose edge maps, at every angle (1 deg steps),
+# activate only units that the three-dot training images (23x23 square of dot centres) activate
+CH6_RADIUS_FRACTION = 0.375
 RED_BGR = (40, 40, 210)  # shape colour (BGR)
 BACKGROUND_BGR = (225, 225, 225)  # light grey background (BGR)
 CELL = 48  # pixels per polyomino cell in the stored mask
@@ -67,20 +74,24 @@ class Shape:
         """The left-right mirror image."""
         return Shape(self.mask[:, ::-1], name or self.name + "-mirror")
 
-    def render(self, angle_deg: float, mirror: bool = False, canvas: int = CANVAS) -> np.ndarray:
+    def render(self, angle_deg: float, mirror: bool = False, canvas: int = CANVAS,
+               radius_fraction: float = RADIUS_FRACTION) -> np.ndarray:
         """Coverage (float32 in [0, 1], ``canvas x canvas``) of the shape turned by ``angle_deg``.
 
         Positive angles turn counter-clockwise on screen.  ``mirror`` reflects the shape left-right
-        before turning it.  Drawn at a resolution >= ``_MIN_WORK`` and area-averaged, so edges
-        are anti-aliased.
+        before turning it.  The farthest point lies ``radius_fraction`` of the side from the
+        centre.  Drawn at a resolution >= ``_MIN_WORK`` and area-averaged, so edges are
+        anti-aliased.
         """
+        if not 0.0 < radius_fraction <= 0.5:
+            raise ValueError(f"radius_fraction must lie in (0, 0.5], got {radius_fraction}")
         ss = max(1, int(np.ceil(_MIN_WORK / canvas)))
         work = canvas * ss
         src = self.mask[:, ::-1] if mirror else self.mask
         cx, cy = self.centroid
         if mirror:
             cx = src.shape[1] - 1 - cx
-        scale = RADIUS_FRACTION * work / self.radius
+        scale = radius_fraction * work / self.radius
         m = cv2.getRotationMatrix2D((cx, cy), float(angle_deg), scale)
         c_out = (work - 1) / 2.0
         m[0, 2] += c_out - cx

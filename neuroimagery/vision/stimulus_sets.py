@@ -37,6 +37,8 @@ from neuroimagery.vision.shapes import (
     BACKGROUND_BGR,
     BUILTIN_GRIDS,
     CANVAS,
+    CH6_RADIUS_FRACTION,
+    RADIUS_FRACTION,
     Shape,
     colourise,
     grid_mask,
@@ -64,6 +66,9 @@ class StimulusSet:
 
     appearances[0] is the shape as designed, appearances[1] (if any) its mirror image.
     ``mirror_of`` maps an object to the object it mirrors (set "L": B -> A).
+    ``radius_fraction``: the drawn size, the farthest point from the centroid as a fraction of
+    the image side (:data:`~neuroimagery.vision.shapes.RADIUS_FRACTION` by default; the sets of
+    Experiments 3 and 4 use :data:`~neuroimagery.vision.shapes.CH6_RADIUS_FRACTION`).
     """
 
     def __init__(
@@ -74,7 +79,10 @@ class StimulusSet:
         appearances: Sequence[str],
         protocol: str = "pairs",
         rotated_side: str = "right",
+        radius_fraction: float = RADIUS_FRACTION,
     ):
+        if not 0.0 < float(radius_fraction) <= 0.5:
+            raise ValueError(f"radius_fraction must lie in (0, 0.5], got {radius_fraction}")
         if protocol not in ("pairs", "reference"):
             raise ValueError(f"protocol must be 'pairs' or 'reference', got {protocol!r}")
         self.name = name
@@ -84,15 +92,19 @@ class StimulusSet:
         self.appearances: list[str] = list(appearances)
         self.protocol = protocol
         self.rotated_side = rotated_side
+        self.radius_fraction = float(radius_fraction)
 
     def __repr__(self) -> str:
         return (f"StimulusSet({self.name!r}, objects={self.objects}, angles={self.angles}, "
                 f"appearances={self.appearances})")
 
     def with_protocol(self, angles: Sequence[float], appearances: Sequence[str],
-                      protocol: str = "pairs", rotated_side: str = "right") -> "StimulusSet":
-        """The same shapes under another experiment's orientations and appearance names."""
-        return StimulusSet(self.name, self._shapes, angles, appearances, protocol, rotated_side)
+                      protocol: str = "pairs", rotated_side: str = "right",
+                      radius_fraction: Optional[float] = None) -> "StimulusSet":
+        """The same shapes under another experiment's orientations, appearance names and (if
+        given) drawn size."""
+        rf = self.radius_fraction if radius_fraction is None else radius_fraction
+        return StimulusSet(self.name, self._shapes, angles, appearances, protocol, rotated_side, rf)
 
     # ------------------------------------------------------------------ drawing
     def shape(self, obj: str) -> Shape:
@@ -110,7 +122,7 @@ class StimulusSet:
                  canvas: int = CANVAS) -> np.ndarray:
         """Float coverage in [0, 1] of one object (anti-aliased), ``canvas x canvas``."""
         appearance = self.appearances[0] if appearance is None else appearance
-        return self.shape(obj).render(angle, self._is_mirror(appearance), canvas)
+        return self.shape(obj).render(angle, self._is_mirror(appearance), canvas, self.radius_fraction)
 
     def image(self, obj: str, angle: float, appearance: Optional[str] = None,
               canvas: int = CANVAS) -> np.ndarray:
@@ -185,8 +197,8 @@ def _builtin(name: str) -> StimulusSet:
         return StimulusSet(name, shapes, _L_ANGLES, ["basic"], protocol="reference",
                            rotated_side="left")
     if name.startswith("exp3"):
-        return StimulusSet(name, shapes, _EXP3_ANGLES, ["main", "mirror"])
-    return StimulusSet(name, shapes, _EXP4_ANGLES, ["basic", "mirror"])
+        return StimulusSet(name, shapes, _EXP3_ANGLES, ["main", "mirror"], radius_fraction=CH6_RADIUS_FRACTION)
+    return StimulusSet(name, shapes, _EXP4_ANGLES, ["basic", "mirror"], radius_fraction=CH6_RADIUS_FRACTION)
 
 
 _CACHE: dict[str, StimulusSet] = {}
@@ -219,8 +231,8 @@ def get_stimulus_set(name_or_path: str) -> StimulusSet:
 def resolve_stimulus_set(stimuli_cfg, builtin: str) -> StimulusSet:
     """The set an experiment tests on: ``builtin``, or the user folder of ``stimuli_cfg``.
 
-    A folder set takes the protocol (angles, appearance names, pairing) of the builtin set it
-    replaces, so the experiment's counts and conditions stay the same.
+    A folder set takes the protocol (angles, appearance names, pairing) and the drawn size of
+    the builtin set it replaces, so the experiment's counts and conditions stay the same.
     """
     base = get_stimulus_set(builtin)
     if getattr(stimuli_cfg, "kind", "builtin") == "builtin":
@@ -229,7 +241,7 @@ def resolve_stimulus_set(stimuli_cfg, builtin: str) -> StimulusSet:
     if not path or not os.path.isdir(path):
         raise UserInputError(f"stimuli.path {path!r} is not a folder")
     appearances = base.appearances if len(base.appearances) == 2 else ["basic", "mirror"]
-    return load_folder(path).with_protocol(base.angles, appearances)
+    return load_folder(path).with_protocol(base.angles, appearances, radius_fraction=base.radius_fraction)
 
 
 # ---------------------------------------------------------------------- user folders
