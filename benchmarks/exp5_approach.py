@@ -10,7 +10,7 @@ within 3 cm of the toy's box below its top less 1 cm; "none" if no plate point e
 be pulled south only by a plate that comes from its north side first, pushed east only by one that
 comes from its west side (docs/contracts.md, Experiment 5, derived rules). With ``--grid`` the same
 is measured for posture 4 moved to plate centres on a grid on the robot's side of the toy's far
-face (the rake's handle pointing straight ahead, fitted as ``robot.posture_fit`` does).
+face (the rake's handle pointing straight ahead, ``robot.posture_fit.fit_posture_heading``).
 """
 from __future__ import annotations
 
@@ -21,8 +21,9 @@ from types import SimpleNamespace
 import numpy as np
 import torch
 
-from neuroimagery.robot.config import DEFAULT_POSTURES, WorldConfig
+from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.kinematics import ArmKinematics
+from neuroimagery.robot.posture_fit import HEADING_STARTS, fit_posture_heading
 from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.scene_check import plate_points, scene_geometry
 
@@ -54,26 +55,6 @@ def first_approach(kin, cfg, q, n: int, seed: int = 7, margin: float = 0.03) -> 
     return dict(zip(SIDES, counts / n))
 
 
-def fit_straight(kin, cfg, target, q_refs, pitch=math.radians(25.0), margin: float = 0.12) -> np.ndarray:
-    """Joint vector whose plate centre is at ``target``, its lowest point 5 mm above the table,
-    the handle pointing straight ahead and ``pitch`` down, the plate's width horizontal."""
-    from scipy.optimize import least_squares
-
-    lim = kin.joint_limits.double().numpy()
-    lo, hi = lim[:, 0] + margin * (lim[:, 1] - lim[:, 0]), lim[:, 1] - margin * (lim[:, 1] - lim[:, 0])
-    plate, centre = plate_points(cfg), np.array([*cfg.rake_head_offset, 1.0])
-    xdir = np.array([math.cos(pitch), 0.0, -math.sin(pitch)])
-
-    def res(q):
-        T = kin.rake_pose_np(q[None])[0]
-        low = (plate @ T.T)[:, 2].min()
-        return np.concatenate([((T @ centre)[:2] - np.asarray(target)) / 0.002,
-                               [(low - cfg.table_top - 0.005) / 0.002], (T[:3, 0] - xdir) / 0.05, [T[2, 1] / 0.05]])
-
-    fits = [least_squares(res, np.clip(np.asarray(q, float), lo, hi), bounds=(lo, hi)) for q in q_refs]
-    return min(fits, key=lambda r: r.cost).x
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--rollouts", type=int, default=300)
@@ -91,7 +72,7 @@ def main() -> None:
     print("\n| plate centre | gap (m) | plate's farthest x | " + " | ".join(SIDES) + " |\n|---|---|---|" + "---|" * len(SIDES))
     for x in (0.52, 0.56):
         for y in (-0.40, -0.34, -0.28, 0.08, 0.14):
-            q = fit_straight(kin, cfg, (x, y), DEFAULT_POSTURES[2:])
+            q = fit_posture_heading(cfg, (x, y), 0.0, HEADING_STARTS)
             postures = list(cfg.postures)
             postures[3] = tuple(float(v) for v in q)
             g = scene_geometry(WorldConfig(postures=tuple(postures)))[3]
