@@ -165,7 +165,7 @@ def test_fk_filter_and_skipped_steps_never_change_an_outcome(world):
 def test_kinematic_drive_agrees_with_constraint_drive(world):
     """The fast kinematic rake and the reference constraint-dragged rake push the toy alike."""
     with ToolWorld(WorldConfig(rake_drive="constraint")) as ref:
-        for k, delta in ((1, (-0.16, 0.0, 0.0)), (1, (-0.12, 0.05, 0.0)), (2, (0.0, 0.16, 0.0))):  # posture 2 is level with the toy: a straight sweep west
+        for k, delta in ((1, (-0.16, 0.0, 0.0)), (1, (-0.12, 0.05, 0.0)), (3, (0.0, -0.16, 0.0))):  # posture 3 is level with the toy, on its left: a straight sweep east
             traj = _line(world, k, delta)
             a, b = world.rollout(traj, k, None)[0], ref.rollout(traj, k, None)[0]
             # the two drives differ by at most ~0.006 m on these moves; 0.01 m is half the

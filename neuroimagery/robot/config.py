@@ -13,17 +13,18 @@ URDF_DIR = Path(__file__).resolve().parents[2] / "urdf"
 
 # Four initial arm postures (rad, joint order of kinematics.ARM_JOINTS), fitted once by
 # ``python -m neuroimagery.robot.posture_fit`` to the plate-centre targets chosen by the rule of
-# docs/choices.md (the world contracts W5-W7 of docs/contracts.md, then the most Table 7.1 event
-# cells; ``robot.scene_check``). Centre of the rake head's plate (x, y), with the toy at (0.58, -0.10):
-#   1 (0.645, -0.135) behind the toy, the handle beside it (east): the plate's near face 1.8 cm beyond its north face
-#   2 (0.60, -0.26)   level with the toy, on its right (east); 5.5 cm from the toy
-#   3 (0.55, -0.26)   on the robot's side of the toy's far face, to its right; 5.8 cm
-#   4 (0.54, -0.37)   far to the toy's right, nearer the robot, the tool-far situation; 16.9 cm
+# docs/choices.md (the world contracts W5-W7 and the derived rules D1-D4 of docs/contracts.md, then
+# the most Table 7.1 event cells; ``robot.scene_check``). Centre of the rake head's plate (x, y),
+# with the toy at (0.58, -0.10):
+#   1 (0.645, -0.135) behind the toy, the handle beside it (east): the plate's near face 1.5 cm beyond its north face
+#   2 (0.59, -0.26)   level with the toy, on its right (east); 5.5 cm from the toy
+#   3 (0.56, 0.08)    on the robot's side of the toy's far face, to its left (west); 7.5 cm
+#   4 (0.54, 0.18)    far to the toy's left, the handle turned 30 degrees left: the tool-far situation; 18.1 cm
 DEFAULT_POSTURES: tuple[tuple[float, ...], ...] = (
     (-0.794, 0.716, 0.283, 0.785, -0.539, 0.216, -0.255),
-    (-0.397, 0.661, -0.307, 1.277, -0.385, 0.173, 0.044),
-    (-1.446, 1.055, 0.789, 0.559, -0.796, 0.216, 0.342),
-    (-0.213, 0.617, -0.401, 1.659, -0.259, -0.22, 0.312),
+    (-0.307, 0.659, -0.343, 1.374, -0.431, 0.15, 0.074),
+    (-1.044, 0.619, 1.151, 1.659, -0.69, -0.866, 0.342),
+    (-0.959, 0.393, 1.028, 1.498, -0.622, -0.578, 0.22),
 )
 
 # The reachable area (docs/robot.md, robot.reach): the farthest x (m) the free left palm reaches at the
