@@ -106,7 +106,12 @@ def search(model, cfg, scene, count: int = 10) -> dict:
 
 def confirm(model, cfg, scene, count: int = 6) -> dict:
     """6.4: fraction of pairs the fitted cut puts on their side after the model's own search and
-    transform, on the training objects' pairs and on held-out chains' pairs."""
+    transform, on the training objects' pairs and on held-out chains' pairs. Also where the errors
+    arise: the fraction of same pairs whose net turn lands within half a step of the stimulus's
+    inverse (``*_same_aligned``), of same pairs over the cut (``*_same_over``) and over it when
+    their completed comparison image is turned exactly by the stimulus's inverse instead
+    (``*_same_over_exact``: the completion's share), and of mirror pairs under the cut
+    (``*_mirror_under``)."""
     e = cfg.experiment
     train, _, _, _ = data.objects(e)
     held = data.chains(e, count, cfg.seed, HELD_OUT + 3)
@@ -123,6 +128,15 @@ def confirm(model, cfg, scene, count: int = 6) -> dict:
         out[label] = round(float(((cubes > cut) == ~same).double().mean()), 4)
         out[f"{label}_cubes_same"] = round(float(cubes[same].mean()), 3)
         out[f"{label}_cubes_mirror"] = round(float(cubes[~same].mean()), 3)
+        truth = torch.stack([_true_required(r[2], r[3]) for r in rows]).repeat(P, 1, 1)
+        residual = angle_between(res["net"], truth)
+        comp = images[:, [r[1] for r in rows]].reshape(P * len(rows), -1)
+        _, exact = model.mismatch(vc.rotate(comp, model.side, truth), res["target"])
+        frac = lambda x: round(float(x.double().mean()), 4)  # noqa: E731
+        out[f"{label}_same_aligned"] = frac(residual[same] <= e.step_deg / 2 + 1e-6)
+        out[f"{label}_same_over"] = frac(cubes[same] > cut[same])
+        out[f"{label}_same_over_exact"] = frac(exact[same] > cut[same])
+        out[f"{label}_mirror_under"] = frac(cubes[~same] <= cut[~same])
     out["cut_cubes"] = [round(float(c), 3) for c in model.cut]
     return out
 

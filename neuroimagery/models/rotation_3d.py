@@ -324,6 +324,9 @@ class Rotation3D(nn.Module):
         hist: list[list[dict]] = [[] for _ in range(min(record, B))]
         img = poci.clone()
         step_rot = [None] + [(AXES.index(a), d) for a, d in self.moves[1:]]
+        # the net turn made, composed from the steps' efference copies in their order (for measures)
+        turn = [torch.eye(3, dtype=torch.float64)] + [vc.axis_rotation(a, d) for a, d in self.moves[1:]]
+        net = torch.eye(3, dtype=torch.float64).repeat(Q, 1, 1)
         for s in range(p.selection.max_steps):
             draws = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(Q)
             q = live.nonzero().squeeze(-1)
@@ -336,6 +339,7 @@ class Rotation3D(nn.Module):
             for m in range(1, len(MOVES)):
                 a, d = step_rot[m]
                 done[q, a] += d * (move == m).double()  # the efference copy of each step
+            net[q] = torch.stack(turn)[move] @ net[q]
             moving = move > 0
             steps[q] += moving.long()
             live[q] = moving
@@ -344,7 +348,7 @@ class Rotation3D(nn.Module):
                     hist[k].append({"PFCt": pfct[k].clone(), "POCp": img[k].clone(),
                                     "PMCm": torch.nn.functional.one_hot(move[(q == k).nonzero()[0, 0]] if (q == k).any()
                                                                         else torch.tensor(0), len(MOVES)).float()})
-        return {"turned": img, "steps": steps, "done": done, "required": required, "proper": proper,
+        return {"turned": img, "steps": steps, "done": done, "net": net, "required": required, "proper": proper,
                 "timeout": live, "history": hist, "part": part, "target": pfct}
 
     @torch.no_grad()
