@@ -58,6 +58,17 @@ def test_lca_state_carries_over_between_calls():
     assert int(whole.cycles) == 10 + int(rest.cycles)
 
 
+def test_lca_leak_per_element_equals_accumulators_of_that_leak():
+    inputs = torch.tensor([[0.9, 0.7], [0.9, 0.7], [0.5, 0.6]])
+    leak = torch.tensor([0.5, 1.5, 1.0])
+    d = LeakyCompetingAccumulator(2, k=0.5, w=0.5, threshold=1.2, dt=0.1)(inputs, 80, leak=leak)
+    for i, k in enumerate(leak.tolist()):
+        one = LeakyCompetingAccumulator(2, k=k, w=0.5, threshold=1.2, dt=0.1)(inputs[i:i + 1], 80)
+        assert int(one.cycles) == int(d.cycles[i]) and int(one.winner) == int(d.winner[i])
+        torch.testing.assert_close(one.state[0], d.state[i])
+    assert int(d.cycles[0]) < int(d.cycles[1])  # a larger leak decides later (or not at all)
+
+
 def test_softmax_selection_frequencies():
     x = torch.tensor([[1.0, 0.0, 0.5]]).expand(20000, -1)
     idx = softmax_select(x, 0.5, generators=[torch.Generator().manual_seed(0)])

@@ -89,7 +89,10 @@ def train_model(cfg, ids, eye=None):
     n_img = e.quick.fm_images if cfg.preset == "quick" else e.fm.images
     X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.fm.dot_inner)
     model.fit_forward_models(X, Y, moves, e.fm.batch, progress=pc.batches_bar("forward model"))
-    return pc.train_posture_maps(cfg, eye, model, e.ppc.angles, gens)
+    bank = pc.training_bank(cfg, eye)
+    pc.train_posture_maps(cfg, eye, model, e.ppc.angles, gens, bank=bank)
+    model.calibrate(bank.maps, *bank.structure())  # PMCd's gain and leak (contracts X4.9, X4.12)
+    return model.eval()
 
 
 def train(cfg, run):

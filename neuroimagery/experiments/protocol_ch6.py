@@ -94,6 +94,15 @@ class StimulusBank:
             raise UserInputError(f"stimulus set {sset.name!r}: no edges found in any image (are the shapes red or dark?)")
         return cls(sset, items, maps.reshape(len(items), -1).float(), {it: i for i, it in enumerate(items)})
 
+    def structure(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """How the set is built, per row: object index (long), mirror appearance (bool) and angle
+        (deg), what a training rule may know of its own training set."""
+        names = {o: k for k, o in enumerate(dict.fromkeys(it[0] for it in self.items))}
+        mirror = self.set.appearances[1] if len(self.set.appearances) > 1 else None
+        return (torch.tensor([names[it[0]] for it in self.items], dtype=torch.long),
+                torch.tensor([it[2] == mirror for it in self.items], dtype=torch.bool),
+                torch.tensor([float(it[1]) for it in self.items]))
+
     def angle_labels(self, unit_angles: Sequence[float]) -> torch.Tensor:
         """Unit index of each item's angle in ``unit_angles`` (the posture a wrist would hold)."""
         lut = {float(a): k for k, a in enumerate(unit_angles)}
@@ -296,12 +305,17 @@ def sample_panels(path, key: str, history: list, names: Sequence[str], units=Non
     return figures.map_panels(steps, path, title=title, row_labels=labels, units=units)
 
 
-def train_posture_maps(cfg, eye, model, angles: Sequence[float], generators):
-    """Train the model's posture maps (``model.fit_posture_maps``) on the training set
-    ``cfg.experiment.train_set`` labelled by the nearest of ``angles``, then put ``model`` in eval
-    mode for testing; returns ``model``."""
+def training_bank(cfg, eye) -> StimulusBank:
+    """The edge maps of the training set ``cfg.experiment.train_set`` (never the user's folder)."""
     e = cfg.experiment
-    bank = StimulusBank.build(eye, stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
+    return StimulusBank.build(eye, stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
+
+
+def train_posture_maps(cfg, eye, model, angles: Sequence[float], generators, bank: StimulusBank | None = None):
+    """Train the model's posture maps (``model.fit_posture_maps``) on the training set (``bank``, by
+    default :func:`training_bank`) labelled by the nearest of ``angles``, then put ``model`` in eval
+    mode for testing; returns ``model``."""
+    bank = training_bank(cfg, eye) if bank is None else bank
     model.fit_posture_maps(bank.maps, bank.angle_labels(angles), generators, progress=batches_bar("posture maps"))
     return model.eval()
 

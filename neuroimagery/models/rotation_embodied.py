@@ -65,6 +65,23 @@ def lca_gain(p) -> float:
     return full_match_gain(p.lca.threshold, p.lca.k, p.lca.dt, p.lca.cycles)
 
 
+LEAK_STEP = 0.05  # grid of the leak rule (docs/contracts.md, "Accumulator leak")
+LEAK_STEPS = 50  # its candidates: w, w + 0.05, ..., w + 2.5
+QUIET_SHARE = 0.10  # X4.12: largest share of held misaligned pairs that may decide
+
+
+def object_pairs(objects: torch.Tensor, mirror: torch.Tensor, angles: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The pairs a set shows of one object, from how it is built (per row: object index, mirror flag,
+    angle): every basic image as the target against every image of the same object, basic or
+    mirror -> (target rows, comparison rows, aligned: the same angle)."""
+    t = (~mirror).nonzero().squeeze(-1)
+    ti, ci = torch.meshgrid(t, torch.arange(len(objects)), indexing="ij")
+    ti, ci = ti.reshape(-1), ci.reshape(-1)
+    keep = objects[ti] == objects[ci]
+    ti, ci = ti[keep], ci[keep]
+    return ti, ci, (angles[ti] - angles[ci]).abs() < 1e-6
+
+
 def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int) -> tuple[torch.Tensor, torch.Tensor]:
     """The training pairs whose randomly drawn movement is ``m``, in their order, per participant
     (padded at the end with empty images, which the delta rule leaves without effect), so each
@@ -104,6 +121,8 @@ class RotationEmbodied(nn.Module):
         # identical 0-deg training pairs it was fixed on
         self.register_buffer("input_gain", torch.full((P,), lca_gain(p)))
         self.register_buffer("identical_evidence", torch.zeros(P, 2))
+        # PMCd's leak per participant (set by calibrate() after training; contract X4.12)
+        self.register_buffer("leak", torch.full((P,), float(p.lca.k)))
         self._tables: list[torch.Tensor] | None = None
         self.fm_sequence: dict | None = None  # the forward models' training sequence (fit_forward_models)
 
@@ -128,30 +147,99 @@ class RotationEmbodied(nn.Module):
 
     def fit_posture_maps(self, maps: torch.Tensor, labels: torch.Tensor, generators, progress=None) -> None:
         """C16 and C17 (supervised Kohonen, eq. 6.14-6.16) on edge ``maps`` ``(N, n)`` labelled with
-        their wrist-posture units; ``progress`` optionally wraps the list of maps."""
+        their wrist-posture units; ``progress`` optionally wraps the list of maps. PMCd is calibrated
+        after it (:meth:`calibrate`)."""
         self.train()
         fit_posture_soms([self.c16, self.c17], maps, labels, generators, self.p.posture, progress)
-        self.calibrate(maps)
 
     @torch.no_grad()
-    def calibrate(self, maps: torch.Tensor) -> None:
-        """Fix PMCd's input gain (``input_gain``, per participant) by the rule of ``lca.gain_rule``
-        (docs/contracts.md, X4.9): pair every training map ``(N, n)`` with itself (target = rotated
-        object, 0 deg), run the still step, take the mean PFCtm and PFCfm evidence (overlap per
-        target unit) and find the smallest gain with which that mean decides YES within one step.
-        An explicit ``lca.input_gain`` or the ``full`` rule sets the same gain for everyone."""
+    def calibrate(self, maps: torch.Tensor, objects: torch.Tensor, mirror: torch.Tensor, angles: torch.Tensor) -> None:
+        """Fix PMCd's input gain (``input_gain``) and leak (``leak``), per participant, on the training
+        set: edge ``maps`` ``(N, n)`` with the object index, mirror flag and angle of each (how the
+        set is built).
+
+        Gain (``lca.gain_rule``, X4.9): pair every map with itself (target = rotated object, 0 deg),
+        run the still step, take the mean PFCtm and PFCfm evidence (overlap per target unit) and find
+        the smallest gain with which that mean decides YES within one step. Leak
+        (``lca.leak_rule``, X4.12): on a grid of ``LEAK_STEP`` from w, the smallest k that minimises
+        the share of misaligned same-object pairs (:func:`object_pairs`) that decide, their still-step
+        evidence held for ``selection.max_steps`` steps, plus the share of pairs turned to alignment
+        by the forward models that do not give the right answer held as long (the gain set by the
+        gain rule at each k). An explicit ``lca.input_gain`` or the ``full`` rule gives the gain in closed
+        form; ``fixed`` keeps ``lca.k``."""
         p, P = self.p, self.participants
         self.freeze()
         x = maps.unsqueeze(0).expand(P, -1, -1)
-        pocp = self.forward_step(x, torch.ones(P, x.shape[1], dtype=torch.long))
-        t = x.sum(-1).clamp_min(1.0)
-        ev = torch.stack([self.overlap(x, pocp) / t, self.overlap(self.flip_target(x), pocp) / t], -1).mean(1)
+        ev = self.pair_evidence(x, x).mean(1)
         self.identical_evidence.copy_(ev)
-        if p.lca.input_gain is not None or p.lca.gain_rule == "full":
-            self.input_gain.fill_(lca_gain(p))
-        else:
-            self.input_gain.copy_(smallest_deciding_gain(self.pmcd, ev, p.lca.cycles))
-        self._tables = None
+        leak = torch.full((P,), float(p.lca.k))
+        if p.lca.leak_rule == "fixed":
+            self.leak.copy_(leak)
+            self.input_gain.copy_(self._gain_for(leak))
+            return
+        t, c, aligned = object_pairs(objects, mirror, angles)
+        misaligned = self.pair_evidence(x[:, t[~aligned]], x[:, c[~aligned]])
+        turned, right = self._turned_pairs(x, t, c, angles, mirror)
+        best = torch.full((P,), float("inf"))
+        for i in range(LEAK_STEPS + 1):
+            k = torch.full((P,), float(p.lca.w) + LEAK_STEP * i)
+            gain = self._gain_for(k)
+            wrong = self.hold(misaligned, gain=gain, leak=k).decided.float().mean(1)
+            h = self.hold(turned, gain=gain, leak=k)
+            missed = 1.0 - (h.decided & (h.winner == right)).float().mean(1)
+            err = wrong + missed
+            better = err < best - 1e-6  # ties keep the smaller k
+            leak, best = torch.where(better, k, leak), torch.where(better, err, best)
+        self.leak.copy_(leak)
+        self.input_gain.copy_(self._gain_for(leak))
+
+    def _turned_pairs(self, x: torch.Tensor, t: torch.Tensor, c: torch.Tensor, angles: torch.Tensor,
+                      mirror: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The still-step evidence ``(P, B, 2)`` of the pairs ``t``, ``c`` of maps ``x`` once each
+        comparison is turned to its target's angle by the forward models (the required steps, the
+        short way round), and the right answer of each (0 YES, 1 NO for a mirror)."""
+        step = float(self.p.step_deg)
+        d = (angles[c] - angles[t] + 180.0) % 360.0 - 180.0  # comparison minus target, in [-180, 180)
+        n = (d.abs() / step).round().long()
+        move = torch.where(d > 0, 2, 0)  # Mr turns by -step, Ml by +step
+        img = x[:, c]
+        P = x.shape[0]
+        for s in range(int(n.max()) if len(n) else 0):
+            live = (n > s).unsqueeze(0).expand(P, -1)
+            img = torch.where(live.unsqueeze(-1), self.forward_step(img, move.expand(P, -1), live), img)
+        return self.pair_evidence(x[:, t], img), mirror[c].long()
+
+    def _gain_for(self, leak: torch.Tensor) -> torch.Tensor:
+        """PMCd's input gain per participant under the gain rule, for the leaks ``leak`` ``(P,)``."""
+        p = self.p
+        if p.lca.input_gain is not None:
+            return torch.full_like(leak, float(p.lca.input_gain))
+        if p.lca.gain_rule == "full":
+            return torch.tensor([full_match_gain(p.lca.threshold, float(k), p.lca.dt, p.lca.cycles) for k in leak])
+        return smallest_deciding_gain(self.pmcd, self.identical_evidence, p.lca.cycles, leak=leak)
+
+    @torch.no_grad()
+    def pair_evidence(self, target: torch.Tensor, comparison: torch.Tensor) -> torch.Tensor:
+        """The (PFCtm, PFCfm) evidence, per target unit, of the still step of pairs ``(P, B, n)`` -> ``(P, B, 2)``."""
+        P, B = comparison.shape[:2]
+        pocp = self.forward_step(comparison, torch.ones(P, B, dtype=torch.long))
+        t = target.sum(-1).clamp_min(1.0)
+        return torch.stack([self.overlap(target, pocp) / t, self.overlap(self.flip_target(target), pocp) / t], -1)
+
+    @torch.no_grad()
+    def hold(self, evidence: torch.Tensor, steps: int | None = None, gain: torch.Tensor | None = None,
+             leak: torch.Tensor | None = None):
+        """PMCd from rest fed the same evidence ``(P, B, 2)`` for ``steps`` steps (default
+        ``selection.max_steps``) of ``lca.cycles`` cycles, with each participant's gain and leak
+        (default: the calibrated ones) -> a :class:`Decision` of shape ``(P, B)``."""
+        p = self.p
+        P, B = evidence.shape[:2]
+        gain = self.input_gain if gain is None else gain
+        leak = self.leak if leak is None else leak
+        steps = p.selection.max_steps if steps is None else steps
+        d = self.pmcd((gain.view(P, 1, 1) * evidence).reshape(P * B, 2), steps * p.lca.cycles,
+                      leak=leak.repeat_interleave(B))
+        return type(d)(*(v.reshape(P, B, *v.shape[1:]) for v in (d.winner, d.cycles, d.decided, d.state)))
 
     def overlap(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
         """PFCtm (PFCfm) summed: the target units covered by ``image`` read as a population code of
@@ -339,7 +427,8 @@ class RotationEmbodied(nn.Module):
         still = torch.ones(Q, dtype=torch.long)
         pocp0, cover0, score0 = predict(part * 3 + 1, pack_bits(rotated.reshape(Q, n)))
         ev0, tm0, fm0 = evidence(torch.arange(Q), cover0)
-        dec = self.pmcd(ev0, p.lca.cycles, state=self.pmcd.initial_state((Q,)))
+        leak = self.leak[part]  # (Q,) per participant
+        dec = self.pmcd(ev0, p.lca.cycles, state=self.pmcd.initial_state((Q,)), leak=leak)
         steps += 1
         rt += dec.cycles
         winner[:] = torch.where(dec.decided, dec.winner, winner[0])
@@ -376,7 +465,7 @@ class RotationEmbodied(nn.Module):
             # forward model, overlap, accumulator on the live rows
             pocp, cover, score = predict(part[q] * 3 + move, poci)
             ev, tm, fm = evidence(q, cover)
-            dec = self.pmcd(ev, p.lca.cycles, state=y)
+            dec = self.pmcd(ev, p.lca.cycles, state=y, leak=leak[q])
             angle[cond, q] += step_deg[move]
             rotations[cond, q] += (move != 1).long()
             steps[cond, q] += 1

@@ -34,6 +34,12 @@ class EmbodiedLcaParams(LcaParams):
     # gain with which a full overlap (1, with no flipped overlap) does (nn.decision.full_match_gain: 1.495
     # with k 0.5, dt 0.1, 10 cycles)
     gain_rule: str = bounded("identical", choices=("identical", "full"))
+    # the rule that sets the leak k of PMCd: 'misaligned' (default; docs/contracts.md, X4.12) = per participant,
+    # after training, the smallest k on a grid of 0.05 from w to w + 2.5 that minimises, on the training set, the
+    # share of misaligned same-object pairs that decide held for selection.max_steps steps plus the share of pairs
+    # turned to alignment by the forward models that do not give the right answer (the gain by gain_rule at each k)
+    # | 'fixed' = k as given (0.5 = w, the balanced accumulator)
+    leak_rule: str = bounded("misaligned", choices=("misaligned", "fixed"))
 
 
 @dataclass

@@ -38,7 +38,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
         t, f = target[pi, b], flipped[pi, b]
         tm, fmm = model.overlap(t, pocp), model.overlap(f, pocp)  # POCp read as a population code
         ev = gain[pi] * torch.stack([tm, fmm]) / t.sum().clamp_min(1.0)
-        return model.pmcd(ev.unsqueeze(0), p.lca.cycles, state=y)
+        return model.pmcd(ev.unsqueeze(0), p.lca.cycles, state=y, leak=model.leak[pi].reshape(1))
 
     for pi in range(P):  # step 1: the "still" forward model, from rest
         for b in range(B):

@@ -146,11 +146,14 @@ class LeakyCompetingAccumulator(nn.Module):
 
     @torch.no_grad()
     def forward(self, inputs: torch.Tensor, cycles: int, state: torch.Tensor | None = None,
-                active: torch.Tensor | None = None, generator: torch.Generator | None = None) -> Decision:
+                active: torch.Tensor | None = None, generator: torch.Generator | None = None,
+                leak: torch.Tensor | None = None) -> Decision:
         """Integrate ``cycles`` cycles of ``inputs`` ``(..., n)``; stop each element at threshold.
 
-        ``active`` (bool ``(...)``) freezes elements that already decided. ``Decision.cycles`` is
-        the number of cycles this call ran for each element until it decided (``cycles`` if not).
+        ``active`` (bool ``(...)``) freezes elements that already decided. ``leak`` ``(...)``, if
+        given, is each element's own leak in place of ``k`` (accumulators calibrated one by one).
+        ``Decision.cycles`` is the number of cycles this call ran for each element until it decided
+        (``cycles`` if not).
         """
         check_tensor("inputs", inputs, (self.n,))
         if cycles < 1:
@@ -158,6 +161,7 @@ class LeakyCompetingAccumulator(nn.Module):
         dev = inputs.device
         like = inputs.dtype if inputs.is_floating_point() else None
         y = self.initial_state(inputs.shape[:-1], dev, like) if state is None else state.clone()
+        k = self.k if leak is None else leak.to(device=dev, dtype=y.dtype).unsqueeze(-1)
         batch = inputs.shape[:-1]
         live = torch.ones(batch, dtype=torch.bool, device=dev) if active is None else active.clone()
         winner = torch.full(batch, -1, dtype=torch.long, device=dev)
@@ -166,7 +170,7 @@ class LeakyCompetingAccumulator(nn.Module):
         early = dev.type != "meta"  # stop once all decided (reads `live` on the host)
         for t in range(1, cycles + 1):
             total = y.sum(-1, keepdim=True)
-            dy = -self.k * y - self.w * (total - y) + inputs
+            dy = -k * y - self.w * (total - y) + inputs
             if self.noise > 0:  # drawn where the generator lives (default: y's device), in y's dtype
                 g_dev = dev if generator is None else generator.device
                 z = torch.randn(y.shape, generator=generator, device=g_dev, dtype=y.dtype).to(dev)
@@ -202,17 +206,18 @@ def full_match_gain(threshold: float, k: float, dt: float, cycles: int) -> float
 
 
 @torch.no_grad()
-def smallest_deciding_gain(pmcd: "LeakyCompetingAccumulator", evidence: torch.Tensor, cycles: int, answer: int = 0, iterations: int = 60) -> torch.Tensor:
+def smallest_deciding_gain(pmcd: "LeakyCompetingAccumulator", evidence: torch.Tensor, cycles: int, answer: int = 0,
+                           iterations: int = 60, leak: torch.Tensor | None = None) -> torch.Tensor:
     """The smallest gain ``g`` (per row of ``evidence`` ``(R, 2)``) with which the accumulator ``pmcd``,
     from rest, fed ``g * evidence`` crosses its threshold on unit ``answer`` within ``cycles`` cycles:
-    bisection on ``g`` (the crossing is monotone in the gain). Rows whose evidence favours the other
-    unit, or is empty, get ``inf``."""
+    bisection on ``g`` (the crossing is monotone in the gain). ``leak`` ``(R,)``: each row's leak in
+    place of ``pmcd.k``. Rows whose evidence favours the other unit, or is empty, get ``inf``."""
     R = evidence.shape[0]
     lo, hi = torch.zeros(R, dtype=torch.float64), torch.ones(R, dtype=torch.float64)
     ok = (evidence[:, answer] > evidence[:, 1 - answer]) & (evidence[:, answer] > 0)
 
     def decides(g):
-        d = pmcd((g.unsqueeze(-1) * evidence.double()).float(), cycles, state=pmcd.initial_state((R,)))
+        d = pmcd((g.unsqueeze(-1) * evidence.double()).float(), cycles, state=pmcd.initial_state((R,)), leak=leak)
         return d.decided & (d.winner == answer)
 
     for _ in range(40):  # grow the upper bound until it decides

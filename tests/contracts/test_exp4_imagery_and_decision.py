@@ -1,9 +1,11 @@
-"""Experiment 4 contracts X4.6-X4.10 (docs/contracts.md): the forward models, the matching of
-POCp with the target and the flipped target (C10), the accumulator's gain and the time-outs."""
+"""Experiment 4 contracts X4.6-X4.10 and X4.12 (docs/contracts.md): the forward models, the
+matching of POCp with the target and the flipped target (C10), the accumulator's gain, the
+time-outs and the accumulator's leak."""
 import torch
 from support_ch6 import forward_fn, forward_model_shape, item_rows
 
 from neuroimagery.experiments import exp4
+from neuroimagery.models.rotation_embodied import QUIET_SHARE, object_pairs
 from neuroimagery.vision.edges import iou, rotate
 
 
@@ -69,3 +71,21 @@ def test_x4_10_time_outs_are_rare(trained4):
     share = 1 - d.groupby("test")["decided"].mean()
     print(f"X4.10 time-out share (quick, condition none): {share.round(3).to_dict()}")
     assert (share < 0.10).all()
+
+
+def test_x4_12_the_accumulator_decides_only_at_a_large_overlap(trained4):
+    """Every misaligned same-object pair of sets A and B held for max_steps steps: at most 10 %
+    decide; the aligned pairs decide the right answer (YES basic, NO mirror) in at least 90 %."""
+    m = trained4.model
+    print(f"X4.12 leak {m.leak.tolist()}, gain {m.input_gain.tolist()}")
+    for name in (trained4.e.train_set, trained4.e.gen1_set):
+        bank = trained4.bank(name)
+        objects, mirror, angles = bank.structure()
+        t, c, aligned = object_pairs(objects, mirror, angles)
+        x = bank.maps.unsqueeze(0).expand(m.participants, -1, -1)
+        d = m.hold(m.pair_evidence(x[:, t], x[:, c]))
+        decided = d.decided[:, ~aligned].float().mean(1)
+        right = (d.decided & (d.winner == mirror[c].long()))[:, aligned].float().mean(1)
+        print(f"X4.12 set {name}: misaligned decide {decided.tolist()} (<= {QUIET_SHARE}), aligned right {right.tolist()} (>= 0.9)")
+        assert bool((decided <= QUIET_SHARE).all()), name
+        assert bool((right >= 0.9).all()), name
