@@ -114,15 +114,19 @@ def load(cfg, checkpoint_dir):
     from ..checkpoints import load_checkpoint
 
     ck = load_checkpoint(checkpoint_dir, "exp4")
+    where = Path(checkpoint_dir) / "checkpoints" / "exp4.pt"
     if "state_dict" in ck:
         model = _model(cfg, ck["participants"])
-        model.load_state_dict(ck["state_dict"])
+        try:
+            model.load_state_dict(ck["state_dict"])
+        except RuntimeError as err:  # e.g. a checkpoint of a version without PMCd's 'leak'
+            raise UserInputError(f"checkpoint {where} does not fit this version's model (train again): {err}") from err
         return model.eval()
     model = _model(cfg, ck.get("participants", []))
     try:
         sc.load_compact_state(model, ck)
     except (ValueError, KeyError) as err:
-        raise UserInputError(f"checkpoint {Path(checkpoint_dir) / 'checkpoints' / 'exp4.pt'}: {err}") from err
+        raise UserInputError(f"checkpoint {where}: {err}") from err
     return model
 
 
