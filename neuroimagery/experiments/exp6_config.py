@@ -112,6 +112,10 @@ class Exp6Config:
     step_deg: float = bounded(20.0, gt=0, le=90)  # one forward-model step (divides 180)
     grid: Optional[int] = bounded(None, ge=8)  # side of the voxel map (even); None = the grid rule (fm.memory_mb)
     cube_voxels: Optional[float] = bounded(None, gt=0)  # voxels per cube edge; None = the scale rule
+    # how PMCm chooses each step: 'composed' = the move bringing the remaining rotation (the estimate composed
+    # with the inverse of the net turn so far) closest to identity | 'axis_sums' = per-axis gain fields and C20 on
+    # the estimate's rotation vector and the per-axis sums of the steps
+    move_rule: str = bounded("composed", choices=("composed", "axis_sums"))
     init_high: float = bounded(0.01, gt=0)  # initial weights U[0, init_high] (as Exp 4)
     image: ImageParams = field(default_factory=ImageParams)
     fm: FMParams = field(default_factory=FMParams)

@@ -303,11 +303,44 @@ class Rotation3D(nn.Module):
         return (gain * torch.stack([match.double(), no], -1)).float()
 
     # ------------------------------------------------------------------ trials
+    def composed_move(self, required: torch.Tensor, net: torch.Tensor, uniforms: torch.Tensor,
+                      proprioception: str = "none") -> torch.Tensor:
+        """PMCm move per row under ``move_rule='composed'``: the rotation still required is the search's
+        estimate ``required`` composed with the inverse of the net turn ``net`` made so far (both
+        ``(R, 3, 3)``, the net turn composed from the steps' efference copies, PPCp); each move unit is
+        driven by how close to identity that remaining rotation would be after its move (minus its
+        geodesic angle, in steps; "still": the angle now), and the softmax of eq. 6.11 chooses. The
+        wrist signal joins PPCp_z as in :meth:`ppc_code`; it shifts the sensed turn about the line of
+        sight by what it moves that population's read-out."""
+        sensed = net
+        if proprioception != "none":
+            vz = vc.rotation_vector(net)[:, AXES.index(WRIST_AXIS)]
+            z = torch.zeros(net.shape[0], 3, dtype=torch.float64)
+            z[:, AXES.index(WRIST_AXIS)] = vz
+            plain = self.ppc.decode(self.ppc_code(z)[:, AXES.index(WRIST_AXIS)])
+            felt = self.ppc.decode(self.ppc_code(z, proprioception, vz)[:, AXES.index(WRIST_AXIS)])
+            shift = torch.stack([vc.axis_rotation(WRIST_AXIS, float(d)) for d in (felt - plain).double()])
+            sensed = shift @ net
+        remaining = required @ sensed.transpose(1, 2)
+        turns = self.move_turns.to(remaining.dtype)
+        after = remaining.unsqueeze(1) @ turns.transpose(1, 2).unsqueeze(0)  # (R, moves, 3, 3): still first
+        ang = vc.axis_angle(after.reshape(-1, 3, 3))[1].reshape(after.shape[0], -1)
+        return softmax_select((-ang / self.p.step_deg).float(), self.p.selection.tau, uniforms=uniforms)
+
+    @property
+    def move_turns(self) -> torch.Tensor:
+        """The rotation of each PMCm unit's move ``(moves, 3, 3)`` (still: identity)."""
+        return torch.stack([torch.eye(3, dtype=torch.float64)] + [vc.axis_rotation(a, d) for a, d in self.moves[1:]])
+
     @torch.no_grad()
     def align(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int = 0,
               proprioception: str = "none") -> dict:
         """Search and transform for images ``(P, B, n)`` (already coded, completed and centred):
-        the turned comparison images, steps, net rotation, the required rotation, history."""
+        the turned comparison images, steps, the net turn (``net``, composed from the steps'
+        efference copies in their order; ``done``, its rotation vector), the required rotation, history.
+        ``move_rule='composed'`` chooses each move from the remaining rotation (:meth:`composed_move`);
+        ``'axis_sums'`` from per-axis gain fields of the estimate's rotation vector (PPCt) and the
+        per-axis sums of the steps (PPCp) through C20."""
         p = self.p
         P, B, n = target.shape
         if len(generators) != P:
@@ -316,30 +349,31 @@ class Rotation3D(nn.Module):
         part = torch.arange(P).repeat_interleave(B)
         pfct, poci = target.reshape(Q, n), comp.reshape(Q, n)
         required, proper = self.search(pfct, poci, part, proper=p.strategy != "parity")
-        vec = vc.rotation_vector(required)  # (Q, 3) deg
-        ppct = self.ppc_code(vec)
-        done = torch.zeros(Q, 3, dtype=torch.float64)
+        composed = p.move_rule == "composed"
+        ppct = None if composed else self.ppc_code(vc.rotation_vector(required))  # (Q, 3, nu)
+        sums = torch.zeros(Q, 3, dtype=torch.float64)  # per-axis sums of the steps (move_rule 'axis_sums')
         steps = torch.zeros(Q, dtype=torch.long)
         live = torch.ones(Q, dtype=torch.bool) if p.strategy == "rotate" else torch.zeros(Q, dtype=torch.bool)
         hist: list[list[dict]] = [[] for _ in range(min(record, B))]
         img = poci.clone()
         step_rot = [None] + [(AXES.index(a), d) for a, d in self.moves[1:]]
-        # the net turn made, composed from the steps' efference copies in their order (for measures)
-        turn = [torch.eye(3, dtype=torch.float64)] + [vc.axis_rotation(a, d) for a, d in self.moves[1:]]
+        turn = self.move_turns
         net = torch.eye(3, dtype=torch.float64).repeat(Q, 1, 1)
         for s in range(p.selection.max_steps):
             draws = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(Q)
             q = live.nonzero().squeeze(-1)
             if q.numel() == 0:
                 break
-            wrist = done[q, AXES.index(WRIST_AXIS)]
-            ppcp = self.ppc_code(done[q], proprioception, wrist)
-            move = self.select(ppct[q], ppcp, draws[q])
+            if composed:
+                move = self.composed_move(required[q], net[q], draws[q], proprioception)
+            else:
+                wrist = sums[q, AXES.index(WRIST_AXIS)]
+                move = self.select(ppct[q], self.ppc_code(sums[q], proprioception, wrist), draws[q])
             img[q] = self.step(img[q], move, part[q])
             for m in range(1, len(MOVES)):
                 a, d = step_rot[m]
-                done[q, a] += d * (move == m).double()  # the efference copy of each step
-            net[q] = torch.stack(turn)[move] @ net[q]
+                sums[q, a] += d * (move == m).double()
+            net[q] = turn[move] @ net[q]  # the efference copy of each step, composed in order
             moving = move > 0
             steps[q] += moving.long()
             live[q] = moving
@@ -348,6 +382,7 @@ class Rotation3D(nn.Module):
                     hist[k].append({"PFCt": pfct[k].clone(), "POCp": img[k].clone(),
                                     "PMCm": torch.nn.functional.one_hot(move[(q == k).nonzero()[0, 0]] if (q == k).any()
                                                                         else torch.tensor(0), len(MOVES)).float()})
+        done = vc.rotation_vector(net) if composed else sums
         return {"turned": img, "steps": steps, "done": done, "net": net, "required": required, "proper": proper,
                 "timeout": live, "history": hist, "part": part, "target": pfct}
 
