@@ -202,32 +202,65 @@ class Rotation3D(nn.Module):
         pos = torch.stack([x.reshape(-1), y.reshape(-1), z.reshape(-1)], -1)
         return pos, pooled.reshape(maps.shape[0], -1)
 
-    def coarse_match(self, target: torch.Tensor, comp: torch.Tensor, R: torch.Tensor) -> torch.Tensor:
+    def coarse_code(self, maps: torch.Tensor):
+        """The coarse code the search compares: each image's :data:`COARSE_UNITS` most active blocks
+        of ``search.coarse`` voxels, as (positions ``(rows, k, 3)``, weights ``(rows, k)``)."""
+        pos, w = self.coarse_points(maps)
+        w, i = w.topk(min(COARSE_UNITS, w.shape[1]), -1)
+        return pos[i], w
+
+    def coarse_match(self, target, comp, R: torch.Tensor) -> torch.Tensor:
         """Coarse comparison ``(rows,)``: overlap of the coarse target with the coarse comparison
-        image whose positions are turned by ``R`` ``(rows, 3, 3)`` (Gaussian of one cube edge); each
-        coarse image keeps its :data:`COARSE_UNITS` most active blocks."""
-        pos, wt = self.coarse_points(target)
-        _, wc = self.coarse_points(comp)
-        k = min(COARSE_UNITS, wt.shape[1])
-        wt, it = wt.topk(k, -1)
-        wc, ic = wc.topk(k, -1)
-        pt, pc = pos[it], pos[ic]  # (rows, k, 3)
+        image whose positions are turned by ``R`` ``(rows, 3, 3)`` (Gaussian of one cube edge).
+        ``target``, ``comp``: images ``(rows, n)`` or their :meth:`coarse_code`."""
+        (pt, wt), (pc, wc) = [x if isinstance(x, tuple) else self.coarse_code(x) for x in (target, comp)]
         turned = torch.einsum("rij,rcj->rci", R, pc)
-        d2 = ((pt.unsqueeze(2) - turned.unsqueeze(1)) ** 2).sum(-1)  # (rows, k_t, k_c)
+        d2 = ((pt * pt).sum(-1).unsqueeze(2) + (turned * turned).sum(-1).unsqueeze(1)
+              - 2.0 * pt @ turned.transpose(1, 2)).clamp_min(0.0)  # (rows, k_t, k_c) squared distances
         return torch.einsum("rt,rtc,rc->r", wt, torch.exp(-d2 / (2.0 * self.cube_voxels ** 2)), wc)
+
+    def refine(self, target, comp, R: torch.Tensor, score: torch.Tensor):
+        """Local refinement of candidate rotations ``R`` ``(rows, 3, 3)`` by the same coarse comparison:
+        at each scale of ``search.refine`` (deg) the candidate turns by that angle about each camera
+        axis either way while that raises the match (at most ``search.refine_steps`` times).
+        Returns (refined rotations, their match)."""
+        small = {d: torch.stack([vc.axis_rotation(a, sg * d) for a in AXES for sg in (-1.0, 1.0)])
+                 for d in self.p.search.refine}
+        rows = torch.arange(R.shape[0])
+        for d in self.p.search.refine:
+            for _ in range(self.p.search.refine_steps):
+                cand = small[d].unsqueeze(0) @ R.unsqueeze(1)  # (rows, 6, 3, 3)
+                sc = torch.stack([self.coarse_match(target, comp, cand[:, j]) for j in range(cand.shape[1])], -1)
+                best = sc.argmax(-1)
+                up = sc[rows, best] > score
+                if not up.any():
+                    break
+                R = torch.where(up.view(-1, 1, 1), cand[rows, best], R)
+                score = torch.where(up, sc[rows, best], score)
+        return R, score
 
     def search(self, target: torch.Tensor, comp: torch.Tensor, part: torch.Tensor, proper: bool = True):
         """The rotation still required ``(R, 3, 3)`` (turns the comparison image onto the target)
-        and whether the best correspondence was proper (a rotation) or improper (a reflection)."""
+        and whether the best correspondence was proper (a rotation) or improper (a reflection).
+        Each sign combination of the matched principal axes is refined locally (:meth:`refine`)
+        before the best is chosen."""
         if self.p.search.method == "sweep":
             return self._sweep(target, comp), torch.ones(target.shape[0], dtype=torch.bool)
         Et, Ec = self.principal_axes(target, part), self.principal_axes(comp, part)
-        cands, dets = [], []
+        ct, cc = self.coarse_code(target), self.coarse_code(comp)
+        cands, dets, scores = [], [], []
         for s in SIGNS:
             R = Et.transpose(1, 2) @ torch.diag(s) @ Ec  # comparison coordinates -> target coordinates
+            det = torch.linalg.det(R)
+            sc = self.coarse_match(ct, cc, R)
+            k = (det > 0).nonzero().squeeze(-1) if proper else torch.arange(R.shape[0])  # reflections only if they may win
+            if k.numel() and self.p.search.refine:
+                R, sc = R.clone(), sc.clone()
+                R[k], sc[k] = self.refine(tuple(x[k] for x in ct), tuple(x[k] for x in cc), R[k], sc[k])
             cands.append(R)
-            dets.append(torch.linalg.det(R))
-        scores = torch.stack([self.coarse_match(target, comp, R) for R in cands], -1)  # (rows, 8)
+            dets.append(det)
+            scores.append(sc)
+        scores = torch.stack(scores, -1)  # (rows, 8)
         det = torch.stack(dets, -1)
         if proper:
             scores = torch.where(det > 0, scores, torch.full_like(scores, -math.inf))
@@ -309,7 +342,9 @@ class Rotation3D(nn.Module):
         estimate ``required`` composed with the inverse of the net turn ``net`` made so far (both
         ``(R, 3, 3)``, the net turn composed from the steps' efference copies, PPCp); each move unit is
         driven by how close to identity that remaining rotation would be after its move (minus its
-        geodesic angle, in steps; "still": the angle now), and the softmax of eq. 6.11 chooses. The
+        geodesic angle, in steps; "still": the angle now); the most active unit wins, "still" unless a
+        move brings the remaining rotation closer to identity (``'composed_softmax'``: the softmax of
+        eq. 6.11 chooses). The
         wrist signal joins PPCp_z as in :meth:`ppc_code`; it shifts the sensed turn about the line of
         sight by what it moves that population's read-out."""
         sensed = net
@@ -325,7 +360,10 @@ class Rotation3D(nn.Module):
         turns = self.move_turns.to(remaining.dtype)
         after = remaining.unsqueeze(1) @ turns.transpose(1, 2).unsqueeze(0)  # (R, moves, 3, 3): still first
         ang = vc.axis_angle(after.reshape(-1, 3, 3))[1].reshape(after.shape[0], -1)
-        return softmax_select((-ang / self.p.step_deg).float(), self.p.selection.tau, uniforms=uniforms)
+        am = (-ang / self.p.step_deg).float()
+        if self.p.move_rule == "composed_softmax":
+            return softmax_select(am, self.p.selection.tau, uniforms=uniforms)
+        return am.argmax(-1)  # the first of equals: "still" unless a move brings the remaining rotation closer
 
     @property
     def move_turns(self) -> torch.Tensor:
@@ -349,7 +387,7 @@ class Rotation3D(nn.Module):
         part = torch.arange(P).repeat_interleave(B)
         pfct, poci = target.reshape(Q, n), comp.reshape(Q, n)
         required, proper = self.search(pfct, poci, part, proper=p.strategy != "parity")
-        composed = p.move_rule == "composed"
+        composed = p.move_rule != "axis_sums"
         ppct = None if composed else self.ppc_code(vc.rotation_vector(required))  # (Q, 3, nu)
         sums = torch.zeros(Q, 3, dtype=torch.float64)  # per-axis sums of the steps (move_rule 'axis_sums')
         steps = torch.zeros(Q, dtype=torch.long)
