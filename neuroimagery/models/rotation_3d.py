@@ -11,12 +11,15 @@ Stages (docs/exp6.md):
    sub-voxel positions), one per move (+-step about the camera axes x, y, z); PMCm gates them.
 3. **Search** -- the rotation still required is estimated from a correspondence between the two
    images: each image's principal axes, learnt by Sanger's rule in a fast 3x3 connection (C_axes),
-   are matched, and a coarse comparison chooses among their sign combinations
-   (``search.method='axes'``; ``'sweep'``: the best of turns about the camera axes). PPCt codes
-   the required rotation as a rotation vector, one population of units per camera axis; PPCp
-   codes the rotation done so far, integrated from each step's efference copy, and the wrist
-   signal of the proprioception conditions joins it there. Per axis a gain field PPCt x PPCp and
-   the hard-wired C20 choose the move (eq. 6.9-6.11); "still" ends the transform.
+   are matched, each proper sign combination is refined locally by a coarse comparison of the two
+   images, and the best is chosen (``search.method='axes'``; ``'sweep'``: the best of turns about
+   the camera axes). PPCt holds the estimate; PPCp the net turn, composed from each step's
+   efference copy. Each move unit is driven by how close to identity the remaining rotation
+   (PPCt composed with the inverse of PPCp) would be after its move; the most active wins and
+   "still" ends the transform (``move_rule='composed'``). ``move_rule='axis_sums'`` keeps Exp 4's
+   per-axis codes: rotation vectors, one population per camera axis, a gain field PPCt x PPCp per
+   axis and the hard-wired C20 (eq. 6.9-6.11). The wrist signal of the proprioception conditions
+   joins PPCp_z.
 4. **Confirm** -- once the transform stops, PMCd (leaky competing accumulator, eq. 6.12-6.13)
    takes YES evidence from the cosine of the turned image with the target and NO evidence from
    the largest cluster of mismatching voxels, in cubes; the cut between the two is fixed on the
