@@ -347,9 +347,8 @@ class Rotation3D(nn.Module):
         driven by how close to identity that remaining rotation would be after its move (minus its
         geodesic angle, in steps; "still": the angle now); the most active unit wins, "still" unless a
         move brings the remaining rotation closer to identity (``'composed_softmax'``: the softmax of
-        eq. 6.11 chooses). The
-        wrist signal joins PPCp_z as in :meth:`ppc_code`; it shifts the sensed turn about the line of
-        sight by what it moves that population's read-out."""
+        eq. 6.11 chooses). The wrist signal joins PPCp_z as in :meth:`ppc_code`; it shifts the sensed
+        turn about the line of sight by what it moves that population's read-out."""
         sensed = net
         if proprioception != "none":
             vz = vc.rotation_vector(net)[:, AXES.index(WRIST_AXIS)]
