@@ -1,5 +1,6 @@
 """One Experiment 6 participant trained as the protocol trains it (full sizes, one participant),
-shared by the stage-contract tests of tests/contracts/test_exp6_*.py."""
+shared by the stage-contract tests of tests/contracts/test_exp6_*.py, and its own search and
+transform on the pairs the contracts 6.2c, 6.3b and 6.4 read (computed once)."""
 from functools import lru_cache
 
 from conftest import make_cfg
@@ -22,3 +23,13 @@ def trained():
     scene = exp6.make_scene(cfg.experiment)
     model = exp6.train_model(cfg, [0], scene)
     return cfg, model, scene
+
+
+@lru_cache(maxsize=1)
+def aligned(count: int = 4):
+    """:func:`exp6_stages.alignment` of the trained participant: the training objects' pairs and
+    ``count`` held-out chains' pairs."""
+    from neuroimagery.experiments import exp6_stages
+
+    cfg, model, scene = trained()
+    return exp6_stages.alignment(model, cfg, scene, count)

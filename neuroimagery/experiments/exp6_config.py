@@ -56,6 +56,10 @@ class SearchParams:
     eta: float = bounded(0.5, gt=0, le=1)  # Sanger's rule, rate per update (divided by the inputs' mean squared norm)
     iterations: int = bounded(2000, ge=1)  # updates of the fast principal-axes connection per image (near-equal spreads converge slowly)
     coarse: int = bounded(2, ge=1)  # the coarse comparison pools blocks of coarse^3 voxels
+    # local refinement of each matched-axes candidate by the same comparison: turns of these sizes (deg) about the
+    # camera axes, each scale while the match rises, at most refine_steps times; [] = none
+    refine: List[float] = bounded(factory=lambda: [10.0, 5.0, 2.5, 1.25], gt=0, each=True)
+    refine_steps: int = bounded(3, ge=1)
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.search.")
@@ -112,6 +116,11 @@ class Exp6Config:
     step_deg: float = bounded(20.0, gt=0, le=90)  # one forward-model step (divides 180)
     grid: Optional[int] = bounded(None, ge=8)  # side of the voxel map (even); None = the grid rule (fm.memory_mb)
     cube_voxels: Optional[float] = bounded(None, gt=0)  # voxels per cube edge; None = the scale rule
+    # how PMCm chooses each step: 'composed' = the move bringing the remaining rotation (the estimate composed
+    # with the inverse of the net turn so far) closest to identity, still when none brings it closer |
+    # 'composed_softmax' = the softmax of selection.tau on the same activations | 'axis_sums' = per-axis gain
+    # fields and C20 on the estimate's rotation vector and the per-axis sums of the steps
+    move_rule: str = bounded("composed", choices=("composed", "composed_softmax", "axis_sums"))
     init_high: float = bounded(0.01, gt=0)  # initial weights U[0, init_high] (as Exp 4)
     image: ImageParams = field(default_factory=ImageParams)
     fm: FMParams = field(default_factory=FMParams)

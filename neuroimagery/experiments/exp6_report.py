@@ -251,6 +251,12 @@ def report(cfg, run, summary) -> None:
         + f" (contract >= 0.8); same above mirror in {100 * st['transform']['same_above_mirror']:.0f} % (contract >= 90 %).",
         f"6.3 search: rotation within 20 deg in {100 * st['search']['picture']:.0f} % of picture-plane and "
         f"{100 * st['search']['depth']:.0f} % of depth pairs of held-out chains (contract >= 95 % / >= 85 %).",
+        f"6.3b search precision: estimate within half a step of the true alignment in "
+        + ", ".join(f"{lab} {k} {100 * v:.0f} %" for lab in ("train", "held_out") for k, v in st["precision"][lab].items())
+        + " of same pairs (contract >= 90 % each).",
+        f"6.2c transform: net turn within half a step of the estimate in "
+        + ", ".join(f"{lab} {k} {100 * v:.0f} %" for lab in ("train", "held_out") for k, v in st["realisation"][lab].items())
+        + " of same pairs (contract >= 90 % each).",
         f"6.4 confirm: the cut ({st['confirm']['cut_cubes']} cubes) puts {100 * st['confirm']['train']:.0f} % of the training "
         f"objects' pairs and {100 * st['confirm']['held_out']:.0f} % of held-out chains' pairs on their side (contract >= 90 % each).",
         "The rotation required, each step and the answer come from the two images alone (no trial label reaches the model).",

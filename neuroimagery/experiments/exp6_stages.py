@@ -104,7 +104,62 @@ def search(model, cfg, scene, count: int = 10) -> dict:
     return out
 
 
-def confirm(model, cfg, scene, count: int = 6) -> dict:
+def alignment(model, cfg, scene, count: int = 6) -> dict:
+    """The model's own search and transform on the protocol's pairs (picture plane and depth, the test
+    angles, same and mirror) of the training objects (``train``) and of ``count`` held-out chains
+    (``held_out``): per set the pairs' kinds, whether same, the true alignment (the stimulus's
+    inverse), the comparison images and :meth:`Rotation3D.align`'s result. Shared by 6.2c, 6.3b and 6.4."""
+    e = cfg.experiment
+    train, _, _, _ = data.objects(e)
+    held = data.chains(e, count, cfg.seed, HELD_OUT + 3)
+    ids = list(range(model.participants))
+    P = model.participants
+    out = {}
+    for label, cells in (("train", train), ("held_out", held)):
+        images, rows = _pairs(model, cfg, scene, cells, sm.KINDS, list(e.test_angles), ids)
+        gens = seeding.participant_generators(cfg.seed, ids, stream=60)
+        res = model.align(images[:, [r[0] for r in rows]], images[:, [r[1] for r in rows]], gens)
+        out[label] = {"kind": [r[2] for r in rows] * P, "same": torch.tensor([r[4] for r in rows]).repeat(P),
+                      "truth": torch.stack([_true_required(r[2], r[3]) for r in rows]).repeat(P, 1, 1),
+                      "comp": images[:, [r[1] for r in rows]].reshape(P * len(rows), -1), "res": res}
+    return out
+
+
+def _frac(x: torch.Tensor) -> float:
+    return round(float(x.double().mean()), 4) if x.numel() else float("nan")
+
+
+def _by_kind(al: dict, ok: torch.Tensor, rows: torch.Tensor) -> dict:
+    kinds = al["kind"]
+    return {k: _frac(ok[rows & torch.tensor([x == k for x in kinds])]) for k in sm.KINDS}
+
+
+def precision(model, cfg, scene, count: int = 6, al: dict | None = None) -> dict:
+    """6.3b: per set (training objects, held-out chains) and kind, the fraction of same pairs whose
+    estimate lies within half a step of the true alignment (the angle of the rotation between them)."""
+    al = alignment(model, cfg, scene, count) if al is None else al
+    half = cfg.experiment.step_deg / 2 + 1e-6
+    out = {}
+    for label, a in al.items():
+        err = angle_between(a["res"]["required"], a["truth"])
+        out[label] = _by_kind(a, err <= half, a["same"])
+    return out
+
+
+def realisation(model, cfg, scene, count: int = 6, al: dict | None = None) -> dict:
+    """6.2c: per set and kind, the fraction of same pairs whose net turn, composed from the steps'
+    efference copies, ends within half a step of the search's estimate (``*_mirror``: mirror pairs)."""
+    al = alignment(model, cfg, scene, count) if al is None else al
+    half = cfg.experiment.step_deg / 2 + 1e-6
+    out = {}
+    for label, a in al.items():
+        ok = angle_between(a["res"]["net"], a["res"]["required"]) <= half
+        out[label] = _by_kind(a, ok, a["same"])
+        out[f"{label}_mirror"] = _by_kind(a, ok, ~a["same"])
+    return out
+
+
+def confirm(model, cfg, scene, count: int = 6, al: dict | None = None) -> dict:
     """6.4: fraction of pairs the fitted cut puts on their side after the model's own search and
     transform, on the training objects' pairs and on held-out chains' pairs. Also where the errors
     arise: the fraction of same pairs whose net turn lands within half a step of the stimulus's
@@ -113,38 +168,31 @@ def confirm(model, cfg, scene, count: int = 6) -> dict:
     (``*_same_over_exact``: the completion's share), and of mirror pairs under the cut
     (``*_mirror_under``)."""
     e = cfg.experiment
-    train, _, _, _ = data.objects(e)
-    held = data.chains(e, count, cfg.seed, HELD_OUT + 3)
+    al = alignment(model, cfg, scene, count) if al is None else al
     out = {}
-    ids = list(range(model.participants))
-    P = model.participants
-    for label, cells in (("train", train), ("held_out", held)):
-        images, rows = _pairs(model, cfg, scene, cells, sm.KINDS, list(e.test_angles), ids)
-        gens = seeding.participant_generators(cfg.seed, ids, stream=60)
-        res = model.align(images[:, [r[0] for r in rows]], images[:, [r[1] for r in rows]], gens)
+    for label, a in al.items():
+        res, same, truth = a["res"], a["same"], a["truth"]
         _, cubes = model.mismatch(res["turned"], res["target"])
-        same = torch.tensor([r[4] for r in rows]).repeat(P)
-        cut = model.cut.repeat_interleave(len(rows))
-        out[label] = round(float(((cubes > cut) == ~same).double().mean()), 4)
+        cut = model.cut.repeat_interleave(len(same) // model.participants)
+        out[label] = _frac((cubes > cut) == ~same)
         out[f"{label}_cubes_same"] = round(float(cubes[same].mean()), 3)
         out[f"{label}_cubes_mirror"] = round(float(cubes[~same].mean()), 3)
-        truth = torch.stack([_true_required(r[2], r[3]) for r in rows]).repeat(P, 1, 1)
         residual = angle_between(res["net"], truth)
-        comp = images[:, [r[1] for r in rows]].reshape(P * len(rows), -1)
-        _, exact = model.mismatch(vc.rotate(comp, model.side, truth), res["target"])
-        frac = lambda x: round(float(x.double().mean()), 4)  # noqa: E731
-        out[f"{label}_same_aligned"] = frac(residual[same] <= e.step_deg / 2 + 1e-6)
-        out[f"{label}_same_over"] = frac(cubes[same] > cut[same])
-        out[f"{label}_same_over_exact"] = frac(exact[same] > cut[same])
-        out[f"{label}_mirror_under"] = frac(cubes[~same] <= cut[~same])
+        _, exact = model.mismatch(vc.rotate(a["comp"], model.side, truth), res["target"])
+        out[f"{label}_same_aligned"] = _frac(residual[same] <= e.step_deg / 2 + 1e-6)
+        out[f"{label}_same_over"] = _frac(cubes[same] > cut[same])
+        out[f"{label}_same_over_exact"] = _frac(exact[same] > cut[same])
+        out[f"{label}_mirror_under"] = _frac(cubes[~same] <= cut[~same])
     out["cut_cubes"] = [round(float(c), 3) for c in model.cut]
     return out
 
 
 def measure(model, cfg, scene) -> dict:
     """Every stage contract's measure on small held-out sets (the contract tests use larger ones)."""
+    al = alignment(model, cfg, scene, 3)
     return {"image": completion(model, cfg, scene, 20), "transform": transform(model, cfg, scene, 6),
-            "search": search(model, cfg, scene, 4), "confirm": confirm(model, cfg, scene, 3)}
+            "search": search(model, cfg, scene, 4), "confirm": confirm(model, cfg, scene, al=al),
+            "precision": precision(model, cfg, scene, al=al), "realisation": realisation(model, cfg, scene, al=al)}
 
 
 def angle_between(R1: torch.Tensor, R2: torch.Tensor) -> torch.Tensor:

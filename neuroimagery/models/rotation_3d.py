@@ -11,12 +11,15 @@ Stages (docs/exp6.md):
    sub-voxel positions), one per move (+-step about the camera axes x, y, z); PMCm gates them.
 3. **Search** -- the rotation still required is estimated from a correspondence between the two
    images: each image's principal axes, learnt by Sanger's rule in a fast 3x3 connection (C_axes),
-   are matched, and a coarse comparison chooses among their sign combinations
-   (``search.method='axes'``; ``'sweep'``: the best of turns about the camera axes). PPCt codes
-   the required rotation as a rotation vector, one population of units per camera axis; PPCp
-   codes the rotation done so far, integrated from each step's efference copy, and the wrist
-   signal of the proprioception conditions joins it there. Per axis a gain field PPCt x PPCp and
-   the hard-wired C20 choose the move (eq. 6.9-6.11); "still" ends the transform.
+   are matched, each proper sign combination is refined locally by a coarse comparison of the two
+   images, and the best is chosen (``search.method='axes'``; ``'sweep'``: the best of turns about
+   the camera axes). PPCt holds the estimate; PPCp the net turn, composed from each step's
+   efference copy. Each move unit is driven by how close to identity the remaining rotation
+   (PPCt composed with the inverse of PPCp) would be after its move; the most active wins and
+   "still" ends the transform (``move_rule='composed'``). ``move_rule='axis_sums'`` keeps Exp 4's
+   per-axis codes: rotation vectors, one population per camera axis, a gain field PPCt x PPCp per
+   axis and the hard-wired C20 (eq. 6.9-6.11). The wrist signal of the proprioception conditions
+   joins PPCp_z.
 4. **Confirm** -- once the transform stops, PMCd (leaky competing accumulator, eq. 6.12-6.13)
    takes YES evidence from the cosine of the turned image with the target and NO evidence from
    the largest cluster of mismatching voxels, in cubes; the cut between the two is fixed on the
@@ -202,32 +205,65 @@ class Rotation3D(nn.Module):
         pos = torch.stack([x.reshape(-1), y.reshape(-1), z.reshape(-1)], -1)
         return pos, pooled.reshape(maps.shape[0], -1)
 
-    def coarse_match(self, target: torch.Tensor, comp: torch.Tensor, R: torch.Tensor) -> torch.Tensor:
+    def coarse_code(self, maps: torch.Tensor):
+        """The coarse code the search compares: each image's :data:`COARSE_UNITS` most active blocks
+        of ``search.coarse`` voxels, as (positions ``(rows, k, 3)``, weights ``(rows, k)``)."""
+        pos, w = self.coarse_points(maps)
+        w, i = w.topk(min(COARSE_UNITS, w.shape[1]), -1)
+        return pos[i], w
+
+    def coarse_match(self, target, comp, R: torch.Tensor) -> torch.Tensor:
         """Coarse comparison ``(rows,)``: overlap of the coarse target with the coarse comparison
-        image whose positions are turned by ``R`` ``(rows, 3, 3)`` (Gaussian of one cube edge); each
-        coarse image keeps its :data:`COARSE_UNITS` most active blocks."""
-        pos, wt = self.coarse_points(target)
-        _, wc = self.coarse_points(comp)
-        k = min(COARSE_UNITS, wt.shape[1])
-        wt, it = wt.topk(k, -1)
-        wc, ic = wc.topk(k, -1)
-        pt, pc = pos[it], pos[ic]  # (rows, k, 3)
+        image whose positions are turned by ``R`` ``(rows, 3, 3)`` (Gaussian of one cube edge).
+        ``target``, ``comp``: images ``(rows, n)`` or their :meth:`coarse_code`."""
+        (pt, wt), (pc, wc) = [x if isinstance(x, tuple) else self.coarse_code(x) for x in (target, comp)]
         turned = torch.einsum("rij,rcj->rci", R, pc)
-        d2 = ((pt.unsqueeze(2) - turned.unsqueeze(1)) ** 2).sum(-1)  # (rows, k_t, k_c)
+        d2 = ((pt * pt).sum(-1).unsqueeze(2) + (turned * turned).sum(-1).unsqueeze(1)
+              - 2.0 * pt @ turned.transpose(1, 2)).clamp_min(0.0)  # (rows, k_t, k_c) squared distances
         return torch.einsum("rt,rtc,rc->r", wt, torch.exp(-d2 / (2.0 * self.cube_voxels ** 2)), wc)
+
+    def refine(self, target, comp, R: torch.Tensor, score: torch.Tensor):
+        """Local refinement of candidate rotations ``R`` ``(rows, 3, 3)`` by the same coarse comparison:
+        at each scale of ``search.refine`` (deg) the candidate turns by that angle about each camera
+        axis either way while that raises the match (at most ``search.refine_steps`` times).
+        Returns (refined rotations, their match)."""
+        small = {d: torch.stack([vc.axis_rotation(a, sg * d) for a in AXES for sg in (-1.0, 1.0)])
+                 for d in self.p.search.refine}
+        rows = torch.arange(R.shape[0])
+        for d in self.p.search.refine:
+            for _ in range(self.p.search.refine_steps):
+                cand = small[d].unsqueeze(0) @ R.unsqueeze(1)  # (rows, 6, 3, 3)
+                sc = torch.stack([self.coarse_match(target, comp, cand[:, j]) for j in range(cand.shape[1])], -1)
+                best = sc.argmax(-1)
+                up = sc[rows, best] > score
+                if not up.any():
+                    break
+                R = torch.where(up.view(-1, 1, 1), cand[rows, best], R)
+                score = torch.where(up, sc[rows, best], score)
+        return R, score
 
     def search(self, target: torch.Tensor, comp: torch.Tensor, part: torch.Tensor, proper: bool = True):
         """The rotation still required ``(R, 3, 3)`` (turns the comparison image onto the target)
-        and whether the best correspondence was proper (a rotation) or improper (a reflection)."""
+        and whether the best correspondence was proper (a rotation) or improper (a reflection).
+        Each sign combination of the matched principal axes is refined locally (:meth:`refine`)
+        before the best is chosen."""
         if self.p.search.method == "sweep":
             return self._sweep(target, comp), torch.ones(target.shape[0], dtype=torch.bool)
         Et, Ec = self.principal_axes(target, part), self.principal_axes(comp, part)
-        cands, dets = [], []
+        ct, cc = self.coarse_code(target), self.coarse_code(comp)
+        cands, dets, scores = [], [], []
         for s in SIGNS:
             R = Et.transpose(1, 2) @ torch.diag(s) @ Ec  # comparison coordinates -> target coordinates
+            det = torch.linalg.det(R)
+            sc = self.coarse_match(ct, cc, R)
+            k = (det > 0).nonzero().squeeze(-1) if proper else torch.arange(R.shape[0])  # reflections only if they may win
+            if k.numel() and self.p.search.refine:
+                R, sc = R.clone(), sc.clone()
+                R[k], sc[k] = self.refine(tuple(x[k] for x in ct), tuple(x[k] for x in cc), R[k], sc[k])
             cands.append(R)
-            dets.append(torch.linalg.det(R))
-        scores = torch.stack([self.coarse_match(target, comp, R) for R in cands], -1)  # (rows, 8)
+            dets.append(det)
+            scores.append(sc)
+        scores = torch.stack(scores, -1)  # (rows, 8)
         det = torch.stack(dets, -1)
         if proper:
             scores = torch.where(det > 0, scores, torch.full_like(scores, -math.inf))
@@ -303,11 +339,48 @@ class Rotation3D(nn.Module):
         return (gain * torch.stack([match.double(), no], -1)).float()
 
     # ------------------------------------------------------------------ trials
+    def composed_move(self, required: torch.Tensor, net: torch.Tensor, uniforms: torch.Tensor,
+                      proprioception: str = "none") -> torch.Tensor:
+        """PMCm move per row under ``move_rule='composed'``: the rotation still required is the search's
+        estimate ``required`` composed with the inverse of the net turn ``net`` made so far (both
+        ``(R, 3, 3)``, the net turn composed from the steps' efference copies, PPCp); each move unit is
+        driven by how close to identity that remaining rotation would be after its move (minus its
+        geodesic angle, in steps; "still": the angle now); the most active unit wins, "still" unless a
+        move brings the remaining rotation closer to identity (``'composed_softmax'``: the softmax of
+        eq. 6.11 chooses). The wrist signal joins PPCp_z as in :meth:`ppc_code`; it shifts the sensed
+        turn about the line of sight by what it moves that population's read-out."""
+        sensed = net
+        if proprioception != "none":
+            vz = vc.rotation_vector(net)[:, AXES.index(WRIST_AXIS)]
+            z = torch.zeros(net.shape[0], 3, dtype=torch.float64)
+            z[:, AXES.index(WRIST_AXIS)] = vz
+            plain = self.ppc.decode(self.ppc_code(z)[:, AXES.index(WRIST_AXIS)])
+            felt = self.ppc.decode(self.ppc_code(z, proprioception, vz)[:, AXES.index(WRIST_AXIS)])
+            shift = torch.stack([vc.axis_rotation(WRIST_AXIS, float(d)) for d in (felt - plain).double()])
+            sensed = shift @ net
+        remaining = required @ sensed.transpose(1, 2)
+        turns = self.move_turns.to(remaining.dtype)
+        after = remaining.unsqueeze(1) @ turns.transpose(1, 2).unsqueeze(0)  # (R, moves, 3, 3): still first
+        ang = vc.axis_angle(after.reshape(-1, 3, 3))[1].reshape(after.shape[0], -1)
+        am = (-ang / self.p.step_deg).float()
+        if self.p.move_rule == "composed_softmax":
+            return softmax_select(am, self.p.selection.tau, uniforms=uniforms)
+        return am.argmax(-1)  # the first of equals: "still" unless a move brings the remaining rotation closer
+
+    @property
+    def move_turns(self) -> torch.Tensor:
+        """The rotation of each PMCm unit's move ``(moves, 3, 3)`` (still: identity)."""
+        return torch.stack([torch.eye(3, dtype=torch.float64)] + [vc.axis_rotation(a, d) for a, d in self.moves[1:]])
+
     @torch.no_grad()
     def align(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int = 0,
               proprioception: str = "none") -> dict:
         """Search and transform for images ``(P, B, n)`` (already coded, completed and centred):
-        the turned comparison images, steps, net rotation, the required rotation, history."""
+        the turned comparison images, steps, the net turn (``net``, composed from the steps'
+        efference copies in their order; ``done``, its rotation vector), the required rotation, history.
+        ``move_rule='composed'`` chooses each move from the remaining rotation (:meth:`composed_move`);
+        ``'axis_sums'`` from per-axis gain fields of the estimate's rotation vector (PPCt) and the
+        per-axis sums of the steps (PPCp) through C20."""
         p = self.p
         P, B, n = target.shape
         if len(generators) != P:
@@ -316,30 +389,31 @@ class Rotation3D(nn.Module):
         part = torch.arange(P).repeat_interleave(B)
         pfct, poci = target.reshape(Q, n), comp.reshape(Q, n)
         required, proper = self.search(pfct, poci, part, proper=p.strategy != "parity")
-        vec = vc.rotation_vector(required)  # (Q, 3) deg
-        ppct = self.ppc_code(vec)
-        done = torch.zeros(Q, 3, dtype=torch.float64)
+        composed = p.move_rule != "axis_sums"
+        ppct = None if composed else self.ppc_code(vc.rotation_vector(required))  # (Q, 3, nu)
+        sums = torch.zeros(Q, 3, dtype=torch.float64)  # per-axis sums of the steps (move_rule 'axis_sums')
         steps = torch.zeros(Q, dtype=torch.long)
         live = torch.ones(Q, dtype=torch.bool) if p.strategy == "rotate" else torch.zeros(Q, dtype=torch.bool)
         hist: list[list[dict]] = [[] for _ in range(min(record, B))]
         img = poci.clone()
         step_rot = [None] + [(AXES.index(a), d) for a, d in self.moves[1:]]
-        # the net turn made, composed from the steps' efference copies in their order (for measures)
-        turn = [torch.eye(3, dtype=torch.float64)] + [vc.axis_rotation(a, d) for a, d in self.moves[1:]]
+        turn = self.move_turns
         net = torch.eye(3, dtype=torch.float64).repeat(Q, 1, 1)
         for s in range(p.selection.max_steps):
             draws = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(Q)
             q = live.nonzero().squeeze(-1)
             if q.numel() == 0:
                 break
-            wrist = done[q, AXES.index(WRIST_AXIS)]
-            ppcp = self.ppc_code(done[q], proprioception, wrist)
-            move = self.select(ppct[q], ppcp, draws[q])
+            if composed:
+                move = self.composed_move(required[q], net[q], draws[q], proprioception)
+            else:
+                wrist = sums[q, AXES.index(WRIST_AXIS)]
+                move = self.select(ppct[q], self.ppc_code(sums[q], proprioception, wrist), draws[q])
             img[q] = self.step(img[q], move, part[q])
             for m in range(1, len(MOVES)):
                 a, d = step_rot[m]
-                done[q, a] += d * (move == m).double()  # the efference copy of each step
-            net[q] = torch.stack(turn)[move] @ net[q]
+                sums[q, a] += d * (move == m).double()
+            net[q] = turn[move] @ net[q]  # the efference copy of each step, composed in order
             moving = move > 0
             steps[q] += moving.long()
             live[q] = moving
@@ -348,6 +422,7 @@ class Rotation3D(nn.Module):
                     hist[k].append({"PFCt": pfct[k].clone(), "POCp": img[k].clone(),
                                     "PMCm": torch.nn.functional.one_hot(move[(q == k).nonzero()[0, 0]] if (q == k).any()
                                                                         else torch.tensor(0), len(MOVES)).float()})
+        done = vc.rotation_vector(net) if composed else sums
         return {"turned": img, "steps": steps, "done": done, "net": net, "required": required, "proper": proper,
                 "timeout": live, "history": hist, "part": part, "target": pfct}
 

@@ -1,5 +1,6 @@
 """Contract 6.3 (docs/contracts.md): the search estimates the rotation required from the two images."""
-from support_exp6 import trained
+import pytest
+from support_exp6 import aligned, trained
 
 from neuroimagery.experiments import exp6_stages
 
@@ -10,3 +11,15 @@ def test_search_finds_axis_and_angle_of_held_out_same_pairs():
     print(out)
     assert out["picture"] >= 0.95, out
     assert out["depth"] >= 0.85, out
+
+
+@pytest.mark.xfail(strict=True, reason="contract 6.3b is not met in depth: estimates within half a step in 0.73 of the "
+                   "training objects' and 0.73 of held-out chains' depth pairs (picture plane 0.97 / 0.98; seed 0)")
+def test_search_estimate_is_within_half_a_step_of_the_true_alignment():
+    """Contract 6.3b: same pairs of the training objects and of held-out chains."""
+    cfg, model, scene = trained()
+    out = exp6_stages.precision(model, cfg, scene, al=aligned())
+    print(out)
+    for label in ("train", "held_out"):
+        for kind in ("picture", "depth"):
+            assert out[label][kind] >= 0.9, out
