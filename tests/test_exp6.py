@@ -11,7 +11,7 @@ from neuroimagery.config import validate
 from neuroimagery.experiments import exp6
 from neuroimagery.models import voxels
 from neuroimagery.models import voxel_code as vc
-from neuroimagery.models.rotation_3d import fm_bytes, grid_for_budget
+from neuroimagery.models.rotation_3d import Rotation3D, fm_bytes, grid_for_budget
 from neuroimagery.nn import Connection, Delta, Sanger, seeding
 from neuroimagery.nn.local import LocalConnection
 from neuroimagery.run import evaluate
@@ -265,3 +265,30 @@ def test_old_keys_name_their_new_place_or_why_they_went():
     assert "experiment.fm.eta" in moved_message("experiment.eta_fm", "exp6")
     assert "experiment.lca.threshold" in moved_message("experiment.lca_threshold", "exp6")
     assert "no longer a setting" in moved_message("experiment.posture_readout", "exp6")
+
+
+@pytest.mark.parametrize("measure", ["opened", "pooled", "pooled_two_sided"])
+def test_mismatch_measures_are_zero_for_identical_images_and_see_a_missing_cube(measure):
+    """A bar of five cubes (2 voxels a side, graded code) against itself, against the bar without its
+    end cube, and against that bar with the cube put apart instead: the two-sided measure sees only a
+    cube missing in one place and extra in another."""
+    from types import SimpleNamespace as NS
+
+    side, cube = 18, 1.8
+
+    def bar(cubes, apart=False):
+        occ = torch.zeros(side, side, side)
+        for k in range(cubes):
+            occ[8:10, 8:10, 4 + 2 * k:6 + 2 * k] = 1.0
+        if apart:
+            occ[8:10, 14:16, 4:6] = 1.0
+        return vc.graded(occ.reshape(1, -1), side, 0.7)
+
+    model = NS(p=NS(confirm=NS(measure=measure, level=0.5, pool=0.5)), side=side, cube_voxels=cube)
+    full = bar(5)
+    match, same = Rotation3D.mismatch(model, full, full)
+    assert float(same) == 0.0 and float(match) == pytest.approx(1.0)
+    _, missing = Rotation3D.mismatch(model, bar(4), full)
+    _, moved = Rotation3D.mismatch(model, bar(4, apart=True), full)
+    assert float(moved) >= 1.0
+    assert float(missing) == 0.0 if measure == "pooled_two_sided" else float(missing) >= 1.0

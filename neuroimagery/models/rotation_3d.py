@@ -306,16 +306,25 @@ class Rotation3D(nn.Module):
 
     # ------------------------------------------------------------------ stage 4: confirm
     def mismatch(self, turned: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(match: cosine of the turned image with the target, largest mismatch cluster in cubes). A
-        voxel mismatches when one image is above ``confirm.level`` there and the other is not; the
-        mismatch map keeps only voxels of fully mismatched blocks of ``max(2, round(cube_voxels))``
-        voxels a side (an opening: the thin shell that blur and misalignment leave is no missing
-        part), and its largest 26-connected cluster is counted in cubes."""
-        lv = self.p.confirm.level
-        diff = ((turned > lv) != (target > lv)).float()
-        diff = vc.opening(diff, self.side, max(2, int(round(self.cube_voxels))))
-        cubes = vc.largest_cluster(diff, self.side).double() / self.cube_voxels ** 3
-        return vc.cosine(turned, target), cubes
+        """(match: cosine of the turned image with the target, largest mismatch cluster in cubes).
+        ``confirm.measure='opened'``: a voxel mismatches when one image is above ``confirm.level``
+        there and the other is not; only voxels of fully mismatched blocks of
+        ``max(2, round(cube_voxels))`` voxels a side are kept (an opening: the thin shell that blur and
+        misalignment leave is no missing part), and the largest 26-connected cluster is counted in
+        cubes. ``'pooled'``: the signed difference (target minus turned image) pooled at one cube's
+        scale (:func:`~neuroimagery.models.voxel_code.cube_pooled`, ``confirm.pool`` cube edges);
+        voxels where it exceeds ``confirm.level`` either way mismatch (missing or extra), and the
+        larger of the largest missing and extra clusters is counted; ``'pooled_two_sided'``: the
+        smaller. The pooled measures grow with any misfit of a voxel or more, a shift included."""
+        c, lv, side = self.p.confirm, self.p.confirm.level, self.side
+        if c.measure == "opened":
+            diff = ((turned > lv) != (target > lv)).float()
+            vox = vc.largest_cluster(vc.opening(diff, side, max(2, int(round(self.cube_voxels)))), side)
+        else:
+            d = vc.cube_pooled((target - turned).float(), side, self.cube_voxels, c.pool)
+            missing, extra = (vc.largest_cluster((s * d > lv).float(), side) for s in (1.0, -1.0))
+            vox = torch.maximum(missing, extra) if c.measure == "pooled" else torch.minimum(missing, extra)
+        return vc.cosine(turned, target), vox.double() / self.cube_voxels ** 3
 
     @torch.no_grad()
     def fit_confirm(self, cubes: torch.Tensor, match: torch.Tensor, same: torch.Tensor) -> None:
