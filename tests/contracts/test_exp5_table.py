@@ -2,8 +2,9 @@
 1 % threshold, a pull alone from posture 4 under 5 % of the libraries, a move-then-pull route for
 most of them. The full measurements are slow; the default suite runs a small smoke version.
 
-The full W1 test is a strict xfail: the world misses it (docs/robot.md, "Table 7.1, measured"); it
-is kept so that the suite says so, and a world that meets it turns it into a failure to be promoted.
+The full W1, W2 and W3 tests are strict xfails: the world misses them (docs/robot.md, "Table 7.1,
+measured"); they are kept so that the suite says so, and a world that meets one turns it into a
+failure to be promoted.
 """
 from __future__ import annotations
 
@@ -22,9 +23,9 @@ def test_w1_smoke_retrieval_only_from_the_tool_behind_situation():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the rebuilt world gives 18 of 24 event cells (docs/robot.md)")
+@pytest.mark.xfail(strict=True, reason="the world gives 19 of 24 event cells at W1's size (docs/robot.md)")
 def test_w1_table_7_1_events_at_least_20_of_24():
-    t = measure(1000, seeds=3)
+    t = measure(10000, seeds=10)  # W1's sample size, 100,000 movements per posture (docs/contracts.md)
     assert t["agreement"][str(POSSIBLE_RATE)] >= 20
 
 
@@ -32,15 +33,18 @@ def test_w1_table_7_1_events_at_least_20_of_24():
 def libraries():
     from neuroimagery.experiments.exp5_world import _one_library, summarise
 
-    return summarise([_one_library(0, i) for i in range(16)])
+    # W2-W4's sample (docs/contracts.md): 16 libraries on each of the seeds 0-4
+    return summarise([_one_library(seed, i) for seed in range(5) for i in range(16)])
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the world gives 17 of 24 skill cells over 80 libraries (docs/robot.md)")
 def test_w2_table_7_1_skills_at_least_20_of_24(libraries):
     assert libraries["skill_agreement"][str(POSSIBLE_RATE)] >= 20
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="a pull alone retrieves from posture 4 in 18 of 80 libraries (docs/robot.md)")
 def test_w3_a_pull_alone_retrieves_from_posture_4_for_under_5_percent(libraries):
     assert libraries["with_pull"] > 0 and libraries["pull_alone_share"] < 0.05
 
