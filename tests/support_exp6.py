@@ -33,3 +33,12 @@ def aligned(count: int = 4):
 
     cfg, model, scene = trained()
     return exp6_stages.alignment(model, cfg, scene, count)
+
+
+def assert_every_set_and_kind(out: dict, floor: float) -> None:
+    """A stage measure ``out[set][kind]`` at or above ``floor`` for the training objects and the
+    held-out chains, in the picture plane and in depth."""
+    print(out)
+    for label in ("train", "held_out"):
+        for kind in ("picture", "depth"):
+            assert out[label][kind] >= floor, out

@@ -1,6 +1,6 @@
 """Contract 6.3 (docs/contracts.md): the search estimates the rotation required from the two images."""
 import pytest
-from support_exp6 import aligned, trained
+from support_exp6 import aligned, assert_every_set_and_kind, trained
 
 from neuroimagery.experiments import exp6_stages
 
@@ -18,8 +18,4 @@ def test_search_finds_axis_and_angle_of_held_out_same_pairs():
 def test_search_estimate_is_within_half_a_step_of_the_true_alignment():
     """Contract 6.3b: same pairs of the training objects and of held-out chains."""
     cfg, model, scene = trained()
-    out = exp6_stages.precision(model, cfg, scene, al=aligned())
-    print(out)
-    for label in ("train", "held_out"):
-        for kind in ("picture", "depth"):
-            assert out[label][kind] >= 0.9, out
+    assert_every_set_and_kind(exp6_stages.precision(model, cfg, scene, al=aligned()), 0.9)

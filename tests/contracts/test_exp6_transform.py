@@ -1,7 +1,7 @@
 """Contract 6.2 (docs/contracts.md): nine chained forward-model steps stay close to one turn, and a
 same image still beats a mirror image after them."""
 import pytest
-from support_exp6 import aligned, trained
+from support_exp6 import aligned, assert_every_set_and_kind, trained
 
 from neuroimagery.experiments import exp6_stages
 
@@ -22,8 +22,4 @@ def test_steps_carry_out_the_search_estimate():
     """Contract 6.2c: the net turn composed from the steps' efference copies ends within half a step
     of the search's estimate, same pairs of the training objects and of held-out chains."""
     cfg, model, scene = trained()
-    out = exp6_stages.realisation(model, cfg, scene, al=aligned())
-    print(out)
-    for label in ("train", "held_out"):
-        for kind in ("picture", "depth"):
-            assert out[label][kind] >= 0.9, out
+    assert_every_set_and_kind(exp6_stages.realisation(model, cfg, scene, al=aligned()), 0.9)
