@@ -32,7 +32,8 @@ from ..nn.functional import gain_field, softmax_select
 from ..nn.binary import binary_matmul, binary_matmul_rows, pack_bits, popcount, unique_rows, unpack_bits
 from ..vision.reflection import principal_axis_flip, reflection_index
 from .recording import sample_indices
-from ..nn.decision import full_match_gain, smallest_deciding_gain
+from ..nn.decision import Decision, full_match_gain, smallest_deciding_gain
+from .pmcd_leak import leak_by_rule
 from .posture_ch6 import fit_posture_soms, posture_maps, posture_order  # noqa: F401  (re-exported)
 from .rotation_embodied_params import (EmbodiedLcaParams, EmbodiedParams, EmbodiedPostureParams,  # noqa: F401  (re-exported)
                                        EmbodiedPpcParams)
@@ -56,30 +57,14 @@ def check_proprioception(value: str) -> None:
         raise ValueError(f"proprioception must be none, match or mismatch, got {value!r}")
 
 
-def lca_gain(p) -> float:
+def lca_gain(p, k: float | None = None) -> float:
     """The evidence scale of PMCd: ``p.lca.input_gain``, or when it is None the smallest gain with
     which a full overlap (fraction 1), alone from rest, crosses the threshold within one step of
-    ``lca.cycles`` Euler cycles (docs/choices.md): ``threshold k / (1 - (1 - dt k)^cycles)``."""
+    ``lca.cycles`` Euler cycles (docs/choices.md): ``threshold k / (1 - (1 - dt k)^cycles)``, for
+    the leak ``k`` (default ``lca.k``)."""
     if p.lca.input_gain is not None:
         return float(p.lca.input_gain)
-    return full_match_gain(p.lca.threshold, p.lca.k, p.lca.dt, p.lca.cycles)
-
-
-LEAK_STEP = 0.05  # grid of the leak rule (docs/contracts.md, "Accumulator leak")
-LEAK_STEPS = 50  # its candidates: w, w + 0.05, ..., w + 2.5
-QUIET_SHARE = 0.10  # X4.12: largest share of held misaligned pairs that may decide
-
-
-def object_pairs(objects: torch.Tensor, mirror: torch.Tensor, angles: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The pairs a set shows of one object, from how it is built (per row: object index, mirror flag,
-    angle): every basic image as the target against every image of the same object, basic or
-    mirror -> (target rows, comparison rows, aligned: the same angle)."""
-    t = (~mirror).nonzero().squeeze(-1)
-    ti, ci = torch.meshgrid(t, torch.arange(len(objects)), indexing="ij")
-    ti, ci = ti.reshape(-1), ci.reshape(-1)
-    keep = objects[ti] == objects[ci]
-    ti, ci = ti[keep], ci[keep]
-    return ti, ci, (angles[ti] - angles[ci]).abs() < 1e-6
+    return full_match_gain(p.lca.threshold, p.lca.k if k is None else k, p.lca.dt, p.lca.cycles)
 
 
 def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int) -> tuple[torch.Tensor, torch.Tensor]:
@@ -161,8 +146,8 @@ class RotationEmbodied(nn.Module):
         Gain (``lca.gain_rule``, X4.9): pair every map with itself (target = rotated object, 0 deg),
         run the still step, take the mean PFCtm and PFCfm evidence (overlap per target unit) and find
         the smallest gain with which that mean decides YES within one step. Leak
-        (``lca.leak_rule``, X4.12): on a grid of ``LEAK_STEP`` from w, the smallest k that minimises
-        the share of misaligned same-object pairs (:func:`object_pairs`) that decide, their still-step
+        (``lca.leak_rule``, X4.12; :func:`.pmcd_leak.leak_by_rule`): on a grid of 0.05 from w, the
+        smallest k that minimises the share of misaligned same-object pairs that decide, their still-step
         evidence held for ``selection.max_steps`` steps, plus the share of pairs turned to alignment
         by the forward models that do not give the right answer held as long (the gain set by the
         gain rule at each k). An explicit ``lca.input_gain`` or the ``full`` rule gives the gain in closed
@@ -173,49 +158,16 @@ class RotationEmbodied(nn.Module):
         ev = self.pair_evidence(x, x).mean(1)
         self.identical_evidence.copy_(ev)
         leak = torch.full((P,), float(p.lca.k))
-        if p.lca.leak_rule == "fixed":
-            self.leak.copy_(leak)
-            self.input_gain.copy_(self._gain_for(leak))
-            return
-        t, c, aligned = object_pairs(objects, mirror, angles)
-        misaligned = self.pair_evidence(x[:, t[~aligned]], x[:, c[~aligned]])
-        turned, right = self._turned_pairs(x, t, c, angles, mirror)
-        best = torch.full((P,), float("inf"))
-        for i in range(LEAK_STEPS + 1):
-            k = torch.full((P,), float(p.lca.w) + LEAK_STEP * i)
-            gain = self._gain_for(k)
-            wrong = self.hold(misaligned, gain=gain, leak=k).decided.float().mean(1)
-            h = self.hold(turned, gain=gain, leak=k)
-            missed = 1.0 - (h.decided & (h.winner == right)).float().mean(1)
-            err = wrong + missed
-            better = err < best - 1e-6  # ties keep the smaller k
-            leak, best = torch.where(better, k, leak), torch.where(better, err, best)
+        if p.lca.leak_rule != "fixed":
+            leak = leak_by_rule(self, x, objects, mirror, angles)
         self.leak.copy_(leak)
-        self.input_gain.copy_(self._gain_for(leak))
+        self.input_gain.copy_(self.gain_for(leak))
 
-    def _turned_pairs(self, x: torch.Tensor, t: torch.Tensor, c: torch.Tensor, angles: torch.Tensor,
-                      mirror: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """The still-step evidence ``(P, B, 2)`` of the pairs ``t``, ``c`` of maps ``x`` once each
-        comparison is turned to its target's angle by the forward models (the required steps, the
-        short way round), and the right answer of each (0 YES, 1 NO for a mirror)."""
-        step = float(self.p.step_deg)
-        d = (angles[c] - angles[t] + 180.0) % 360.0 - 180.0  # comparison minus target, in [-180, 180)
-        n = (d.abs() / step).round().long()
-        move = torch.where(d > 0, 2, 0)  # Mr turns by -step, Ml by +step
-        img = x[:, c]
-        P = x.shape[0]
-        for s in range(int(n.max()) if len(n) else 0):
-            live = (n > s).unsqueeze(0).expand(P, -1)
-            img = torch.where(live.unsqueeze(-1), self.forward_step(img, move.expand(P, -1), live), img)
-        return self.pair_evidence(x[:, t], img), mirror[c].long()
-
-    def _gain_for(self, leak: torch.Tensor) -> torch.Tensor:
-        """PMCd's input gain per participant under the gain rule, for the leaks ``leak`` ``(P,)``."""
+    def gain_for(self, leak: torch.Tensor) -> torch.Tensor:
+        """PMCd's input gain per participant under ``lca.gain_rule`` for the leaks ``leak`` ``(P,)``."""
         p = self.p
-        if p.lca.input_gain is not None:
-            return torch.full_like(leak, float(p.lca.input_gain))
-        if p.lca.gain_rule == "full":
-            return torch.tensor([full_match_gain(p.lca.threshold, float(k), p.lca.dt, p.lca.cycles) for k in leak])
+        if p.lca.input_gain is not None or p.lca.gain_rule == "full":
+            return torch.tensor([lca_gain(p, float(k)) for k in leak])
         return smallest_deciding_gain(self.pmcd, self.identical_evidence, p.lca.cycles, leak=leak)
 
     @torch.no_grad()
@@ -228,7 +180,7 @@ class RotationEmbodied(nn.Module):
 
     @torch.no_grad()
     def hold(self, evidence: torch.Tensor, steps: int | None = None, gain: torch.Tensor | None = None,
-             leak: torch.Tensor | None = None):
+             leak: torch.Tensor | None = None) -> Decision:
         """PMCd from rest fed the same evidence ``(P, B, 2)`` for ``steps`` steps (default
         ``selection.max_steps``) of ``lca.cycles`` cycles, with each participant's gain and leak
         (default: the calibrated ones) -> a :class:`Decision` of shape ``(P, B)``."""
@@ -239,7 +191,7 @@ class RotationEmbodied(nn.Module):
         steps = p.selection.max_steps if steps is None else steps
         d = self.pmcd((gain.view(P, 1, 1) * evidence).reshape(P * B, 2), steps * p.lca.cycles,
                       leak=leak.repeat_interleave(B))
-        return type(d)(*(v.reshape(P, B, *v.shape[1:]) for v in (d.winner, d.cycles, d.decided, d.state)))
+        return Decision(*(v.reshape(P, B, *v.shape[1:]) for v in (d.winner, d.cycles, d.decided, d.state)))
 
     def overlap(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
         """PFCtm (PFCfm) summed: the target units covered by ``image`` read as a population code of

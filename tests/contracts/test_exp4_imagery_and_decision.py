@@ -5,7 +5,7 @@ import torch
 from support_ch6 import forward_fn, forward_model_shape, item_rows
 
 from neuroimagery.experiments import exp4
-from neuroimagery.models.rotation_embodied import QUIET_SHARE, object_pairs
+from neuroimagery.models.pmcd_leak import QUIET_SHARE, object_pairs
 from neuroimagery.vision.edges import iou, rotate
 
 
