@@ -19,13 +19,12 @@ URDF_DIR = Path(__file__).resolve().parents[2] / "urdf"
 #   1 (0.645, -0.135) behind the toy, the handle beside it (east): the plate's near face 1.5 cm beyond its north face
 #   2 (0.59, -0.26)   level with the toy, on its right (east); 5.5 cm from the toy
 #   3 (0.56, 0.08)    on the robot's side of the toy's far face, to its left (west); 7.5 cm
-#   4 (0.50, 0.26)    far to the toy's left and nearer the robot, the handle straight ahead: the tool-far
-#                     situation (docs/choices.md, "Posture 4, the tool-far situation"); 25.9 cm
+#   4 (0.54, 0.18)    far to the toy's left, the handle turned 30 degrees left: the tool-far situation; 18.1 cm
 DEFAULT_POSTURES: tuple[tuple[float, ...], ...] = (
     (-0.794, 0.716, 0.283, 0.785, -0.539, 0.216, -0.255),
     (-0.307, 0.659, -0.343, 1.374, -0.431, 0.15, 0.074),
     (-1.044, 0.619, 1.151, 1.659, -0.69, -0.866, 0.342),
-    (-0.841, 0.337, 1.151, 1.56, -0.726, -0.661, -0.059),
+    (-0.959, 0.393, 1.028, 1.498, -0.622, -0.578, 0.22),
 )
 
 # The reachable area (docs/robot.md, robot.reach): the farthest x (m) the free left palm reaches at the

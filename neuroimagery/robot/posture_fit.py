@@ -77,7 +77,7 @@ def fit_posture_heading(cfg: WorldConfig, target_xy, yaw_deg: float, q_refs, pit
 # plate-centre targets of the four situations (docs/robot.md, "Initial postures"; chosen by the rule
 # of docs/choices.md) and how each is oriented: None = the orientation of the stored posture,
 # a number = the handle's heading (degrees to the left of straight ahead)
-TARGETS = (((0.645, -0.135), None), ((0.59, -0.26), None), ((0.56, 0.08), 0.0), ((0.50, 0.26), 0.0))
+TARGETS = (((0.645, -0.135), None), ((0.59, -0.26), None), ((0.56, 0.08), 0.0), ((0.54, 0.18), 30.0))
 # the start points of the heading fits (the right-of-the-toy postures 3 and 4 of an earlier scene,
 # kept only as starting points of the fit)
 HEADING_STARTS = ((-1.446, 1.055, 0.789, 0.559, -0.796, 0.216, 0.342),
