@@ -140,6 +140,27 @@ def test_sanger_rule_learns_the_principal_axes_in_order():
     assert torch.allclose((W @ vec.flip(-1)).abs(), torch.eye(3, dtype=torch.float64), atol=0.02)
 
 
+@pytest.mark.parametrize("starts", [[], [20.0, 40.0]])
+def test_search_finds_an_exact_turn_of_whole_objects(starts):
+    """The search (default, and with the option ``search.starts``) on whole objects turned exactly:
+    the estimate lies within half a step of the turn, and it is proper."""
+    cfg = _cfg(f"experiment.search.starts={starts}")
+    e = cfg.experiment
+    model = Rotation3D(e, 18, seeding.participant_generators(0, [0], stream=0), 1.8)
+    t = (torch.arange(3, dtype=torch.float64) - 1.0) / 3.0
+    sub = torch.stack(torch.meshgrid(t, t, t, indexing="ij"), -1).reshape(-1, 3)
+    cells = torch.from_numpy(sm.centred(sm.generate(2)[1])).double()
+    pts = ((cells.unsqueeze(1) + sub.unsqueeze(0)).reshape(-1, 3) * 1.8)
+    turns = [vc.axis_rotation("y", 100.0), vc.axis_rotation("y", -160.0), vc.axis_rotation("z", 140.0),
+             vc.random_rotations(1, torch.Generator().manual_seed(3))[0]]
+    R = torch.stack(turns)
+    target = vc.blobs(pts.expand(len(turns), -1, -1).float(), 18, e.image.sigma)
+    comp = vc.blobs((pts @ R).float(), 18, e.image.sigma)  # each comparison is the target turned by R^T
+    est, proper = model.search(target, comp, torch.zeros(len(turns), dtype=torch.long))
+    err = vc.axis_angle(est @ R.transpose(1, 2))[1]
+    assert proper.all() and (err <= e.step_deg / 2).all(), err
+
+
 def test_views_are_3d_maps_and_the_mirror_looks_different():
     e = exp6.Exp6Config()
     with exp6.make_scene(e) as scene:
@@ -234,6 +255,8 @@ BAD = [
     (["experiment.strategy=guess"], "experiment.strategy"),
     (["experiment.search.method=random"], "experiment.search.method"),
     (["experiment.search.iterations=0"], "experiment.search.iterations"),
+    (["experiment.search.starts=[-20]"], "experiment.search.starts"),
+    (["experiment.search.keep=0"], "experiment.search.keep"),
     (["experiment.image.sigma=-1"], "experiment.image.sigma"),
     (["experiment.image.fill_depth=-2"], "experiment.image.fill_depth"),
     (["experiment.fm.dots=0"], "experiment.fm.dots"),

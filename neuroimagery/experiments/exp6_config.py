@@ -60,6 +60,10 @@ class SearchParams:
     # camera axes, each scale while the match rises, at most refine_steps times; [] = none
     refine: List[float] = bounded(factory=lambda: [10.0, 5.0, 2.5, 1.25], gt=0, each=True)
     refine_steps: int = bounded(3, ge=1)
+    # more starting points (option; [] = none): each matched-axes candidate also turned by these angles (deg) about
+    # each camera axis either way; all refined at the first refine scale, the `keep` best of them at the others
+    starts: List[float] = bounded(factory=list, gt=0, each=True)
+    keep: int = bounded(8, ge=1)
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.search.")

@@ -13,7 +13,8 @@ Stages (docs/exp6.md):
    images: each image's principal axes, learnt by Sanger's rule in a fast 3x3 connection (C_axes),
    are matched, each proper sign combination is refined locally by a coarse comparison of the two
    images, and the best is chosen (``search.method='axes'``; ``'sweep'``: the best of turns about
-   the camera axes). PPCt holds the estimate; PPCp the net turn, composed from each step's
+   the camera axes; ``search.starts``: more starting points, :mod:`.search_starts`). PPCt holds
+   the estimate; PPCp the net turn, composed from each step's
    efference copy. Each move unit is driven by how close to identity the remaining rotation
    (PPCt composed with the inverse of PPCp) would be after its move; the most active wins and
    "still" ends the transform (``move_rule='composed'``). ``move_rule='axis_sums'`` keeps Exp 4's
@@ -44,6 +45,7 @@ from ..nn.functional import gain_field, softmax_select
 from ..nn.local import LocalConnection, offset_count
 from . import voxel_code as vc
 from .rotation_embodied import check_proprioception
+from .search_starts import multi_start
 
 AXES = ("x", "y", "z")
 WRIST_AXIS = "z"  # the line of sight: the axis the wrist turns the held object about (as in Exp 4)
@@ -222,15 +224,15 @@ class Rotation3D(nn.Module):
               - 2.0 * pt @ turned.transpose(1, 2)).clamp_min(0.0)  # (rows, k_t, k_c) squared distances
         return torch.einsum("rt,rtc,rc->r", wt, torch.exp(-d2 / (2.0 * self.cube_voxels ** 2)), wc)
 
-    def refine(self, target, comp, R: torch.Tensor, score: torch.Tensor):
+    def refine(self, target, comp, R: torch.Tensor, score: torch.Tensor, scales: Sequence[float] | None = None):
         """Local refinement of candidate rotations ``R`` ``(rows, 3, 3)`` by the same coarse comparison:
-        at each scale of ``search.refine`` (deg) the candidate turns by that angle about each camera
-        axis either way while that raises the match (at most ``search.refine_steps`` times).
-        Returns (refined rotations, their match)."""
-        small = {d: torch.stack([vc.axis_rotation(a, sg * d) for a in AXES for sg in (-1.0, 1.0)])
-                 for d in self.p.search.refine}
+        at each scale of ``scales`` (deg; default ``search.refine``) the candidate turns by that angle
+        about each camera axis either way while that raises the match (at most ``search.refine_steps``
+        times). Returns (refined rotations, their match)."""
+        scales = list(self.p.search.refine if scales is None else scales)
+        small = {d: torch.stack([vc.axis_rotation(a, sg * d) for a in AXES for sg in (-1.0, 1.0)]) for d in scales}
         rows = torch.arange(R.shape[0])
-        for d in self.p.search.refine:
+        for d in scales:
             for _ in range(self.p.search.refine_steps):
                 cand = small[d].unsqueeze(0) @ R.unsqueeze(1)  # (rows, 6, 3, 3)
                 sc = torch.stack([self.coarse_match(target, comp, cand[:, j]) for j in range(cand.shape[1])], -1)
@@ -246,11 +248,14 @@ class Rotation3D(nn.Module):
         """The rotation still required ``(R, 3, 3)`` (turns the comparison image onto the target)
         and whether the best correspondence was proper (a rotation) or improper (a reflection).
         Each sign combination of the matched principal axes is refined locally (:meth:`refine`)
-        before the best is chosen."""
+        before the best is chosen (``search.starts``: also from turns of each,
+        :func:`~neuroimagery.models.search_starts.multi_start`)."""
         if self.p.search.method == "sweep":
             return self._sweep(target, comp), torch.ones(target.shape[0], dtype=torch.bool)
         Et, Ec = self.principal_axes(target, part), self.principal_axes(comp, part)
         ct, cc = self.coarse_code(target), self.coarse_code(comp)
+        if self.p.search.starts and self.p.search.refine:
+            return multi_start(self, Et, Ec, ct, cc, proper, SIGNS, AXES)
         cands, dets, scores = [], [], []
         for s in SIGNS:
             R = Et.transpose(1, 2) @ torch.diag(s) @ Ec  # comparison coordinates -> target coordinates
