@@ -1,6 +1,7 @@
 """One Experiment 6 participant trained as the protocol trains it (full sizes, one participant),
 shared by the stage-contract tests of tests/contracts/test_exp6_*.py, and its own search and
 transform on the pairs the contracts 6.2c, 6.3b and 6.4 read (computed once)."""
+import os
 from functools import lru_cache
 
 from conftest import make_cfg
@@ -8,15 +9,18 @@ from conftest import make_cfg
 from neuroimagery.config import validate
 
 
+SEED = int(os.environ.get("NEUROIMAGERY_CONTRACT_SEED", "0"))  # as tests/contracts/conftest.py
+
+
 def cfg_for(*overrides):
-    cfg = validate(make_cfg("experiment=exp6", "logger=none", "participants=1", *overrides))
+    cfg = validate(make_cfg("experiment=exp6", "logger=none", "participants=1", f"seed={SEED}", *overrides))
     cfg.preset = "full"
     return cfg
 
 
 @lru_cache(maxsize=1)
 def trained():
-    """(config, model, scene) of one participant at seed 0."""
+    """(config, model, scene) of one participant at seed 0 (``NEUROIMAGERY_CONTRACT_SEED``: another)."""
     from neuroimagery.experiments import exp6
 
     cfg = cfg_for()
