@@ -96,6 +96,9 @@ class Exp6Config:
     name: str = "exp6"
     # --- stimuli (docs/exp6.md, "Stimulus rules") -------------------------------------------
     object_seed: int = bounded(0, ge=0)  # seed of the object generator
+    # the mirror differs from the object, at its best proper lattice correspondence, by at least this many cubes
+    # (built-in objects, random chains and test_cubes alike); 1 = chirality alone (the earlier generator)
+    mirror_cubes: int = bounded(2, ge=1)
     train_objects: int = bounded(3, ge=1)  # first objects drawn: fix the confirm stage's cut
     test_objects: int = bounded(5, ge=1)  # next objects: the test set (never seen in training)
     test_cubes: Optional[List[Any]] = None  # own test objects: a list of lists of [x, y, z] cube positions
@@ -148,4 +151,4 @@ class Exp6Config:
     def __post_init__(self) -> None:
         check_declared(self, "experiment.", recursive=False)
         for i, c in enumerate(self.test_cubes or ()):
-            sm.check_object(c, f"experiment.test_cubes[{i}]")
+            sm.check_object(c, f"experiment.test_cubes[{i}]", self.mirror_cubes)
