@@ -295,7 +295,7 @@ def test_old_keys_name_their_new_place_or_why_they_went():
     assert "no longer a setting" in moved_message("experiment.posture_readout", "exp6")
 
 
-@pytest.mark.parametrize("measure", ["opened", "pooled", "pooled_two_sided"])
+@pytest.mark.parametrize("measure", ["opened", "pooled", "pooled_two_sided", "cluster"])
 def test_mismatch_measures_are_zero_for_identical_images_and_see_a_missing_cube(measure):
     """A bar of five cubes (2 voxels a side, graded code) against itself, against the bar without its
     end cube, and against that bar with the cube put apart instead: the two-sided measure sees only a

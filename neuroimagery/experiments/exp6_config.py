@@ -71,8 +71,9 @@ class ConfirmParams:
 
     level: float = bounded(0.5, gt=0, lt=1)  # a voxel mismatches when the turned image and the target differ by more than this
     # 'opened' = the opened voxel mismatch map | 'pooled' = the signed difference pooled at one cube's scale, the
-    # larger cluster of missing or extra voxels | 'pooled_two_sided' = the smaller of the two (docs/choices.md)
-    measure: str = bounded("opened", choices=("opened", "pooled", "pooled_two_sided"))
+    # larger cluster of missing or extra voxels | 'pooled_two_sided' = the smaller of the two | 'cluster' = the
+    # voxel mismatch map's largest cluster, not opened (docs/choices.md)
+    measure: str = bounded("opened", choices=("opened", "pooled", "pooled_two_sided", "cluster"))
     pool: float = bounded(0.5, gt=0)  # width (sigma) of the pooling Gaussian, in cube edges
 
     def __post_init__(self) -> None:
