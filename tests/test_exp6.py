@@ -58,6 +58,34 @@ def test_generated_objects_are_chiral_and_mirrors_differ_from_every_rotation():
         assert best > 0.4
 
 
+def _margin_by_hand(cells) -> int:
+    """The mirror margin counted one rotation and one shift at a time (no vectorising)."""
+    c = np.asarray(cells, int)
+    own = {tuple(x) for x in c.tolist()}
+    best = 0
+    for r in sm._cube_group():
+        m = (c * np.array([-1, 1, 1])) @ r.T
+        for a in c:
+            for b in m:
+                best = max(best, sum(tuple(x) in own for x in (m + (a - b)).tolist()))
+    return len(c) - best
+
+
+def test_mirror_margin_counts_the_cubes_a_mirror_leaves_uncovered():
+    assert sm.mirror_margin([[0, 0, 0], [1, 0, 0], [2, 0, 0], [2, 1, 0]]) == 0  # a flat L is its own mirror
+    chiral = sm.generate(8, seed=0, min_margin=1)
+    assert [sm.mirror_margin(o) for o in chiral] == [_margin_by_hand(o) for o in chiral]
+    assert min(sm.mirror_margin(o) for o in chiral) == 1  # chirality alone admits one-cube mirrors
+    kept = sm.generate(8, seed=0, min_margin=2)
+    assert all(sm.mirror_margin(o) >= 2 for o in kept)
+    chains = sm.random_chains(30, np.random.default_rng(3), exclude=kept, min_margin=2)
+    assert all(_margin_by_hand(c) >= 2 for c in chains)
+    one = next(o for o in chiral if sm.mirror_margin(o) == 1).tolist()
+    with pytest.raises(ValueError, match="mirror_cubes"):
+        exp6.Exp6Config(test_cubes=[one])
+    exp6.Exp6Config(test_cubes=[one], mirror_cubes=1)  # chirality alone: the earlier rule
+
+
 def test_check_object_refuses_flat_and_broken_objects():
     with pytest.raises(ValueError, match="own mirror"):
         sm.check_object([[0, 0, 0], [1, 0, 0], [2, 0, 0], [2, 1, 0]])  # a flat L is achiral in 3-D
@@ -290,7 +318,7 @@ def test_old_keys_name_their_new_place_or_why_they_went():
     assert "no longer a setting" in moved_message("experiment.posture_readout", "exp6")
 
 
-@pytest.mark.parametrize("measure", ["opened", "pooled", "pooled_two_sided"])
+@pytest.mark.parametrize("measure", ["opened", "pooled", "pooled_two_sided", "cluster"])
 def test_mismatch_measures_are_zero_for_identical_images_and_see_a_missing_cube(measure):
     """A bar of five cubes (2 voxels a side, graded code) against itself, against the bar without its
     end cube, and against that bar with the cube put apart instead: the two-sided measure sees only a

@@ -79,10 +79,11 @@ def _objects(e):
 
     n = int(e.train_objects) + int(e.test_objects)
     try:
-        return sm.generate(n, seed=e.object_seed)
+        return sm.generate(n, seed=e.object_seed, min_margin=e.mirror_cubes)
     except ValueError:
         raise UserInputError(f"experiment.train_objects + experiment.test_objects = {n}: the object generator "
-                             f"finds fewer distinct objects with object_seed={e.object_seed}; ask for fewer "
+                             f"finds fewer distinct objects with object_seed={e.object_seed} and "
+                             f"mirror_cubes={e.mirror_cubes}; ask for fewer "
                              "(or give experiment.test_cubes)") from None
 
 

@@ -75,8 +75,9 @@ class ConfirmParams:
 
     level: float = bounded(0.5, gt=0, lt=1)  # a voxel mismatches when the turned image and the target differ by more than this
     # 'opened' = the opened voxel mismatch map | 'pooled' = the signed difference pooled at one cube's scale, the
-    # larger cluster of missing or extra voxels | 'pooled_two_sided' = the smaller of the two (docs/choices.md)
-    measure: str = bounded("opened", choices=("opened", "pooled", "pooled_two_sided"))
+    # larger cluster of missing or extra voxels | 'pooled_two_sided' = the smaller of the two | 'cluster' = the
+    # voxel mismatch map's largest cluster, not opened (docs/choices.md)
+    measure: str = bounded("opened", choices=("opened", "pooled", "pooled_two_sided", "cluster"))
     pool: float = bounded(0.5, gt=0)  # width (sigma) of the pooling Gaussian, in cube edges
 
     def __post_init__(self) -> None:
@@ -100,6 +101,9 @@ class Exp6Config:
     name: str = "exp6"
     # --- stimuli (docs/exp6.md, "Stimulus rules") -------------------------------------------
     object_seed: int = bounded(0, ge=0)  # seed of the object generator
+    # the mirror differs from the object, at its best proper lattice correspondence, by at least this many cubes
+    # (built-in objects, random chains and test_cubes alike); 1 = chirality alone (the earlier generator)
+    mirror_cubes: int = bounded(2, ge=1)
     train_objects: int = bounded(3, ge=1)  # first objects drawn: fix the confirm stage's cut
     test_objects: int = bounded(5, ge=1)  # next objects: the test set (never seen in training)
     test_cubes: Optional[List[Any]] = None  # own test objects: a list of lists of [x, y, z] cube positions
@@ -152,4 +156,4 @@ class Exp6Config:
     def __post_init__(self) -> None:
         check_declared(self, "experiment.", recursive=False)
         for i, c in enumerate(self.test_cubes or ()):
-            sm.check_object(c, f"experiment.test_cubes[{i}]")
+            sm.check_object(c, f"experiment.test_cubes[{i}]", self.mirror_cubes)

@@ -21,13 +21,18 @@ def grid_side(e) -> int:
     return int(e.grid) if e.grid is not None else grid_for_budget(e.fm.memory_mb, e.step_deg)
 
 
+def built_objects(e) -> list[np.ndarray]:
+    """The generator's objects in the order drawn: the training objects, then the test set."""
+    return sm.generate(e.train_objects + e.test_objects, seed=e.object_seed, min_margin=e.mirror_cubes)
+
+
 def objects(e) -> tuple[list[np.ndarray], list[str], list[np.ndarray], list[str]]:
     """(training objects, names, test objects, names)."""
-    built = sm.generate(e.train_objects + e.test_objects, seed=e.object_seed)
+    built = built_objects(e)
     train, test = built[:e.train_objects], built[e.train_objects:]
     tnames = [f"T{i + 1}" for i in range(len(train))]
     if e.test_cubes is not None:
-        test = [sm.check_object(c, f"experiment.test_cubes[{i}]") for i, c in enumerate(e.test_cubes)]
+        test = [sm.check_object(c, f"experiment.test_cubes[{i}]", e.mirror_cubes) for i, c in enumerate(e.test_cubes)]
         return train, tnames, test, [f"U{i + 1}" for i in range(len(test))]
     if e.test_set == "train":
         return train, tnames, list(train), list(tnames)
@@ -36,7 +41,7 @@ def objects(e) -> tuple[list[np.ndarray], list[str], list[np.ndarray], list[str]
 
 def reach(e) -> float:
     """The furthest any built-in object reaches from its centroid (cube centre plus half a diagonal), cubes."""
-    built = sm.generate(e.train_objects + e.test_objects, seed=e.object_seed)
+    built = built_objects(e)
     return max(float(np.linalg.norm(sm.centred(c), axis=1).max()) for c in built) + math.sqrt(3) / 2
 
 
@@ -83,8 +88,7 @@ def see(scene, e, side: int, scale: float, cells: np.ndarray, appearance: str, k
 def chains(e, count: int, seed: int, stream: int) -> list[np.ndarray]:
     """Random cube chains (never a built-in object) that fit the map as the built-in objects do."""
     rng = np.random.default_rng([seed, stream, 6])
-    built = sm.generate(e.train_objects + e.test_objects, seed=e.object_seed)
-    return sm.random_chains(count, rng, exclude=built, max_radius=reach(e))
+    return sm.random_chains(count, rng, exclude=built_objects(e), max_radius=reach(e), min_margin=e.mirror_cubes)
 
 
 def chain_views(scene, e, side: int, scale: float, count: int, seed: int, stream: int, mirror: bool = False):

@@ -320,11 +320,14 @@ class Rotation3D(nn.Module):
         scale (:func:`~neuroimagery.models.voxel_code.cube_pooled`, ``confirm.pool`` cube edges);
         voxels where it exceeds ``confirm.level`` either way mismatch (missing or extra), and the
         larger of the largest missing and extra clusters is counted; ``'pooled_two_sided'``: the
-        smaller. The pooled measures grow with any misfit of a voxel or more, a shift included."""
+        smaller. The pooled measures grow with any misfit of a voxel or more, a shift included.
+        ``'cluster'``: the largest 26-connected cluster of the mismatching voxels, not opened."""
         c, lv, side = self.p.confirm, self.p.confirm.level, self.side
-        if c.measure == "opened":
+        if c.measure in ("opened", "cluster"):
             diff = ((turned > lv) != (target > lv)).float()
-            vox = vc.largest_cluster(vc.opening(diff, side, max(2, int(round(self.cube_voxels)))), side)
+            if c.measure == "opened":
+                diff = vc.opening(diff, side, max(2, int(round(self.cube_voxels))))
+            vox = vc.largest_cluster(diff, side)
         else:
             d = vc.cube_pooled((target - turned).float(), side, self.cube_voxels, c.pool)
             missing, extra = (vc.largest_cluster((s * d > lv).float(), side) for s in (1.0, -1.0))

@@ -7,6 +7,9 @@ right-angled elbows. The procedural generator (:func:`generate`) follows a fixed
   the arm before it, and the arms use all three lattice directions (the object is not flat);
 * no cube repeats; the object is chiral: its mirror image matches none of the 24 rotations of
   the cube group (up to translation, :func:`is_chiral`);
+* the mirror differs from the object by at least ``min_margin`` cubes: at every proper rotation of
+  the cube group and every lattice shift it leaves that many of the object's cubes uncovered
+  (:func:`mirror_margin`; 1 = chirality alone);
 * candidates are drawn from a generator seeded by ``seed`` and kept in the order drawn, skipping
   any that equals an earlier one under a rotation or a reflection.
 
@@ -34,7 +37,7 @@ import numpy as np
 
 from ..files import save_figure
 
-__all__ = ["generate", "mirror", "is_chiral", "check_object", "canonical", "rotation_matrix", "SMScene",
+__all__ = ["generate", "mirror", "is_chiral", "mirror_margin", "check_object", "canonical", "rotation_matrix", "SMScene",
            "View", "contact_sheet", "KINDS"]
 
 KINDS = ("picture", "depth")  # rotation about the line of sight / about the vertical axis
@@ -73,8 +76,28 @@ def is_chiral(cells: np.ndarray) -> bool:
     return canonical(refl) not in _rotations(cells)
 
 
-def check_object(cells, name: str = "object") -> np.ndarray:
-    """Validate a user's cube list: distinct integer cells, face-connected, at least 4, chiral.
+def mirror_margin(cells: np.ndarray) -> int:
+    """Cubes of ``cells`` that its mirror image leaves uncovered at its best proper correspondence:
+    the least, over the 24 rotations of the cube group and every lattice shift that puts a cube of
+    the turned mirror on a cube of the object, of the object's cubes the mirror does not cover
+    (0 exactly when the object is its own mirror image)."""
+    c = np.asarray(cells, int)
+    G = _cube_group()
+    r = np.einsum("gij,nj->gni", G, c * np.array([-1, 1, 1]))  # (24, n, 3) the mirror, turned
+    shifts = (c[None, :, None, :] - r[:, None, :, :]).reshape(len(G), -1, 3)  # cube j of r onto cube i of c
+    placed = r[:, None, :, :] + shifts[:, :, None, :]  # (24, shifts, n, 3)
+    lo = c.min(0) - 4 * len(c)
+
+    def key(x):
+        x = x - lo
+        return (x[..., 0] * 1024 + x[..., 1]) * 1024 + x[..., 2]
+
+    return len(c) - int(np.isin(key(placed), key(c)).sum(-1).max())
+
+
+def check_object(cells, name: str = "object", min_margin: int = 1) -> np.ndarray:
+    """Validate a user's cube list: distinct integer cells, face-connected, at least 4, chiral, its
+    mirror differing from it by at least ``min_margin`` cubes (:func:`mirror_margin`).
     Returns ``(n, 3)`` int cells; raises ``ValueError`` naming the problem."""
     try:
         c = np.asarray(cells, dtype=float)
@@ -100,6 +123,10 @@ def check_object(cells, name: str = "object") -> np.ndarray:
     if not is_chiral(c):
         raise ValueError(f"{name}: the object equals its own mirror image (a rotation maps one onto the other), "
                          "so same and mirror pairs could not differ")
+    if min_margin > 1 and mirror_margin(c) < min_margin:
+        raise ValueError(f"{name}: its mirror image differs from it by only {mirror_margin(c)} cube(s) at its best "
+                         f"proper correspondence; the stimulus rule asks for at least {min_margin} "
+                         "(experiment.mirror_cubes; 1 = chirality alone)")
     return c
 
 
@@ -132,15 +159,16 @@ def _candidate(rng: np.random.Generator, cubes: int, arms: int) -> np.ndarray | 
     return c
 
 
-def generate(n: int, seed: int = 0, cubes: int = 10, arms: int = 4) -> list[np.ndarray]:
-    """``n`` distinct chiral objects of ``cubes`` cubes in ``arms`` arms (rule: module docstring)."""
+def generate(n: int, seed: int = 0, cubes: int = 10, arms: int = 4, min_margin: int = 1) -> list[np.ndarray]:
+    """``n`` distinct chiral objects of ``cubes`` cubes in ``arms`` arms whose mirror differs from
+    them by at least ``min_margin`` cubes (rule: module docstring)."""
     if n < 1 or cubes < 4 or not (2 <= arms <= cubes - 1):
         raise ValueError(f"need n >= 1, cubes >= 4, 2 <= arms < cubes; got {n}, {cubes}, {arms}")
     rng = np.random.default_rng(seed)
     out, seen = [], set()
     for _ in range(100_000):
         c = _candidate(rng, cubes, arms)
-        if c is None or not is_chiral(c):
+        if c is None or not is_chiral(c) or (min_margin > 1 and mirror_margin(c) < min_margin):
             continue
         forms = _rotations(c) | _rotations(c * np.array([-1, 1, 1]))
         if forms & seen:
@@ -149,7 +177,8 @@ def generate(n: int, seed: int = 0, cubes: int = 10, arms: int = 4) -> list[np.n
         out.append(c)
         if len(out) == n:
             return out
-    raise ValueError(f"could not find {n} distinct chiral objects of {cubes} cubes in {arms} arms")
+    raise ValueError(f"could not find {n} distinct chiral objects of {cubes} cubes in {arms} arms"
+                     + (f" whose mirror differs by at least {min_margin} cubes" if min_margin > 1 else ""))
 
 
 def centred(cells: np.ndarray) -> np.ndarray:
@@ -196,9 +225,10 @@ def rotation_about(axis, deg: float) -> np.ndarray:
 
 
 def random_chains(n: int, rng: np.random.Generator, exclude=(), max_radius: float | None = None,
-                  cubes: int = 10, arms=(3, 4, 5)) -> list[np.ndarray]:
+                  cubes: int = 10, arms=(3, 4, 5), min_margin: int = 1) -> list[np.ndarray]:
     """``n`` random chains of ``cubes`` face-joined cubes in straight arms (the rule of
-    :func:`generate` with ``arms`` drawn from ``arms``), chiral, none equal under a rotation or a
+    :func:`generate` with ``arms`` drawn from ``arms``), chiral, their mirror differing from them by
+    at least ``min_margin`` cubes, none equal under a rotation or a
     reflection to an object of ``exclude``, none reaching further than ``max_radius`` cube edges
     (cube centre plus half a diagonal) from its centroid. Draws only from ``rng``."""
     banned = set()
@@ -208,6 +238,8 @@ def random_chains(n: int, rng: np.random.Generator, exclude=(), max_radius: floa
     for _ in range(200 * n + 1000):
         c = _candidate(rng, cubes, int(arms[rng.integers(len(arms))]))
         if c is None or not is_chiral(c) or canonical(c) in banned:
+            continue
+        if min_margin > 1 and mirror_margin(c) < min_margin:
             continue
         if max_radius is not None and np.linalg.norm(centred(c), axis=1).max() + math.sqrt(3) / 2 > max_radius:
             continue

@@ -13,8 +13,8 @@ def test_search_finds_axis_and_angle_of_held_out_same_pairs():
     assert out["depth"] >= 0.85, out
 
 
-@pytest.mark.xfail(strict=True, reason="contract 6.3b is not met in depth: estimates within half a step in 0.73 of the "
-                   "training objects' and 0.73 of held-out chains' depth pairs (picture plane 0.97 / 0.98; seed 0)")
+@pytest.mark.xfail(strict=True, reason="contract 6.3b is not met in depth: estimates within half a step in 0.80 of the "
+                   "training objects' and 0.80 of held-out chains' depth pairs (picture plane 0.97 / 0.95; seed 0)")
 def test_search_estimate_is_within_half_a_step_of_the_true_alignment():
     """Contract 6.3b: same pairs of the training objects and of held-out chains."""
     cfg, model, scene = trained()

@@ -16,7 +16,7 @@ def test_chained_steps_match_one_turn_and_keep_same_above_mirror():
 
 
 @pytest.mark.xfail(strict=True, reason="contract 6.2c is not met in depth: 0.83 of the training objects' and 0.88 of "
-                   "held-out chains' depth pairs end within half a step of the estimate (picture plane 1.00 / 0.98; seed 0); "
+                   "held-out chains' depth pairs end within half a step of the estimate (picture plane 1.00 / 0.95; seed 0); "
                    "every miss is an estimate more than half a step from the truth, off the steps' lattice")
 def test_steps_carry_out_the_search_estimate():
     """Contract 6.2c: the net turn composed from the steps' efference copies ends within half a step
