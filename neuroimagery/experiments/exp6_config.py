@@ -39,7 +39,7 @@ class FMParams:
     """Stage 2 (``experiment.fm``): the forward models (delta rule, eq. 6.4) on graded dots."""
 
     eta: float = bounded(0.1, gt=0, le=1)  # thesis 0.1
-    images: int = bounded(200, ge=1)  # training images per move and participant
+    images: int = bounded(3200, ge=1)  # training images per move and participant (the size rule, docs/choices.md)
     batch: int = bounded(4, ge=1)  # images per delta-rule update
     dots: int = bounded(24, ge=1)  # graded dots at sub-voxel positions per image, uniform in the dot ball
     memory_mb: float = bounded(20.0, gt=0)  # the forward models of one participant: the grid rule (docs/exp6.md)
@@ -77,7 +77,7 @@ class ConfirmParams:
     # 'opened' = the opened voxel mismatch map | 'pooled' = the signed difference pooled at one cube's scale, the
     # larger cluster of missing or extra voxels | 'pooled_two_sided' = the smaller of the two | 'cluster' = the
     # voxel mismatch map's largest cluster, not opened (docs/choices.md)
-    measure: str = bounded("opened", choices=("opened", "pooled", "pooled_two_sided", "cluster"))
+    measure: str = bounded("cluster", choices=("opened", "pooled", "pooled_two_sided", "cluster"))
     pool: float = bounded(0.5, gt=0)  # width (sigma) of the pooling Gaussian, in cube edges
 
     def __post_init__(self) -> None:
