@@ -6,10 +6,10 @@ from support_exp6 import aligned, trained
 from neuroimagery.experiments import exp6_stages
 
 
-@pytest.mark.xfail(strict=True, reason="contract 6.4 is not met by the present model: the cut puts 0.78 of the "
-                   "training pairs and 0.56 of held-out chains' pairs on their side (seed 0); at a mirror's best proper "
-                   "correspondence the opened mismatch shows no fully mismatched block, the steps' erosion and, in depth, "
-                   "the completion make same pairs differ (docs/contracts.md, 6.4: where the misses arise)")
+@pytest.mark.xfail(strict=True, reason="contract 6.4 is not met on held-out chains: the cut puts 0.925 of the "
+                   "training pairs but 0.78 of held-out chains' pairs on their side (seed 0); their depth views, completed "
+                   "from one seen face, leave same pairs over the cut and mirrors under it (docs/contracts.md, 6.4: where "
+                   "the misses arise)")
 def test_mismatch_cluster_separates_training_and_held_out_pairs():
     cfg, model, scene = trained()
     out = exp6_stages.confirm(model, cfg, scene, al=aligned())
