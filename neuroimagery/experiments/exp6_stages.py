@@ -125,6 +125,12 @@ def alignment(model, cfg, scene, count: int = 6) -> dict:
     return out
 
 
+def _within_half_step(angle: torch.Tensor, cfg) -> torch.Tensor:
+    """Whether each angle (deg) is at most half a forward-model step (``step_deg / 2``, with a hair
+    of float tolerance): the precision contracts 6.2c, 6.3b and 6.4's alignment ask for."""
+    return angle <= cfg.experiment.step_deg / 2 + 1e-6
+
+
 def _frac(x: torch.Tensor) -> float:
     return round(float(x.double().mean()), 4) if x.numel() else float("nan")
 
@@ -138,11 +144,10 @@ def precision(model, cfg, scene, count: int = 6, al: dict | None = None) -> dict
     """6.3b: per set (training objects, held-out chains) and kind, the fraction of same pairs whose
     estimate lies within half a step of the true alignment (the angle of the rotation between them)."""
     al = alignment(model, cfg, scene, count) if al is None else al
-    half = cfg.experiment.step_deg / 2 + 1e-6
     out = {}
     for label, a in al.items():
-        err = angle_between(a["res"]["required"], a["truth"])
-        out[label] = _by_kind(a, err <= half, a["same"])
+        ok = _within_half_step(angle_between(a["res"]["required"], a["truth"]), cfg)
+        out[label] = _by_kind(a, ok, a["same"])
     return out
 
 
@@ -150,10 +155,9 @@ def realisation(model, cfg, scene, count: int = 6, al: dict | None = None) -> di
     """6.2c: per set and kind, the fraction of same pairs whose net turn, composed from the steps'
     efference copies, ends within half a step of the search's estimate (``*_mirror``: mirror pairs)."""
     al = alignment(model, cfg, scene, count) if al is None else al
-    half = cfg.experiment.step_deg / 2 + 1e-6
     out = {}
     for label, a in al.items():
-        ok = angle_between(a["res"]["net"], a["res"]["required"]) <= half
+        ok = _within_half_step(angle_between(a["res"]["net"], a["res"]["required"]), cfg)
         out[label] = _by_kind(a, ok, a["same"])
         out[f"{label}_mirror"] = _by_kind(a, ok, ~a["same"])
     return out
@@ -167,7 +171,6 @@ def confirm(model, cfg, scene, count: int = 6, al: dict | None = None) -> dict:
     their completed comparison image is turned exactly by the stimulus's inverse instead
     (``*_same_over_exact``: the completion's share), and of mirror pairs under the cut
     (``*_mirror_under``)."""
-    e = cfg.experiment
     al = alignment(model, cfg, scene, count) if al is None else al
     out = {}
     for label, a in al.items():
@@ -179,7 +182,7 @@ def confirm(model, cfg, scene, count: int = 6, al: dict | None = None) -> dict:
         out[f"{label}_cubes_mirror"] = round(float(cubes[~same].mean()), 3)
         residual = angle_between(res["net"], truth)
         _, exact = model.mismatch(vc.rotate(a["comp"], model.side, truth), res["target"])
-        out[f"{label}_same_aligned"] = _frac(residual[same] <= e.step_deg / 2 + 1e-6)
+        out[f"{label}_same_aligned"] = _frac(_within_half_step(residual[same], cfg))
         out[f"{label}_same_over"] = _frac(cubes[same] > cut[same])
         out[f"{label}_same_over_exact"] = _frac(exact[same] > cut[same])
         out[f"{label}_mirror_under"] = _frac(cubes[~same] <= cut[~same])

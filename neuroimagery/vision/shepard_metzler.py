@@ -95,6 +95,15 @@ def mirror_margin(cells: np.ndarray) -> int:
     return len(c) - int(np.isin(key(placed), key(c)).sum(-1).max())
 
 
+def _too_close(cells: np.ndarray, min_margin: int) -> int | None:
+    """The mirror margin of ``cells`` when it is under ``min_margin`` (a chiral object always has 1,
+    so it is computed only for ``min_margin > 1``), else None."""
+    if min_margin <= 1:
+        return None
+    m = mirror_margin(cells)
+    return m if m < min_margin else None
+
+
 def check_object(cells, name: str = "object", min_margin: int = 1) -> np.ndarray:
     """Validate a user's cube list: distinct integer cells, face-connected, at least 4, chiral, its
     mirror differing from it by at least ``min_margin`` cubes (:func:`mirror_margin`).
@@ -123,8 +132,9 @@ def check_object(cells, name: str = "object", min_margin: int = 1) -> np.ndarray
     if not is_chiral(c):
         raise ValueError(f"{name}: the object equals its own mirror image (a rotation maps one onto the other), "
                          "so same and mirror pairs could not differ")
-    if min_margin > 1 and mirror_margin(c) < min_margin:
-        raise ValueError(f"{name}: its mirror image differs from it by only {mirror_margin(c)} cube(s) at its best "
+    margin = _too_close(c, min_margin)
+    if margin is not None:
+        raise ValueError(f"{name}: its mirror image differs from it by only {margin} cube(s) at its best "
                          f"proper correspondence; the stimulus rule asks for at least {min_margin} "
                          "(experiment.mirror_cubes; 1 = chirality alone)")
     return c
@@ -168,7 +178,7 @@ def generate(n: int, seed: int = 0, cubes: int = 10, arms: int = 4, min_margin: 
     out, seen = [], set()
     for _ in range(100_000):
         c = _candidate(rng, cubes, arms)
-        if c is None or not is_chiral(c) or (min_margin > 1 and mirror_margin(c) < min_margin):
+        if c is None or not is_chiral(c) or _too_close(c, min_margin) is not None:
             continue
         forms = _rotations(c) | _rotations(c * np.array([-1, 1, 1]))
         if forms & seen:
@@ -239,7 +249,7 @@ def random_chains(n: int, rng: np.random.Generator, exclude=(), max_radius: floa
         c = _candidate(rng, cubes, int(arms[rng.integers(len(arms))]))
         if c is None or not is_chiral(c) or canonical(c) in banned:
             continue
-        if min_margin > 1 and mirror_margin(c) < min_margin:
+        if _too_close(c, min_margin) is not None:
             continue
         if max_radius is not None and np.linalg.norm(centred(c), axis=1).max() + math.sqrt(3) / 2 > max_radius:
             continue
