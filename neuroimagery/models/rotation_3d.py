@@ -50,6 +50,7 @@ from .search_starts import multi_start
 AXES = ("x", "y", "z")
 WRIST_AXIS = "z"  # the line of sight: the axis the wrist turns the held object about (as in Exp 4)
 MOVES = ("still",) + tuple(f"{a}{s}" for a in AXES for s in ("-", "+"))  # PMCm units
+MATCH_CHUNK = 8  # rows of the coarse comparison formed together (speed only)
 COARSE_UNITS = 128  # blocks of a coarse image the search compares (the most active ones)
 SIGNS = [torch.tensor(s, dtype=torch.float64) for s in itertools.product((1.0, -1.0), repeat=3)]
 
@@ -220,9 +221,15 @@ class Rotation3D(nn.Module):
         ``target``, ``comp``: images ``(rows, n)`` or their :meth:`coarse_code`."""
         (pt, wt), (pc, wc) = [x if isinstance(x, tuple) else self.coarse_code(x) for x in (target, comp)]
         turned = torch.einsum("rij,rcj->rci", R, pc)
-        d2 = ((pt * pt).sum(-1).unsqueeze(2) + (turned * turned).sum(-1).unsqueeze(1)
-              - 2.0 * pt @ turned.transpose(1, 2)).clamp_min(0.0)  # (rows, k_t, k_c) squared distances
-        return torch.einsum("rt,rtc,rc->r", wt, torch.exp(-d2 / (2.0 * self.cube_voxels ** 2)), wc)
+        st, sc = (pt * pt).sum(-1), (turned * turned).sum(-1)
+        out = torch.empty(R.shape[0], dtype=torch.float64)
+        for a in range(0, R.shape[0], MATCH_CHUNK):  # a few rows at a time: (rows, k_t, k_c) stays in the cache
+            b = min(a + MATCH_CHUNK, R.shape[0])
+            d2 = torch.baddbmm(st[a:b].unsqueeze(2) + sc[a:b].unsqueeze(1), pt[a:b], turned[a:b].transpose(1, 2),
+                               alpha=-2.0)  # squared distances
+            g = d2.clamp_min_(0.0).div_(-2.0 * self.cube_voxels ** 2).exp_()
+            out[a:b] = torch.bmm(torch.bmm(wt[a:b].unsqueeze(1), g), wc[a:b].unsqueeze(2)).view(-1)
+        return out
 
     def refine(self, target, comp, R: torch.Tensor, score: torch.Tensor, scales: Sequence[float] | None = None):
         """Local refinement of candidate rotations ``R`` ``(rows, 3, 3)`` by the same coarse comparison:
@@ -231,17 +238,25 @@ class Rotation3D(nn.Module):
         times). Returns (refined rotations, their match)."""
         scales = list(self.p.search.refine if scales is None else scales)
         small = {d: torch.stack([vc.axis_rotation(a, sg * d) for a in AXES for sg in (-1.0, 1.0)]) for d in scales}
-        rows = torch.arange(R.shape[0])
+        codes = [x if isinstance(x, tuple) else self.coarse_code(x) for x in (target, comp)]
+        R, score = R.clone(), score.clone()
+        m = 2 * len(AXES)
         for d in scales:
+            # a row whose match did not rise keeps its rotation, so its candidates would not raise it at
+            # the next step either: each step compares only the rows that rose at the one before
+            act = torch.arange(R.shape[0])
             for _ in range(self.p.search.refine_steps):
-                cand = small[d].unsqueeze(0) @ R.unsqueeze(1)  # (rows, 6, 3, 3)
-                sc = torch.stack([self.coarse_match(target, comp, cand[:, j]) for j in range(cand.shape[1])], -1)
-                best = sc.argmax(-1)
-                up = sc[rows, best] > score
-                if not up.any():
+                if act.numel() == 0:
                     break
-                R = torch.where(up.view(-1, 1, 1), cand[rows, best], R)
-                score = torch.where(up, sc[rows, best], score)
+                cand = small[d].unsqueeze(0) @ R[act].unsqueeze(1)  # (rows, 6, 3, 3)
+                sub = [tuple(v[act].repeat_interleave(m, 0) for v in c) for c in codes]  # each row once per move
+                sc = self.coarse_match(*sub, cand.reshape(-1, 3, 3)).view(-1, m)
+                r = torch.arange(act.numel())
+                best = sc.argmax(-1)
+                up = sc[r, best] > score[act]
+                R[act[up]] = cand[r[up], best[up]]
+                score[act[up]] = sc[r[up], best[up]]
+                act = act[up]
         return R, score
 
     def search(self, target: torch.Tensor, comp: torch.Tensor, part: torch.Tensor, proper: bool = True):
@@ -252,7 +267,8 @@ class Rotation3D(nn.Module):
         :func:`~neuroimagery.models.search_starts.multi_start`)."""
         if self.p.search.method == "sweep":
             return self._sweep(target, comp), torch.ones(target.shape[0], dtype=torch.bool)
-        Et, Ec = self.principal_axes(target, part), self.principal_axes(comp, part)
+        E = self.principal_axes(torch.cat([target, comp]), torch.cat([part, part]))  # both images' rows at once
+        Et, Ec = E[:target.shape[0]], E[target.shape[0]:]
         ct, cc = self.coarse_code(target), self.coarse_code(comp)
         if self.p.search.starts and self.p.search.refine:
             return multi_start(self, Et, Ec, ct, cc, proper, SIGNS, AXES)

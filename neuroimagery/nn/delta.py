@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import torch
 
-from . import monitor
+from . import local_kernel, monitor
 from .connections import Connection
 from .forms import Form, register
 from .functional import check_rate
@@ -224,6 +224,9 @@ class Sparse(Form):
         if post is None:
             post = conn.net_binary(pre.reshape(P * B, n), torch.arange(P).repeat_interleave(B)).view(P, B, n)
         err = Delta.error(post, target)  # (P, B, n)
+        if local_kernel.available(pre, err, call.out) and call.out.is_contiguous():
+            local_kernel.delta_sparse(pre, err, conn.target_of, rule.rate(B), call.out)
+            return
         p, b, i = (pre != 0).nonzero(as_tuple=True)
         o = conn.target_of[i]  # (A, K)
         k = torch.arange(conn.K).expand_as(o)

@@ -22,7 +22,7 @@ from typing import Sequence
 
 import torch
 
-from . import forms, seeding
+from . import forms, local_kernel, seeding
 from .connections import Connection
 from .forms import Form, register
 from .functional import check_floating
@@ -87,6 +87,10 @@ class LocalConnection(Connection):
             raise ValueError(f"connection {self.name!r}: input must be ({self.participants}, B, {self.n_in}), got {tuple(x.shape)}")
         check_floating(f"input of connection {self.name!r}", x)
         w = self.weight if self.weight.dtype == x.dtype else self.weight.to(x.dtype)  # in the input's dtype
+        if local_kernel.available(w, x):
+            P, B, n = x.shape
+            group = torch.arange(P).repeat_interleave(B)
+            return local_kernel.net_dense(w, self.source, x.reshape(P * B, n), group).view(P, B, n)
         pad = torch.cat([x, x.new_zeros(*x.shape[:-1], 1)], -1)  # (P, B, n + 1)
         out = x.new_zeros(x.shape)
         for k in range(self.K):  # one offset at a time keeps the memory at (P, B, n)
@@ -102,6 +106,8 @@ class LocalConnection(Connection):
             if self.participants != 1:
                 raise ValueError("net_binary: give the participant of each row")
             group = torch.zeros(N, dtype=torch.long)
+        if local_kernel.available(self.weight, x.to(self.weight.dtype)):
+            return local_kernel.net_sparse(self.weight, self.target_of, x.to(self.weight.dtype), group)
         r, i = (x != 0).nonzero(as_tuple=True)  # sorted by row, then input voxel
         out = torch.zeros(N * (n + 1), dtype=self.weight.dtype)
         if r.numel():
@@ -118,6 +124,8 @@ class LocalConnection(Connection):
         N, n = x.shape
         if N and float((x != 0).float().mean()) <= 0.25:
             return self.net_binary(x, group)
+        if local_kernel.available(self.weight, x):
+            return local_kernel.net_dense(self.weight, self.source, x, group)
         pad = torch.cat([x, x.new_zeros(N, 1)], -1)
         out = x.new_zeros(N, n)
         for k in range(self.K):

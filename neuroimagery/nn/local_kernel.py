@@ -1,0 +1,120 @@
+"""The products and the sparse delta-rule change of :class:`~neuroimagery.nn.local.LocalConnection`
+compiled with numba, for CPU tensors: the same operations, in the same order, as the torch code
+they stand for, so the two give the same numbers (``tests/test_exp6_kernels.py`` compares them); a
+call costs its arithmetic instead of a dozen index tensors of ``active units x K`` entries.
+
+* :func:`net_sparse` -- ``W x`` from the active units of each row: for each row, each active input
+  ``i`` in ascending order and each offset ``k``, ``out[o] += w[o, k] x_i`` with
+  ``o = target_of[i, k]`` (the order in which ``index_add_`` adds them in
+  :meth:`~neuroimagery.nn.local.LocalConnection.net_binary`);
+* :func:`net_dense` -- ``W x`` of any rows: ``out[o] = sum_k pad[source[o, k]] w[o, k]``, the
+  offsets added in order from zero (as the offset loop of
+  :meth:`~neuroimagery.nn.local.LocalConnection.net_rows`);
+* :func:`delta_sparse` -- the delta rule's change at the weights of the active inputs,
+  ``out[p, o, k] += rate (err[p, b, o] pre[p, b, i])`` for each pattern ``b`` and active input
+  ``i`` in ascending order (the order of :class:`~neuroimagery.nn.delta.Sparse`'s ``index_add_``).
+
+Without numba, or for tensors elsewhere than on the CPU, the torch code runs.
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+try:
+    import numba
+except ImportError:  # the torch code then runs (the same numbers, more slowly)
+    numba = None
+
+
+def available(*tensors: torch.Tensor) -> bool:
+    """Whether the compiled loops can take these tensors: numba installed, CPU tensors of one
+    floating dtype (float32 or float64) that no gradient flows through, and not while
+    ``torch.compile`` traces."""
+    if numba is None or torch.compiler.is_compiling():
+        return False
+    dtypes = {t.dtype for t in tensors}
+    if len(dtypes) != 1 or dtypes.pop() not in (torch.float32, torch.float64):
+        return False
+    grad = torch.is_grad_enabled()
+    return all(t.device.type == "cpu" and not (grad and t.requires_grad) for t in tensors)
+
+
+def _net_sparse(w, target_of, x, group, out):  # pragma: no cover (compiled)
+    N, n = x.shape
+    K = target_of.shape[1]
+    for r in range(N):
+        g = group[r]
+        for i in range(n):
+            v = x[r, i]
+            if v != 0:
+                for k in range(K):
+                    o = target_of[i, k]
+                    if o < n:
+                        out[r, o] += w[g, o, k] * v
+
+
+def _net_dense(w, source, x, group, out):  # pragma: no cover (compiled)
+    N, n = x.shape
+    K = source.shape[1]
+    for r in range(N):
+        g = group[r]
+        for o in range(n):
+            acc = out[r, o]  # zero
+            for k in range(K):
+                s = source[o, k]
+                if s < n:  # outside the grid reads zero: adding its zero product changes nothing
+                    acc += x[r, s] * w[g, o, k]
+            out[r, o] = acc
+
+
+def _delta_sparse(pre, err, target_of, rate, out):  # pragma: no cover (compiled)
+    P, B, n = pre.shape
+    K = target_of.shape[1]
+    for p in range(P):
+        for b in range(B):
+            for i in range(n):
+                v = pre[p, b, i]
+                if v != 0:
+                    for k in range(K):
+                        o = target_of[i, k]
+                        if o < n:
+                            out[p, o, k] += rate * (err[p, b, o] * v)
+
+
+_compiled: dict[str, object] = {}
+
+
+def _fn(name: str):
+    if name not in _compiled:
+        _compiled[name] = numba.njit(cache=True, nogil=True)(globals()["_" + name])
+    return _compiled[name]
+
+
+def _np(t: torch.Tensor) -> np.ndarray:
+    return t.detach().contiguous().numpy()
+
+
+def net_sparse(weight: torch.Tensor, target_of: torch.Tensor, x: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
+    """``W x`` ``(N, n)`` of rows ``x`` ``(N, n)`` from their active units, row r through participant
+    ``group[r]``'s weights ``(P, n, K)`` (``x`` in the weights' dtype)."""
+    out = torch.zeros(x.shape, dtype=weight.dtype)
+    _fn("net_sparse")(_np(weight), _np(target_of), _np(x), _np(group.long()), out.numpy())
+    return out
+
+
+def net_dense(weight: torch.Tensor, source: torch.Tensor, x: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
+    """``W x`` ``(N, n)`` of any rows ``x`` ``(N, n)``, row r through participant ``group[r]``'s
+    weights ``(P, n, K)`` (``x`` in the weights' dtype)."""
+    out = torch.zeros(x.shape, dtype=weight.dtype)
+    _fn("net_dense")(_np(weight), _np(source), _np(x), _np(group.long()), out.numpy())
+    return out
+
+
+def delta_sparse(pre: torch.Tensor, err: torch.Tensor, target_of: torch.Tensor, rate: float, out: torch.Tensor) -> None:
+    """Add the delta rule's change ``(P, n, K)`` of patterns ``pre`` ``(P, B, n)`` with errors ``err``
+    ``(P, B, n)`` into ``out`` (contiguous, the dtype of ``pre``) in place."""
+    if not out.is_contiguous():
+        raise ValueError("delta_sparse: out must be contiguous")
+    rate = np.float32(rate) if out.dtype == torch.float32 else np.float64(rate)
+    _fn("delta_sparse")(_np(pre), _np(err), _np(target_of), rate, out.numpy())
