@@ -1,6 +1,7 @@
 """Experiment 6's compiled loops and batched comparisons give the numbers of the torch code they
 stand for: a local connection's products and sparse delta-rule change
-(:mod:`neuroimagery.nn.local_kernel`), the dot maps (:mod:`neuroimagery.models.voxel_code_kernel`),
+(:mod:`neuroimagery.nn.local_kernel`), the dot maps and the largest
+cluster (:mod:`neuroimagery.models.voxel_code_kernel`),
 the coarse comparison in blocks of rows and the local refinement that compares only the rows that
 rose."""
 import pytest
@@ -112,3 +113,16 @@ def test_coarse_comparison_and_refinement_equal_the_plain_forms():
     Rb, sb = _refine_plain(model, ct, cc, R, score)
     assert (sb > score).any() and not torch.allclose(Rb, R)  # the refinement moves some rows
     assert torch.allclose(Ra, Rb, rtol=0, atol=1e-12) and torch.allclose(sa, sb, rtol=1e-12, atol=0)
+
+
+@needs_numba
+def test_largest_cluster_kernel_equals_spreading_labels(monkeypatch):
+    g = torch.Generator().manual_seed(4)
+    side = 9
+    masks = (torch.rand(12, side ** 3, generator=g) < torch.linspace(0.02, 0.4, 12).unsqueeze(1)).float()
+    masks[0] = 0.0
+    a = vc.largest_cluster(masks, side)
+    monkeypatch.setattr(voxel_code_kernel, "numba", None)
+    b = vc.largest_cluster(masks, side)
+    assert a.dtype == b.dtype and torch.equal(a, b) and b[0] == 0 and len(set(b.tolist())) > 5
+

@@ -130,6 +130,8 @@ def largest_cluster(mask: torch.Tensor, side: int) -> torch.Tensor:
     on = mask > 0.5
     if not on.any():
         return torch.zeros(N, dtype=torch.long)
+    if voxel_code_kernel.available() and on.device.type == "cpu":  # the same clusters, compiled
+        return voxel_code_kernel.largest_cluster(on, side)
     lab = torch.where(on, torch.arange(1, n + 1, dtype=torch.float32).expand(N, n), torch.zeros(N, n))
     for _ in range(n):
         new = F.max_pool3d(_grid(lab, side), 3, stride=1, padding=1).reshape(N, n)

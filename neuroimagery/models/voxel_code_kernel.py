@@ -8,7 +8,9 @@ Per dot at voxel coordinates ``pos`` (nearest voxel ``near``) and window offset 
 (x, y, z): ``arg = -((vx - px)^2 + (vy - py)^2 + (vz - pz)^2) / (2 sigma^2)`` (float64), the
 voxel ``(vz G + vy) G + vx`` or none outside the grid (:func:`arguments`); after torch's ``exp``
 and the cast to float32, each row's dots added in order, cut to [0, 1], units below ``silent``
-zeroed (:func:`scatter`). Without numba the torch code runs.
+zeroed (:func:`scatter`). The largest 26-connected cluster of a binary map
+(:func:`largest_cluster`: the sizes of the clusters that spreading labels finds). Without numba
+the torch code runs.
 """
 from __future__ import annotations
 
@@ -68,6 +70,45 @@ def _scatter(val, flat, silent, out):  # pragma: no cover (compiled)
             out[r, i] = v if v >= silent else zero
 
 
+def _largest(on, side, out):  # pragma: no cover (compiled)
+    N, n = on.shape
+    seen = np.zeros(n, dtype=np.bool_)
+    stack = np.empty(n, dtype=np.int64)
+    for r in range(N):
+        seen[:] = False
+        best = 0
+        for v0 in range(n):
+            if not on[r, v0] or seen[v0]:
+                continue
+            seen[v0] = True
+            stack[0] = v0
+            top, size = 1, 0
+            while top > 0:
+                top -= 1
+                v = stack[top]
+                size += 1
+                z, y, x = v // (side * side), (v // side) % side, v % side
+                for dz in range(-1, 2):
+                    zz = z + dz
+                    if zz < 0 or zz >= side:
+                        continue
+                    for dy in range(-1, 2):
+                        yy = y + dy
+                        if yy < 0 or yy >= side:
+                            continue
+                        for dx in range(-1, 2):
+                            xx = x + dx
+                            if xx < 0 or xx >= side:
+                                continue
+                            u = (zz * side + yy) * side + xx
+                            if on[r, u] and not seen[u]:
+                                seen[u] = True
+                                stack[top] = u
+                                top += 1
+            best = max(best, size)
+        out[r] = best
+
+
 _compiled: dict[str, object] = {}
 
 
@@ -95,4 +136,12 @@ def scatter(val: torch.Tensor, flat: torch.Tensor, n: int, silent: float) -> tor
     cut to [0, 1], units below ``silent`` zeroed."""
     out = torch.zeros(val.shape[0], n, dtype=torch.float32)
     _fn("scatter")(val.contiguous().numpy(), flat.contiguous().numpy(), np.float32(silent), out.numpy())
+    return out
+
+
+def largest_cluster(on: torch.Tensor, side: int) -> torch.Tensor:
+    """Voxels ``(N,)`` in the largest 26-connected cluster of each boolean map ``on`` ``(N, G^3)``
+    (a search from each voxel not yet reached, instead of spreading labels: the same clusters)."""
+    out = torch.zeros(on.shape[0], dtype=torch.int64)
+    _fn("largest")(on.contiguous().numpy(), int(side), out.numpy())
     return out
