@@ -389,7 +389,8 @@ class Rotation3D(nn.Module):
             z[:, AXES.index(WRIST_AXIS)] = vz
             plain = self.ppc.decode(self.ppc_code(z)[:, AXES.index(WRIST_AXIS)])
             felt = self.ppc.decode(self.ppc_code(z, proprioception, vz)[:, AXES.index(WRIST_AXIS)])
-            shift = torch.stack([vc.axis_rotation(WRIST_AXIS, float(d)) for d in (felt - plain).double()])
+            deg, row = torch.unique((felt - plain).double(), return_inverse=True)  # few distinct shifts
+            shift = torch.stack([vc.axis_rotation(WRIST_AXIS, float(d)) for d in deg])[row]
             sensed = shift @ net
         remaining = required @ sensed.transpose(1, 2)
         turns = self.move_turns.to(remaining.dtype)
@@ -402,8 +403,11 @@ class Rotation3D(nn.Module):
 
     @property
     def move_turns(self) -> torch.Tensor:
-        """The rotation of each PMCm unit's move ``(moves, 3, 3)`` (still: identity)."""
-        return torch.stack([torch.eye(3, dtype=torch.float64)] + [vc.axis_rotation(a, d) for a, d in self.moves[1:]])
+        """The rotation of each PMCm unit's move ``(moves, 3, 3)`` (still: identity), formed once."""
+        if getattr(self, "_move_turns", None) is None:
+            self._move_turns = torch.stack([torch.eye(3, dtype=torch.float64)]
+                                           + [vc.axis_rotation(a, d) for a, d in self.moves[1:]])
+        return self._move_turns
 
     @torch.no_grad()
     def align(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int = 0,
