@@ -2,8 +2,8 @@
 stand for: a local connection's products and sparse delta-rule change
 (:mod:`neuroimagery.nn.local_kernel`), the dot maps and the largest
 cluster (:mod:`neuroimagery.models.voxel_code_kernel`),
-the coarse comparison in blocks of rows and the local refinement that compares only the rows that
-rose."""
+the coarse comparison in blocks of rows, the local refinement that compares only the rows that
+rose, and the forward models learnt side by side on two threads."""
 import pytest
 import torch
 from conftest import make_cfg
@@ -14,6 +14,7 @@ from neuroimagery.models import voxel_code as vc
 from neuroimagery.models import voxel_code_kernel
 from neuroimagery.models.rotation_3d import AXES, fill_offsets
 from neuroimagery.nn import Delta, local_kernel, seeding
+from neuroimagery.nn.functional import intra_op_threads
 from neuroimagery.nn.local import LocalConnection
 
 needs_numba = pytest.mark.skipif(not local_kernel.available(torch.zeros(1)), reason="numba is not installed")
@@ -126,3 +127,19 @@ def test_largest_cluster_kernel_equals_spreading_labels(monkeypatch):
     b = vc.largest_cluster(masks, side)
     assert a.dtype == b.dtype and torch.equal(a, b) and b[0] == 0 and len(set(b.tolist())) > 5
 
+
+
+def test_forward_models_learnt_side_by_side_equal_one_after_the_other():
+    cfg = validate(make_cfg("experiment=exp6", "logger=none", "experiment.grid=10", "participants=2",
+                            "experiment.fm.images=12", "experiment.fm.dots=6"))
+    weights = []
+    for threads in (1, 2):
+        model = exp6._model(cfg, [0, 1])
+        model.train()
+        with intra_op_threads(threads):
+            with intra_op_threads(1, cap=True):  # as exp6.train_model
+                exp6.train_forward_models(model, cfg, [0, 1])
+        weights.append(torch.stack([c.weight for c in model.fm]))
+    init = torch.stack([c.weight for c in exp6._model(cfg, [0, 1]).fm])
+    assert not torch.allclose(weights[0], init)
+    assert torch.allclose(weights[0], weights[1], rtol=0, atol=1e-7)

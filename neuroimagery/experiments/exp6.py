@@ -72,18 +72,38 @@ def train_completion(model, cfg, ids, scene) -> None:
 
 
 def train_forward_models(model, cfg, ids) -> None:
-    """Each forward model: graded dot images at sub-voxel positions and the same dots turned by its move."""
+    """Each forward model: graded dot images at sub-voxel positions and the same dots turned by its move.
+    The moves are independent (a connection and generators of their own each), so with a thread
+    budget of several threads (:func:`~neuroimagery.nn.functional.thread_budget`) they learn side
+    by side, each in its own order; the weights are those of one move after the other."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from ..models import voxel_code as vc
+    from ..nn.functional import thread_budget
 
     e = cfg.experiment
     n = e.quick.fm_images if cfg.preset == "quick" else e.fm.images
-    for m in progress.bar(range(1, len(model.moves)), what="forward models", unit="move"):
+
+    def learn(m: int) -> None:
         axis, deg = model.moves[m]
         R = vc.axis_rotation(axis, deg)
         gens = seeding.participant_generators(cfg.seed, ids, stream=10 + m)
         for s in range(0, n, e.fm.batch):
             x, y = data.dot_pair(gens, min(e.fm.batch, n - s), e.fm.dots, model.side, e.image.sigma, R)
             model.fit_forward_models(m, x, y)
+
+    moves = range(1, len(model.moves))
+    workers = min(thread_budget(), len(moves))
+    bar = progress.bar(total=len(moves), what="forward models", unit="move")
+    if workers <= 1:
+        for m in moves:
+            learn(m)
+            bar.update(1)
+    else:
+        with ThreadPoolExecutor(workers) as pool:
+            for _ in pool.map(learn, moves):
+                bar.update(1)
+    bar.close()
 
 
 def angles(e, kind: str) -> list[float]:

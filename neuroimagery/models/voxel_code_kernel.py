@@ -14,6 +14,8 @@ the torch code runs.
 """
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import torch
 
@@ -112,10 +114,14 @@ def _largest(on, side, out):  # pragma: no cover (compiled)
 _compiled: dict[str, object] = {}
 
 
+_LOCK = threading.Lock()
+
+
 def _fn(name: str):
-    if name not in _compiled:
-        _compiled[name] = numba.njit(cache=True, nogil=True)(globals()["_" + name])
-    return _compiled[name]
+    with _LOCK:  # compiled once, also when several threads ask at first
+        if name not in _compiled:
+            _compiled[name] = numba.njit(cache=True, nogil=True)(globals()["_" + name])
+        return _compiled[name]
 
 
 def arguments(pos: torch.Tensor, near: torch.Tensor, t: torch.Tensor, side: int, c2: float):

@@ -18,6 +18,8 @@ Without numba, or for tensors elsewhere than on the CPU, the torch code runs.
 """
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import torch
 
@@ -85,10 +87,14 @@ def _delta_sparse(pre, err, target_of, rate, out):  # pragma: no cover (compiled
 _compiled: dict[str, object] = {}
 
 
+_LOCK = threading.Lock()
+
+
 def _fn(name: str):
-    if name not in _compiled:
-        _compiled[name] = numba.njit(cache=True, nogil=True)(globals()["_" + name])
-    return _compiled[name]
+    with _LOCK:  # compiled once, also when several threads ask at first
+        if name not in _compiled:
+            _compiled[name] = numba.njit(cache=True, nogil=True)(globals()["_" + name])
+        return _compiled[name]
 
 
 def _np(t: torch.Tensor) -> np.ndarray:
