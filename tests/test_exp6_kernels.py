@@ -32,6 +32,7 @@ def _train_and_apply(dtype, offset_set=None):
         x = vc.blobs(pos, side, 0.7).reshape(P, B, -1).to(dtype)
         y = vc.blobs(pos.flip(-1), side, 0.7).reshape(P, B, -1).to(dtype)
         c.learn(pre=x, target=y)
+    c.learn(pre=x, post=c.net(x), target=x)  # the output given
     dense = torch.rand(7, side ** 3, generator=g).to(dtype)
     pts = ((torch.rand(7, 3, 3, generator=g, dtype=torch.float64) - 0.5) * 5).float()
     sparse = vc.blobs(pts, side, 0.7).to(dtype)

@@ -221,6 +221,10 @@ class Sparse(Form):
         pre, target = call.pre, _target(conn, call)
         P, B, n = pre.shape
         post = call.post
+        if (post is None and target.shape == pre.shape and call.out.is_contiguous()
+                and local_kernel.available(conn.weight, pre, target, call.out)):
+            local_kernel.learn_sparse(conn.weight, conn.target_of, pre, target, rule.rate(B), call.out)
+            return
         if post is None:
             post = conn.net_binary(pre.reshape(P * B, n), torch.arange(P).repeat_interleave(B)).view(P, B, n)
         err = Delta.error(post, target)  # (P, B, n)

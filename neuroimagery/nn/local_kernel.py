@@ -12,7 +12,9 @@ call costs its arithmetic instead of a dozen index tensors of ``active units x K
   :meth:`~neuroimagery.nn.local.LocalConnection.net_rows`);
 * :func:`delta_sparse` -- the delta rule's change at the weights of the active inputs,
   ``out[p, o, k] += rate (err[p, b, o] pre[p, b, i])`` for each pattern ``b`` and active input
-  ``i`` in ascending order (the order of :class:`~neuroimagery.nn.delta.Sparse`'s ``index_add_``).
+  ``i`` in ascending order (the order of :class:`~neuroimagery.nn.delta.Sparse`'s ``index_add_``);
+* :func:`learn_sparse` -- both for one participant after the other (output, error, change), so
+  that a participant's weights are read and changed while they are in the cache.
 
 Without numba, or for tensors elsewhere than on the CPU, the torch code runs.
 """
@@ -84,6 +86,33 @@ def _delta_sparse(pre, err, target_of, rate, out):  # pragma: no cover (compiled
                             out[p, o, k] += rate * (err[p, b, o] * v)
 
 
+def _learn_sparse(w, target_of, pre, target, rate, out):  # pragma: no cover (compiled)
+    P, B, n = pre.shape
+    K = target_of.shape[1]
+    post = np.zeros((B, n), dtype=pre.dtype)
+    for p in range(P):  # a participant's weights read for its output and changed while in the cache
+        post[:, :] = 0
+        for b in range(B):
+            for i in range(n):
+                v = pre[p, b, i]
+                if v != 0:
+                    for k in range(K):
+                        o = target_of[i, k]
+                        if o < n:
+                            post[b, o] += w[p, o, k] * v
+        for b in range(B):
+            for o in range(n):
+                post[b, o] = target[p, b, o] - post[b, o]  # the error
+        for b in range(B):
+            for i in range(n):
+                v = pre[p, b, i]
+                if v != 0:
+                    for k in range(K):
+                        o = target_of[i, k]
+                        if o < n:
+                            out[p, o, k] += rate * (post[b, o] * v)
+
+
 _compiled: dict[str, object] = {}
 
 
@@ -124,3 +153,15 @@ def delta_sparse(pre: torch.Tensor, err: torch.Tensor, target_of: torch.Tensor, 
         raise ValueError("delta_sparse: out must be contiguous")
     rate = np.float32(rate) if out.dtype == torch.float32 else np.float64(rate)
     _fn("delta_sparse")(_np(pre), _np(err), _np(target_of), rate, out.numpy())
+
+
+def learn_sparse(weight: torch.Tensor, target_of: torch.Tensor, pre: torch.Tensor, target: torch.Tensor, rate: float,
+                 out: torch.Tensor) -> None:
+    """:func:`net_sparse` of ``pre`` ``(P, B, n)`` (row ``(p, b)`` through participant ``p``), the error
+    ``target - post`` and :func:`delta_sparse`, one participant after the other: the same numbers
+    (each participant's output depends on its weights alone), its weights read and changed while
+    in the cache. ``out`` may be ``weight`` itself."""
+    if not out.is_contiguous():
+        raise ValueError("learn_sparse: out must be contiguous")
+    rate = np.float32(rate) if out.dtype == torch.float32 else np.float64(rate)
+    _fn("learn_sparse")(_np(weight), _np(target_of), _np(pre), _np(target), rate, out.numpy())
