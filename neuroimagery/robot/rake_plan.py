@@ -109,9 +109,9 @@ def table_poses(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tuple
     rake points (N, T, P, 3) and the arm's step (N, T): the index of the trajectory point whose
     joints the arm holds (``t`` unless the table stopped it).
 
-    ``table_contact = "grip"``: the compliant grip (:func:`grip_pivot`); a step it cannot rest on
-    the table holds the last step it could (rule 2); before any such step (a start the grip cannot
-    rest on the table) the pose is lifted vertically.  ``"lift"``: every pose that would sink is
+    ``table_contact = "grip"``: the compliant grip (:func:`grip_pivot`); from the first step it
+    cannot rest on the table the arm holds the step before for the rest of the movement (rule 2); a
+    start the grip cannot rest on the table keeps the vertical lift throughout.  ``"lift"``: every pose that would sink is
     lifted vertically.
     """
     pts = poses[..., None, :3, 3] + geo.points @ np.swapaxes(poses[..., :3, :3], -1, -2)  # (N, T, P, 3)
@@ -139,8 +139,10 @@ def table_poses(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tuple
         P[:, 2, 3] += np.where(turned, 0.0, lift[sink])
         poses[sink], pts[sink] = P, new_pts
         ok[sink] = turned
-    held = np.maximum.accumulate(np.where(ok, steps, -1), axis=1)
-    arm = np.where(held >= 0, held, steps)
+    # the table stops the arm at its first step the grip cannot rest on the table, for the rest
+    # of the movement; a start it cannot (never one of the four postures) keeps the lift throughout
+    first_bad = np.where(ok.all(axis=1), T, (~ok).argmax(axis=1))
+    arm = np.where(first_bad[:, None] >= 1, np.minimum(steps, first_bad[:, None] - 1), steps)
     if (arm != steps).any():
         poses = np.take_along_axis(poses, arm[..., None, None], axis=1)
         pts = np.take_along_axis(pts, arm[..., None, None], axis=1)

@@ -95,15 +95,15 @@ class ToolWorld:
         self._point_radius_max = 0.008
         self._geometry = rake_plan.RakeGeometry(self._rake_points_np[:, :3], self._point_radius,
                                                 self._point_radius_max, self._R_com, self._rake_com)
+        # the table meets the rake through the table rule of ``_plan`` (both drives follow its
+        # poses): rake-table collisions are not computed
+        c.setCollisionFilterPair(self.rake, self.table, -1, -1, 0)
         if cfg.rake_drive == "constraint":
             self.constraint = c.createConstraint(
                 self.rake, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [0, 0, 2]
             )
         else:
             self.constraint = None
-            # the rake's pose is imposed at every control step and the table's contact is replaced
-            # by the table rule of ``_plan``: rake-table collisions are not computed
-            c.setCollisionFilterPair(self.rake, self.table, -1, -1, 0)
             # a heavy rake barely yields to the toy during the substeps between two imposed poses
             m0 = c.getDynamicsInfo(self.rake, -1)[0]
             inertia = np.array(c.getDynamicsInfo(self.rake, -1)[2]) * (cfg.rake_mass / m0)
