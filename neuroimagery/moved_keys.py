@@ -39,7 +39,7 @@ MOVED: dict[str, dict[str, str]] = {
     "exp5": {  # every key of the earlier flat layout into its group, and the keys that are gone
         "quick_repetitions": "quick.repetitions",
         **_group("world", "", "environment duration_s explore_weight_sigma search_goal_sigma search_weight_sigma "
-                              "toy_turn max_substep_travel explore_goals"),
+                              "toy_turn max_substep_travel explore_goals table_contact grip_pivot_max"),
         **_group("acquisition", "", "n_dmps pibb_samples pibb_temperature pibb_decay pibb_flat max_epochs "
                                     "competence_tolerance c1_repeats c2_repeats c3_repeats hip_threshold explore_batch "
                                     "explore_max_rollouts explore_patience spare_dmps"),
