@@ -49,9 +49,9 @@ class WorldParams:
     # W9): 'posture' = the chosen initial posture (Fig. 7.5, section 7.1.2) | 'anywhere' = the DMP's own
     explore_goals: str = bounded("posture", choices=("posture", "anywhere"))
     # how the table meets the rake (robot.config.WorldConfig, docs/robot.md "The table, the grip and
-    # the arm"): 'grip' = the rake turns in the hand by at most grip_pivot_max (rad), beyond that the
-    # table stops the arm | 'lift' = the pose lifted vertically, the rake leaving the hand
-    table_contact: str = bounded("grip", choices=("grip", "lift"))
+    # the arm"): 'lift' = the pose lifted vertically where the command would sink it | 'grip' = the
+    # rake turns in the hand by at most grip_pivot_max (rad), beyond that the table stops the arm
+    table_contact: str = bounded("lift", choices=("lift", "grip"))
     grip_pivot_max: float = bounded(0.17453292519943295, ge=0, lt=1.5707963267948966)
 
     RULES = (Rule("environment", lambda w: w.environment == "robot" or ":" in w.environment,

@@ -29,6 +29,7 @@ import torch
 from neuroimagery.errors import UserInputError
 from neuroimagery.files import writable_folder, write_text
 from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
+from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.world import EVENTS, ToolWorld
 from neuroimagery.thesis import EXP5_TABLE_7_1
 
@@ -183,6 +184,8 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--allow-large", action="store_true",
                         help=f"allow more than {MAX_ROLLOUTS} rollouts per posture and seed or {MAX_SEEDS} seeds")
+    parser.add_argument("--table-contact", choices=("lift", "grip"), default="lift",
+                        help="how the table meets the rake (WorldConfig.table_contact; docs/robot.md)")
     args = parser.parse_args(argv)
     for name, value, most in (("--rollouts", args.rollouts, MAX_ROLLOUTS), ("--seeds", args.seeds, MAX_SEEDS)):
         if value < 1:
@@ -198,7 +201,8 @@ def main(argv: list[str] | None = None) -> int:
         args = parse(argv)
         t0 = time.perf_counter()
         check_out(args.out)
-        table = measure(args.rollouts, args.seeds)
+        with ToolWorld(WorldConfig(table_contact=args.table_contact)) as world:
+            table = measure(args.rollouts, args.seeds, world=world)
         write_outputs(args.out, table)
         print(markdown(table))
         print(f"wrote {args.out / 'table_7_1.json'} in {time.perf_counter() - t0:.1f} s")

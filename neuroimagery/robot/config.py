@@ -90,11 +90,11 @@ class WorldConfig:
     # force rake_max_force (slower; kept as a reference)
     rake_drive: str = "kinematic"
     table_clearance: float = 0.002  # lowest rake point kept this far above the table
-    # how the table meets the rake (docs/robot.md, "The table, the grip and the arm"): "grip" = the
-    # rake turns in the hand about the grip by at most grip_pivot_max, beyond that the table stops
-    # the arm (the pose is held) | "lift" = the pose is lifted vertically (the rake leaves the hand)
-    table_contact: str = "grip"
-    grip_pivot_max: float = math.radians(10.0)  # rad the compliant grip lets the handle turn
+    # how the table meets the rake (docs/robot.md, "The table, the grip and the arm"): "lift" = the
+    # pose is lifted vertically (an arm that yields upward) | "grip" = the rake turns in the hand
+    # about the grip by at most grip_pivot_max, beyond that the table stops the arm (the pose is held)
+    table_contact: str = "lift"
+    grip_pivot_max: float = math.radians(10.0)  # rad the compliant grip lets the handle turn (grip only)
     friction: float = 0.5  # lateral friction of toy, rake and table
     # --- simulation ---------------------------------------------------------------------------
     physics_dt: float = 0.01  # pybullet time step (100 Hz; two steps per control step)

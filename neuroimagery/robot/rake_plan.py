@@ -109,10 +109,10 @@ def table_poses(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tuple
     rake points (N, T, P, 3) and the arm's step (N, T): the index of the trajectory point whose
     joints the arm holds (``t`` unless the table stopped it).
 
-    ``table_contact = "grip"``: the compliant grip (:func:`grip_pivot`); from the first step it
-    cannot rest on the table the arm holds the step before for the rest of the movement (rule 2); a
-    start the grip cannot rest on the table keeps the vertical lift throughout.  ``"lift"``: every pose that would sink is
-    lifted vertically.
+    ``table_contact = "lift"`` (default): every pose that would sink is lifted vertically.
+    ``"grip"``: the compliant grip (:func:`grip_pivot`); from the first step it cannot rest on the
+    table the arm holds the step before for the rest of the movement; a start the grip cannot rest
+    on the table keeps the vertical lift throughout.
     """
     pts = poses[..., None, :3, 3] + geo.points @ np.swapaxes(poses[..., :3, :3], -1, -2)  # (N, T, P, 3)
     low = (pts[..., 2] - geo.point_radius).min(axis=-1)  # (N, T)

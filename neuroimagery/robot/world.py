@@ -9,12 +9,14 @@ Rake drive (``WorldConfig.rake_drive``):
     "kinematic" (default)  at the start of control step t the rake is put at pose t-1 with the
         velocity that carries it to pose t; pybullet's substeps resolve rake-toy and toy-table
         contact (a heavy rake barely yields to the 50 g toy).  The table meets the rake by
-        ``table_contact`` (``rake_plan.table_poses``: the rake turns in a compliant grip, beyond its
-        bound the table stops the arm; rake-table collisions are not computed).  While the toy is at rest, control steps in which no rake
-        point comes within ``filter_margin`` of the toy (ends of the step, allowing for the
+        ``table_contact`` (``rake_plan.table_poses``: "lift", the default, raises a pose that would
+        sink vertically; "grip" turns the rake in a compliant grip, beyond its bound the table stops
+        the arm; rake-table collisions are not computed).  While the toy is at rest, control steps
+        in which no rake point comes within ``filter_margin`` of the toy (ends of the step, allowing for the
         distance swept in it) cannot change anything and are skipped (``skip_far_steps``).
-    "constraint"  a fixed constraint of force ``rake_max_force`` drags the dynamic rake to the
-        same poses and every control step is simulated (the slower reference).
+    "constraint"  a fixed constraint of force ``rake_max_force`` drags the dynamic rake, every
+        control step simulated (the slower reference): under "lift" to the commanded poses, the
+        table stopping it by contact; under "grip" to the poses of the grip rule.
 pybullet resolves the contacts; the toy moves only when pushed.
 
 Compass and events: :mod:`neuroimagery.robot.events` (south = toward the robot, -x; west = its
@@ -53,6 +55,9 @@ class ToolWorld:
 
         self.cfg = config or WorldConfig()
         cfg = self.cfg
+        # the reference drive under the lift drags the rake to the commanded poses and lets the
+        # table stop it; every other drive and rule takes the poses of ``_plan``
+        self._table_collides = cfg.rake_drive == "constraint" and cfg.table_contact == "lift"
         self.kin = ArmKinematics(
             root_height=cfg.root_height,
             grasp=torch.tensor(cfg.grasp, dtype=torch.float32),
@@ -95,9 +100,11 @@ class ToolWorld:
         self._point_radius_max = 0.008
         self._geometry = rake_plan.RakeGeometry(self._rake_points_np[:, :3], self._point_radius,
                                                 self._point_radius_max, self._R_com, self._rake_com)
-        # the table meets the rake through the table rule of ``_plan`` (both drives follow its
-        # poses): rake-table collisions are not computed
-        c.setCollisionFilterPair(self.rake, self.table, -1, -1, 0)
+        # the table meets the rake through the table rule of ``_plan``: rake-table collisions are
+        # not computed, except where the constraint drive drags the rake to the commanded poses
+        # and the table stops it (``_table_collides``)
+        if not self._table_collides:
+            c.setCollisionFilterPair(self.rake, self.table, -1, -1, 0)
         if cfg.rake_drive == "constraint":
             self.constraint = c.createConstraint(
                 self.rake, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [0, 0, 2]
@@ -183,7 +190,9 @@ class ToolWorld:
         if self.constraint is not None:
             self.kin.check_limits(q0)
             q_np = np.asarray(torch.as_tensor(q0, dtype=torch.float32).detach().numpy(), dtype=np.float64)
-            T = self._plan(self.kin.rake_pose_np(q_np)[None, None])["poses"][0, 0]  # the table rule
+            T = self.kin.rake_pose_np(q_np)
+            if not self._table_collides:
+                T = self._plan(T[None, None])["poses"][0, 0]  # the table rule
             self._set_rake(T, teleport=True)
             c.resetBasePositionAndOrientation(self.toy, start, toy_orn)
             c.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
@@ -300,11 +309,15 @@ class ToolWorld:
         plan = self._plan(self.kin.rake_pose_np(traj.numpy()))
         arm = plan["arm_step"]
         if self.constraint is not None:  # reference drive: dragged by a constraint, every step simulated
-            # to the same poses the table lets the rake take (``_plan``)
-            if use_filter:
-                near = self._gaps(plan["pts"], self.cfg.toy_xy, plan["sweep"]).min(axis=-1) < self.cfg.filter_margin
-            else:
-                near = np.ones(N, dtype=bool)
+            if self._table_collides:  # to the commanded poses, the table stopping the rake (table_contact="lift")
+                with torch.no_grad():
+                    poses_t = self.kin.rake_pose(traj)
+                    near = self.near_toy(traj, poses=poses_t) if use_filter else torch.ones(N, dtype=torch.bool)
+                near, poses = near.numpy(), poses_t.double().numpy()
+            else:  # to the poses the table rule lets the rake take (``_plan``)
+                near = (self._gaps(plan["pts"], self.cfg.toy_xy, plan["sweep"]).min(axis=-1) < self.cfg.filter_margin
+                        if use_filter else np.ones(N, dtype=bool))
+                poses = plan["poses"]
             self.timing["tensor_s"] += time.perf_counter() - t0
             outcomes = []
             for n in range(N):
@@ -312,7 +325,7 @@ class ToolWorld:
                     outcomes.append(dataclasses.replace(self._skipped(T), arm_step=int(arm[n, T - 1])))
                     continue
                 t1 = time.perf_counter()
-                out = simulate_constraint(self, plan["poses"][n], posture, traj[n, 0], watched)
+                out = simulate_constraint(self, poses[n], posture, traj[n, 0], watched)
                 outcomes.append(dataclasses.replace(out, arm_step=int(arm[n, out.stop_step])))
                 self.timing["physics_s"] += time.perf_counter() - t1
             return outcomes
