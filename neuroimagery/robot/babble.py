@@ -72,15 +72,17 @@ def babble_counts(world: ToolWorld, posture: int, n: int, seed: int, cfg: Moveme
     return counts
 
 
-def measure(n_rollouts: int, seeds: int = 3, cfg: MovementConfig | None = None, world: ToolWorld | None = None) -> dict:
-    """Babble ``n_rollouts`` times per seed from each posture; the table (see module docstring)."""
+def measure(n_rollouts: int, seeds: int = 3, cfg: MovementConfig | None = None, world: ToolWorld | None = None,
+            table_contact: str = "lift") -> dict:
+    """Babble ``n_rollouts`` times per seed from each posture; the table (see module docstring).
+    Without ``world``, one with the table rule ``table_contact`` (``WorldConfig``)."""
     if n_rollouts < 1:
         raise UserInputError(f"--rollouts must be >= 1, got {n_rollouts}")
     if seeds < 1:
         raise UserInputError(f"--seeds must be >= 1, got {seeds}")
     cfg = cfg or MovementConfig()
     own = world is None
-    world = world or ToolWorld()
+    world = world or ToolWorld(WorldConfig(table_contact=table_contact))
     table: dict = {}
     try:
         for k in range(1, 5):
@@ -201,8 +203,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parse(argv)
         t0 = time.perf_counter()
         check_out(args.out)
-        with ToolWorld(WorldConfig(table_contact=args.table_contact)) as world:
-            table = measure(args.rollouts, args.seeds, world=world)
+        table = measure(args.rollouts, args.seeds, table_contact=args.table_contact)
         write_outputs(args.out, table)
         print(markdown(table))
         print(f"wrote {args.out / 'table_7_1.json'} in {time.perf_counter() - t0:.1f} s")
