@@ -99,8 +99,9 @@ def verify_checkpoint(checkpoint: str | Path, name: str, manifest: dict) -> None
     if not isinstance(training, dict):
         raise UserInputError(f"checkpoint {path}: its manifest has no 'training' settings (not a checkpoint this "
                              "package wrote)")
-    # settings stored under a key's earlier name are compared under its name now (neuroimagery.moved_keys)
-    diff = mf.differences(manifest["training"], rename(training, manifest["experiment"]))
+    # settings stored under a key's earlier name are compared under its name now, and a key added
+    # since is read with the value that reproduces what the run computed (neuroimagery.moved_keys)
+    diff = mf.differences(manifest["training"], rename(training, manifest["experiment"], within=manifest["training"]))
     if diff:
         raise UserInputError(f"checkpoint {path} was trained with other settings: {'; '.join(diff)} "
                              "(set them as in training, or train again)")

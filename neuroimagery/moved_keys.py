@@ -1,14 +1,19 @@
 """The one table of every setting that moved or went: ``MOVED[experiment][old key] = new key``
-(both under ``experiment.``), or ``"removed; <why>"`` for a key that is no longer a setting.
+(both under ``experiment.``), or ``"removed; <why>"`` for a key that is no longer a setting; and
+the table of settings added after runs had been stored: ``ADDED[experiment][key] = value``, the
+value under which a run stored before the key existed computed what it did.
 
 A run that sets an old key is refused with its new place (:func:`neuroimagery.config.moved_message`);
-a checkpoint or a stored task file whose settings use the old names reads them under the new ones
-(:func:`rename`). Shared groups (:mod:`neuroimagery.models.params`) move alike in every experiment
-that has them, so their entries are written once here.
+a checkpoint or a stored task file whose settings use the old names reads them under the new ones,
+and one that lacks a key of ``ADDED`` reads it with its value there (:func:`rename`). Shared groups
+(:mod:`neuroimagery.models.params`) move alike in every experiment that has them, so their entries
+are written once here.
 """
 from __future__ import annotations
 
-from typing import Mapping
+import copy
+import math
+from typing import Collection, Mapping
 
 REMOVED = "removed; "  # a value that starts so says why the key went, instead of naming its new place
 
@@ -59,18 +64,51 @@ MOVED: dict[str, dict[str, str]] = {
 }
 
 
+# settings added after runs had been stored (keys without the ``experiment.`` prefix): the value that
+# reproduces what a run stored without the key computed; a stored run that lacks one reads it so
+ADDED: dict[str, dict[str, object]] = {
+    "exp5": {
+        # added while the layout was flat (a task file of that layout lacks them)
+        "acquisition.spare_dmps": "none", "brain.c3_outcomes": "success", "acquisition.pibb_flat": "average",
+        "world.toy_turn": "reset",
+        # the table rule: earlier runs lifted the rake vertically; the grip's bound plays no part then
+        "world.table_contact": "lift", "world.grip_pivot_max": math.radians(10.0),
+    },
+    "exp6": {"search.starts": [], "search.keep": 8},  # earlier runs refined the matched-axes candidates only
+}
+
+
 def moved(experiment: str) -> dict[str, str]:
     """``{old key: new key}`` of ``experiment`` (without the ``experiment.`` prefix), the keys
     that went left out."""
     return {k: v for k, v in MOVED.get(experiment, {}).items() if not v.startswith(REMOVED)}
 
 
-def rename(settings: Mapping[str, object], experiment: str, prefix: str = "experiment.") -> dict[str, object]:
+def rename(settings: Mapping[str, object], experiment: str, prefix: str = "experiment.",
+           within: Collection[str] | None = None) -> dict[str, object]:
     """``settings`` (dotted keys, e.g. a checkpoint's stored training settings) with every old key
-    of ``experiment`` under its new name; a key already under its new name wins."""
+    of ``experiment`` under its new name (a key already under its new name wins), and every key of
+    ``ADDED`` they lack with its value there (only those in ``within``, when given: the settings
+    they are compared with)."""
     table = {f"{prefix}{k}": f"{prefix}{v}" for k, v in moved(experiment).items()}
     out = {k: v for k, v in settings.items() if k not in table}
     for k, v in settings.items():
         if k in table:
             out.setdefault(table[k], v)
+    for k, v in ADDED.get(experiment, {}).items():
+        if within is None or f"{prefix}{k}" in within:
+            out.setdefault(f"{prefix}{k}", copy.deepcopy(v))
+    return out
+
+
+def fill_added(config: dict, experiment: str) -> dict:
+    """A copy of the nested settings ``config`` (groups as dicts, no prefix) with every key of
+    ``ADDED`` it lacks set to its value there."""
+    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in config.items()}
+    for key, v in ADDED.get(experiment, {}).items():
+        *groups, name = key.split(".")
+        node = out
+        for g in groups:
+            node = node.setdefault(g, {})
+        node.setdefault(name, copy.deepcopy(v))
     return out

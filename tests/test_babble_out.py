@@ -26,7 +26,8 @@ def _table(rollouts: int = 4) -> dict:
 def measured(monkeypatch):
     calls = []
 
-    def fake(n, seeds):
+    def fake(n, seeds, table_contact="lift"):
+        assert table_contact == "lift"  # the default table rule
         calls.append((n, seeds))
         return _table(n * seeds)
 

@@ -132,3 +132,24 @@ def test_a_training_run_written_before_the_state_is_used_with_one_note(trained, 
     notes = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("note: ")]
     assert len(notes) == 1 and "written before runs recorded their state" in notes[0]
     assert "its checkpoints match their stored hashes" in notes[0]
+
+
+def test_a_checkpoint_written_before_a_setting_existed_is_read_with_its_earlier_value(tmp_path):
+    """An Exp 6 run trained before ``search.starts`` and ``search.keep`` existed searched as
+    ``starts=[]``, ``keep=8`` do (neuroimagery.moved_keys.ADDED): it is accepted with them, and
+    refused where this run sets them otherwise."""
+    from neuroimagery.checkpoints import verify_checkpoint
+    from neuroimagery.config import experiment_module, validate
+    from neuroimagery.errors import UserInputError
+
+    now = mf.build(validate(make_cfg("experiment=exp6")), experiment_module("exp6"))
+    assert now["training"]["experiment.search.keep"] == 8 and now["training"]["experiment.search.starts"] == []
+    older = {k: v for k, v in now["training"].items() if k not in ("experiment.search.starts", "experiment.search.keep")}
+    state = {"weights": torch.zeros(2)}
+    (tmp_path / "checkpoints").mkdir()
+    torch.save({**state, "manifest": {**now, "training": older, "tensor_hash": mf.tensor_hash(state)}},
+               tmp_path / "checkpoints" / "exp6.pt")
+    verify_checkpoint(tmp_path, "exp6", now)
+    other = mf.build(validate(make_cfg("experiment=exp6", "experiment.search.keep=4")), experiment_module("exp6"))
+    with pytest.raises(UserInputError, match=r"experiment.search.keep 8 \(stored\) vs 4"):
+        verify_checkpoint(tmp_path, "exp6", other)

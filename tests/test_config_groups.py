@@ -6,7 +6,7 @@ import pytest
 
 from neuroimagery.config import experiment_module, moved_keys, moved_message, schema_keys
 from neuroimagery.models.params import LcaParams, PpcParams, SelectionParams
-from neuroimagery.moved_keys import MOVED, REMOVED, rename
+from neuroimagery.moved_keys import ADDED, MOVED, REMOVED, rename
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -42,6 +42,28 @@ def test_old_flat_keys_of_exp4_and_exp6_name_their_group():
 def test_settings_stored_under_old_names_read_under_the_new():
     stored = {"experiment.lca_k": 0.5, "experiment.map_size": 32, "seed": 0}
     assert rename(stored, "exp4") == {"experiment.lca.k": 0.5, "experiment.map_size": 32, "seed": 0}
+
+
+@pytest.mark.parametrize("name", sorted(ADDED))
+def test_every_added_key_is_a_key_of_the_schema_with_a_value_it_accepts(name):
+    keys = set(schema_keys(name))
+    module = experiment_module(name)
+    for key, value in ADDED[name].items():
+        assert f"experiment.{key}" in keys, key
+        group, field = key.split(".")
+        cls = type(getattr(module.CONFIG(), group))
+        assert getattr(cls(**{field: value}), field) == value  # a value the setting accepts
+
+
+def test_settings_stored_before_a_key_existed_read_it_with_its_earlier_value():
+    stored = {"experiment.search.refine": [10.0], "seed": 0}
+    now = rename(stored, "exp6")
+    assert now["experiment.search.starts"] == [] and now["experiment.search.keep"] == 8
+    assert now["experiment.search.refine"] == [10.0]  # a stored value is kept
+    assert rename({"experiment.search.keep": 4}, "exp6")["experiment.search.keep"] == 4
+    # only the keys the settings are compared with
+    assert rename(stored, "exp6", within={"experiment.search.keep"}) == {**stored, "experiment.search.keep": 8}
+    assert rename({}, "exp5")["experiment.world.table_contact"] == "lift"
 
 
 @pytest.mark.parametrize("make,key", [

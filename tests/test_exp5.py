@@ -72,8 +72,14 @@ def test_every_key_of_the_flat_layout_is_refused_naming_its_group(tmp_path):
 
     from neuroimagery.config import moved_message
 
+    from neuroimagery.moved_keys import ADDED
+
     now = exp5_config.dotted(asdict(exp5.Exp5Config()))
-    assert len(exp5_config.MOVED_KEYS) == len(now) - 9  # every key but the protocol's moved into a group
+    grouped = {k for k in now if "." in k}
+    assert len(now) - len(grouped) == 9  # the protocol's keys stay at the top
+    # every key of the flat layout moved into a group; a key of a group added since is declared
+    # with the value that reproduces the runs stored before it (neuroimagery.moved_keys.ADDED)
+    assert set(exp5_config.MOVED_KEYS.values()) | set(ADDED["exp5"]) == grouped
     for old, new in exp5_config.MOVED_KEYS.items():
         assert new in now and old not in now
         hint = moved_message(f"Could not override 'experiment.{old}'; Key '{old}' not in 'Exp5Config'")
@@ -508,14 +514,18 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
     path = exp5._task_path(tmp_path / "a", "rep000_far")
     assert exp5._valid(path, dataclasses.replace(e, engine=dataclasses.replace(e.engine, n_jobs=3)), 0) is not None
     assert exp5._valid(path, dataclasses.replace(e, brain=dataclasses.replace(e.brain, eta=0.01)), 0) is None
-    # a checkpoint of the earlier flat layout (every key at the top) is read back into the groups
+    # a checkpoint of the earlier flat layout (every key of that layout at the top) is read back into
+    # the groups; the keys added since (world.table_contact, world.grip_pivot_max) are absent from it
+    # and read with the values that reproduce it (neuroimagery.moved_keys.ADDED)
     d = torch.load(path, weights_only=True)
     groups = d["config"]
     d["config"] = {k: v for k, v in groups.items() if not isinstance(v, dict)}
-    d["config"].update({k: v for g in exp5_config.GROUPS for k, v in groups[g].items()},
-                       quick_repetitions=groups["quick"]["repetitions"])
+    d["config"].update({old: groups[new.split(".")[0]][new.split(".")[1]] for old, new in exp5_config.MOVED_KEYS.items()})
+    assert "table_contact" not in d["config"] and "world" not in d["config"]
     torch.save(d, path)
     assert exp5._valid(path, e, 0) is not None
+    grip = dataclasses.replace(e, world=dataclasses.replace(e.world, table_contact="grip"))
+    assert exp5._valid(path, grip, 0) is None  # computed with the lift, not with the grip
     del d["config"]["c3_outcomes"]  # one written before c3_outcomes existed is still read back
     torch.save(d, path)
     assert exp5._valid(path, e, 0) is not None

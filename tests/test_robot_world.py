@@ -56,6 +56,10 @@ def test_config_errors_name_the_key():
         WorldConfig(toy_xy=(0.30, -0.10))  # inside the reachable area: the toy must start out of reach
     with pytest.raises(ValueError, match="rake_drive"):
         WorldConfig(rake_drive="magnetic")
+    with pytest.raises(ValueError, match="table_contact"):
+        WorldConfig(table_contact="glue")
+    with pytest.raises(ValueError, match="grip_pivot_max"):
+        WorldConfig(grip_pivot_max=-0.1)
 
 
 def test_scene_meets_its_written_criteria():
@@ -164,6 +168,7 @@ def test_fk_filter_and_skipped_steps_never_change_an_outcome(world):
 
 def test_kinematic_drive_agrees_with_constraint_drive(world):
     """The fast kinematic rake and the reference constraint-dragged rake push the toy alike."""
+    assert world.cfg.table_contact == "lift"  # the default table rule
     with ToolWorld(WorldConfig(rake_drive="constraint")) as ref:
         for k, delta in ((1, (-0.16, 0.0, 0.0)), (1, (-0.12, 0.05, 0.0)), (3, (0.0, -0.16, 0.0))):  # posture 3 is level with the toy, on its left: a straight sweep east
             traj = _line(world, k, delta)
@@ -175,6 +180,33 @@ def test_kinematic_drive_agrees_with_constraint_drive(world):
             # the final north/west/east displacements here are >= 0.009 m from the 0.02 m threshold
             # (nearest: 0.029 / 0.032 m east on the first move): the events, touch included, agree
             assert a.events == b.events, (dict(zip(EVENTS, a.events)), dict(zip(EVENTS, b.events)))
+
+
+def test_kinematic_drive_agrees_with_constraint_drive_under_the_grip(world):
+    """Under the option ``table_contact="grip"`` both drives follow the poses the grip rule gives
+    (the grip turning, the arm held) and push the toy alike."""
+    # pulls from posture 1: level, to the side, pressing the head 4 cm into the table (the grip
+    # turns, the arm is not stopped) and 8 cm (beyond the grip's bound: the table stops the arm)
+    pulls = ((-0.16, 0.0, 0.0), (-0.12, 0.05, 0.0), (-0.16, 0.0, -0.04), (-0.16, 0.0, -0.08))
+    # straight sweeps: east from posture 3 (level with the toy, on its left), west from posture 2
+    sweeps = ((3, (0.0, -0.16, 0.0)), (2, (0.0, 0.16, 0.0)))
+    with ToolWorld(WorldConfig(table_contact="grip")) as kin, \
+            ToolWorld(WorldConfig(table_contact="grip", rake_drive="constraint")) as ref:
+        held = []
+        for k, delta in [(1, d) for d in pulls] + list(sweeps):
+            traj = _line(world, k, delta)
+            held.append(bool((kin._plan(kin.kin.rake_pose_np(traj.numpy()))["arm_step"] != np.arange(traj.shape[1])).any()))
+            a, b = kin.rollout(traj, k, None)[0], ref.rollout(traj, k, None)[0]
+            # the final north/west/east displacements here are >= 0.009 m from the 0.02 m threshold:
+            # the events, touch included, agree
+            assert a.events == b.events, (k, delta, dict(zip(EVENTS, a.events)), dict(zip(EVENTS, b.events)))
+            if (k, delta) in sweeps:
+                continue  # across a sweep the drives leave the toy 0.3-1.1 cm apart (docs/robot.md)
+            # on the pulls the two drives differ by at most ~0.006 m; 0.01 m is half the move
+            # threshold (0.02 m), so a drive that lost or added a whole move would fail
+            assert kin.cfg.move_threshold == 0.02
+            assert np.allclose(a.toy_displacement, b.toy_displacement, atol=0.01), (k, delta, a, b)
+        assert held == [False, False, False, True, False, False]  # the moves cover both parts of the rule
 
 
 def test_toy_turn_is_placed_read_back_and_reported(world):
@@ -211,9 +243,30 @@ def test_rake_never_goes_through_the_table(world):
     down = q0.clone()
     down[0] += 0.4  # shoulder pitch: swing the arm down, the head would sink into the table
     traj = (q0 + torch.linspace(0, 1, 30)[:, None] * (down - q0))[None]
-    plan = world._plan(world.kin.rake_pose_np(traj.numpy()))
+    cmd = world.kin.rake_pose_np(traj.numpy())
+    plan = world._plan(cmd)
     low = (plan["pts"][..., 2] - world._point_radius).min(-1)
     assert low.min() >= world.cfg.table_top + world.cfg.table_clearance - 1e-9
+    # the default rule (table_contact="lift"): the pose lifted vertically, its turn kept, never held
+    assert world.cfg.table_contact == "lift"
+    assert (plan["arm_step"] == np.arange(30)).all() and np.allclose(plan["poses"][..., :3, :3], cmd[..., :3, :3])
+    assert np.allclose(plan["poses"][..., :2, 3], cmd[..., :2, 3])
+    assert (plan["poses"][0, -1, 2, 3] - cmd[0, -1, 2, 3]) > 0.1  # the grip 10+ cm above the commanded hand
+    # the option table_contact="grip": the rake stays in the hand, its grip where the arm's held
+    # joints put the hand, turned in the hand by at most the grip's bound; the arm goes on until the
+    # bound is spent, then is held
+    with ToolWorld(WorldConfig(table_contact="grip")) as gripped:
+        plan = gripped._plan(cmd)
+        low = (plan["pts"][..., 2] - gripped._point_radius).min(-1)
+        assert low.min() >= gripped.cfg.table_top + gripped.cfg.table_clearance - 1e-9
+        arm = plan["arm_step"][0]
+        first_held = int(np.flatnonzero(arm != np.arange(30))[0])
+        assert 2 <= first_held < 29 and (arm[first_held:] == first_held - 1).all() and (arm[:first_held] == np.arange(first_held)).all()
+        grip, hand = plan["poses"][0, :, :3, 3], cmd[0, arm, :3, 3]
+        assert np.abs(grip - hand).max() < 1e-6
+        R, Rc = plan["poses"][0, :, :3, :3], cmd[0, arm, :3, :3]
+        turn = np.arccos(np.clip((np.einsum("tji,tji->t", R, Rc) - 1) / 2, -1, 1))
+        assert turn.max() <= gripped.cfg.grip_pivot_max + 1e-3 and turn[first_held - 1] > 0.8 * gripped.cfg.grip_pivot_max
 
 
 def test_errors(world):

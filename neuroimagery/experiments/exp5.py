@@ -36,6 +36,7 @@ import pandas as pd
 import torch
 
 from ..errors import UserInputError
+from ..moved_keys import fill_added
 from ..models.tool_use import EVENTS, N_POSTURES, Library, Outcomes, ToolUseBrain, acquire_skills, build_brain, run_trial
 from ..nn.seeding import participant_seed
 from . import exp5_tasks as task_files
@@ -321,9 +322,9 @@ def _stored(path: Path) -> dict | None:
     if d is None:
         return None
     if "acquisition" not in d["config"]:  # the flat layout of earlier versions: its keys into their groups
-        # written before these keys existed: their values then
-        d["config"] = nest({"spare_dmps": "none", "c3_outcomes": "success", "pibb_flat": "average", "toy_turn": "reset",
-                            **d["config"]})
+        d["config"] = nest(d["config"])
+    # written before a key existed: its value then (neuroimagery.moved_keys.ADDED)
+    d["config"] = fill_added(d["config"], "exp5")
     return d
 
 

@@ -48,6 +48,11 @@ class WorldParams:
     # an exploratory movement's goal before the noise (robot.config.WorldConfig, docs/contracts.md
     # W9): 'posture' = the chosen initial posture (Fig. 7.5, section 7.1.2) | 'anywhere' = the DMP's own
     explore_goals: str = bounded("posture", choices=("posture", "anywhere"))
+    # how the table meets the rake (robot.config.WorldConfig, docs/robot.md "The table, the grip and
+    # the arm"): 'lift' = the pose lifted vertically where the command would sink it | 'grip' = the
+    # rake turns in the hand by at most grip_pivot_max (rad), beyond that the table stops the arm
+    table_contact: str = bounded("lift", choices=("lift", "grip"))
+    grip_pivot_max: float = bounded(0.17453292519943295, ge=0, lt=1.5707963267948966)
 
     RULES = (Rule("environment", lambda w: w.environment == "robot" or ":" in w.environment,
                   "must be 'robot' or 'module:Class'"),)
@@ -58,14 +63,15 @@ class WorldParams:
     def env_kwargs(self) -> dict:
         """The keyword arguments of ``ToolWorldEnvironment`` (all but ``environment`` and the
         physics settings of ``world_config``)."""
-        skip = ("environment", "max_substep_travel", "explore_goals")
+        skip = ("environment", "max_substep_travel", "explore_goals", "table_contact", "grip_pivot_max")
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name not in skip}
 
     def world_config(self):
         """The pybullet world's ``WorldConfig`` with this group's physics settings."""
         from ..robot.config import WorldConfig
 
-        return WorldConfig(max_substep_travel=self.max_substep_travel, explore_goals=self.explore_goals)
+        return WorldConfig(max_substep_travel=self.max_substep_travel, explore_goals=self.explore_goals,
+                           table_contact=self.table_contact, grip_pivot_max=self.grip_pivot_max)
 
 
 @dataclass

@@ -35,7 +35,7 @@ SKILL_NAMES = ("P", "T", "S", "N", "W", "E")
 OUTPUTS = ("world_libraries.json", "world_libraries.md")
 
 
-def _one_library(seed: int, i: int) -> dict:
+def _one_library(seed: int, i: int, table_contact: str = "lift") -> dict:
     import torch
 
     from ..models.tool_use import AcquisitionParams, Outcomes, acquire_skills
@@ -43,7 +43,7 @@ def _one_library(seed: int, i: int) -> dict:
     from ..robot.environment import ToolWorldEnvironment
 
     torch.set_num_threads(1)
-    w = WorldParams()
+    w = WorldParams(table_contact=table_contact)
     env = ToolWorldEnvironment(w.world_config(), **w.env_kwargs())
     try:
         g = torch.Generator().manual_seed(seed * 100003 + i)
@@ -113,6 +113,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=count, default=0)
     parser.add_argument("--jobs", type=count, default=2, help="worker processes")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--table-contact", choices=("lift", "grip"), default="lift",
+                        help="how the table meets the rake (experiment.world.table_contact; docs/robot.md)")
     try:
         args = parser.parse_args(argv)
         if args.libraries < 1 or args.jobs < 1:
@@ -120,11 +122,12 @@ def main(argv: list[str] | None = None) -> int:
         writable_folder(args.out, OUTPUTS)
         t0 = time.perf_counter()
         if args.jobs == 1:
-            libs = [_one_library(args.seed, i) for i in range(args.libraries)]
+            libs = [_one_library(args.seed, i, args.table_contact) for i in range(args.libraries)]
         else:
             from joblib import Parallel, delayed
 
-            libs = Parallel(n_jobs=args.jobs)(delayed(_one_library)(args.seed, i) for i in range(args.libraries))
+            libs = Parallel(n_jobs=args.jobs)(delayed(_one_library)(args.seed, i, args.table_contact)
+                                         for i in range(args.libraries))
         s = summarise(libs)
         write_text(args.out / OUTPUTS[0], json.dumps(dict(summary=s, libraries=libs), indent=1))
         write_text(args.out / OUTPUTS[1], markdown(s))

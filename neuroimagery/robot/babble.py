@@ -29,6 +29,7 @@ import torch
 from neuroimagery.errors import UserInputError
 from neuroimagery.files import writable_folder, write_text
 from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
+from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.world import EVENTS, ToolWorld
 from neuroimagery.thesis import EXP5_TABLE_7_1
 
@@ -71,15 +72,17 @@ def babble_counts(world: ToolWorld, posture: int, n: int, seed: int, cfg: Moveme
     return counts
 
 
-def measure(n_rollouts: int, seeds: int = 3, cfg: MovementConfig | None = None, world: ToolWorld | None = None) -> dict:
-    """Babble ``n_rollouts`` times per seed from each posture; the table (see module docstring)."""
+def measure(n_rollouts: int, seeds: int = 3, cfg: MovementConfig | None = None, world: ToolWorld | None = None,
+            table_contact: str = "lift") -> dict:
+    """Babble ``n_rollouts`` times per seed from each posture; the table (see module docstring).
+    Without ``world``, one with the table rule ``table_contact`` (``WorldConfig``)."""
     if n_rollouts < 1:
         raise UserInputError(f"--rollouts must be >= 1, got {n_rollouts}")
     if seeds < 1:
         raise UserInputError(f"--seeds must be >= 1, got {seeds}")
     cfg = cfg or MovementConfig()
     own = world is None
-    world = world or ToolWorld()
+    world = world or ToolWorld(WorldConfig(table_contact=table_contact))
     table: dict = {}
     try:
         for k in range(1, 5):
@@ -183,6 +186,8 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--allow-large", action="store_true",
                         help=f"allow more than {MAX_ROLLOUTS} rollouts per posture and seed or {MAX_SEEDS} seeds")
+    parser.add_argument("--table-contact", choices=("lift", "grip"), default="lift",
+                        help="how the table meets the rake (WorldConfig.table_contact; docs/robot.md)")
     args = parser.parse_args(argv)
     for name, value, most in (("--rollouts", args.rollouts, MAX_ROLLOUTS), ("--seeds", args.seeds, MAX_SEEDS)):
         if value < 1:
@@ -198,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parse(argv)
         t0 = time.perf_counter()
         check_out(args.out)
-        table = measure(args.rollouts, args.seeds)
+        table = measure(args.rollouts, args.seeds, table_contact=args.table_contact)
         write_outputs(args.out, table)
         print(markdown(table))
         print(f"wrote {args.out / 'table_7_1.json'} in {time.perf_counter() - t0:.1f} s")

@@ -86,10 +86,15 @@ class WorldConfig:
     #                         imposed poses (kinematic drive)
     rake_max_force: float = 200.0  # N, strength of the constraint (only with rake_drive="constraint")
     # how the hand moves the rake: "kinematic" imposes the rake's pose and velocity at every control
-    # step (the table stops it by lifting the pose); "constraint" drags it with a fixed constraint of
+    # step (the table meets it by table_contact); "constraint" drags it with a fixed constraint of
     # force rake_max_force (slower; kept as a reference)
     rake_drive: str = "kinematic"
-    table_clearance: float = 0.002  # kinematic drive: lowest rake point kept this far above the table
+    table_clearance: float = 0.002  # lowest rake point kept this far above the table
+    # how the table meets the rake (docs/robot.md, "The table, the grip and the arm"): "lift" = the
+    # pose is lifted vertically (an arm that yields upward) | "grip" = the rake turns in the hand
+    # about the grip by at most grip_pivot_max, beyond that the table stops the arm (the pose is held)
+    table_contact: str = "lift"
+    grip_pivot_max: float = math.radians(10.0)  # rad the compliant grip lets the handle turn (grip only)
     friction: float = 0.5  # lateral friction of toy, rake and table
     # --- simulation ---------------------------------------------------------------------------
     physics_dt: float = 0.01  # pybullet time step (100 Hz; two steps per control step)
@@ -141,6 +146,10 @@ class WorldConfig:
             raise ValueError(f"WorldConfig.explore_goals must be 'posture' or 'anywhere', got {self.explore_goals!r}")
         if self.rake_drive not in ("kinematic", "constraint"):
             raise ValueError(f"WorldConfig.rake_drive must be 'kinematic' or 'constraint', got {self.rake_drive!r}")
+        if self.table_contact not in ("grip", "lift"):
+            raise ValueError(f"WorldConfig.table_contact must be 'grip' or 'lift', got {self.table_contact!r}")
+        if not 0 <= self.grip_pivot_max < math.pi / 2:
+            raise ValueError(f"WorldConfig.grip_pivot_max must be in [0, pi/2), got {self.grip_pivot_max!r}")
         if not self.table_clearance >= 0:
             raise ValueError(f"WorldConfig.table_clearance must be >= 0, got {self.table_clearance}")
         if not self.rest_speed > 0:

@@ -148,7 +148,8 @@ class ToolWorldEnvironment:
             self.world.start_state = None
         res = []
         for n, o in enumerate(outs):
-            q_end = tuple(round(float(v), 6) for v in traj[n, o.stop_step])
+            arm = o.stop_step if o.arm_step is None else o.arm_step  # the joints the arm holds
+            q_end = tuple(round(float(v), 6) for v in traj[n, arm])
             toy = tuple(round(float(v), 6) for v in o.final_toy_xy)
             yaw = round(float(o.final_toy_yaw), 6) if self.toy_turn == "keep" else 0.0
             if o.off_table:  # out of play from now on (docs/robot.md, a toy thrown off the table)

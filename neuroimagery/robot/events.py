@@ -58,6 +58,8 @@ class Outcome:
         stand).
     simulated: False when the FK filter showed the rake never came near the toy and the
         physics was skipped.
+    arm_step: the trajectory point whose joints the arm holds at the stop (earlier than
+        ``stop_step`` where the table stopped the arm).
     """
 
     events: tuple[bool, ...]
@@ -70,6 +72,10 @@ class Outcome:
     min_gap: float = float("nan")  # closest the rake came to the toy's start box (m, FK; NaN if unknown)
     final_toy_yaw: float = 0.0  # the toy's turn about the vertical at the stop (rad, folded by toy_yaw_of)
     off_table: bool = False  # the toy fell off the table (the rollout stopped when it did)
+    # index of the trajectory point whose joints the arm holds at the stop: the stop step, or an
+    # earlier one where the table stopped the arm (docs/robot.md, the table, the grip and the arm);
+    # None: the stop step
+    arm_step: int | None = None
 
     def fired(self, name: str) -> bool:
         return self.events[event_index(name)]

@@ -1,7 +1,7 @@
 """The kinematic drive's plan of a batch of rake trajectories, in numpy (no physics).
 
 :func:`plan` turns the grip poses of a batch of trajectories into what pybullet needs at every
-control step: the rake's lifted poses (the table stops it), its world points, the inertial-frame
+control step: the rake's poses where the table lets it be (:func:`table_poses`), its world points, the inertial-frame
 positions and quaternions, the velocities that carry it from step ``t-1`` to ``t``, how far its
 farthest point travels in each step (``sweep``) and how many physics steps that step needs
 (``nsub``, docs/robot.md, physics step criterion). :func:`gaps` is the rake's distance to the
@@ -56,20 +56,108 @@ def substeps_for(sweep: np.ndarray, cfg: WorldConfig, substeps: int) -> np.ndarr
     return n
 
 
-def plan(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig, substeps: int) -> dict:
-    """``poses`` (N, T, 4, 4) grip poses -> the plan's arrays (module doc), batch axes kept.
+def _rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) about unit ``axis`` (..., 3) by ``angle`` (...) (Rodrigues)."""
+    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
+    c, s = np.cos(angle), np.sin(angle)
+    C = 1 - c
+    return np.stack([
+        np.stack([c + x * x * C, x * y * C - z * s, x * z * C + y * s], -1),
+        np.stack([y * x * C + z * s, c + y * y * C, y * z * C - x * s], -1),
+        np.stack([z * x * C - y * s, z * y * C + x * s, c + z * z * C], -1)], -2)
 
-    A pose whose lowest rake point would sink below ``table_top + table_clearance`` is raised
-    vertically.  The velocities include the gravity the physics steps take off, so that the rake
-    lands exactly on pose ``t``: ``n`` semi-implicit Euler steps of ``h = dt / n`` lose
-    ``g h dt (n + 1) / 2`` of height.
+
+def grip_pivot(poses: np.ndarray, pts: np.ndarray, geo: RakeGeometry, cfg: WorldConfig,
+               iters: int = 14) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The compliant grip (docs/robot.md, "The table, the grip and the arm", rule 1).
+
+    ``poses`` (M, 4, 4) grip poses whose lowest rake point would sink below ``table_top +
+    table_clearance``, ``pts`` (M, P, 3) their rake points -> the smallest turn ``phi`` (M,) in
+    ``[0, grip_pivot_max]`` about the grip, about the horizontal axis across the handle, that rests
+    the rake on the table; whether it exists (M,) bool; and the turn's rotations (M, 3, 3).  Each
+    point's height is ``z_grip + A cos(phi) + B sin(phi)``, increasing in ``phi`` over the range
+    (the handle points less than 90 degrees up), so the turn is found by bisection.
+    """
+    floor = cfg.table_top + cfg.table_clearance
+    grip = poses[:, :3, 3]
+    h = poses[:, :3, 0]  # the handle's direction
+    a = np.stack([h[:, 1], -h[:, 0], np.zeros(len(h))], -1)  # h x z: the upward push's torque axis
+    na = np.linalg.norm(a, axis=-1)
+    a = a / np.maximum(na, 1e-12)[:, None]
+    p = pts - grip[:, None, :]
+    A = p[..., 2]
+    B = a[:, None, 0] * p[..., 1] - a[:, None, 1] * p[..., 0]  # (a x p)_z
+    zg = grip[:, None, 2] - geo.point_radius[None, :]
+
+    def low(phi):
+        return (zg + A * np.cos(phi)[:, None] + B * np.sin(phi)[:, None]).min(axis=-1) - floor
+
+    top = np.full(len(poses), float(cfg.grip_pivot_max))
+    ok = (low(top) >= -1e-9) & (na > 1e-9)
+    lo, hi = np.zeros(len(poses)), top
+    for _ in range(iters):
+        mid = 0.5 * (lo + hi)
+        up = low(mid) >= 0
+        hi = np.where(up, mid, hi)
+        lo = np.where(up, lo, mid)
+    phi = np.where(ok, hi, 0.0)
+    return phi, ok, _rotation(a, phi)
+
+
+def table_poses(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``poses`` (N, T, 4, 4) commanded grip poses -> the poses the table lets the rake take, their
+    rake points (N, T, P, 3) and the arm's step (N, T): the index of the trajectory point whose
+    joints the arm holds (``t`` unless the table stopped it).
+
+    ``table_contact = "lift"`` (default): every pose that would sink is lifted vertically.
+    ``"grip"``: the compliant grip (:func:`grip_pivot`); from the first step it cannot rest on the
+    table the arm holds the step before for the rest of the movement; a start the grip cannot rest
+    on the table keeps the vertical lift throughout.
     """
     pts = poses[..., None, :3, 3] + geo.points @ np.swapaxes(poses[..., :3, :3], -1, -2)  # (N, T, P, 3)
     low = (pts[..., 2] - geo.point_radius).min(axis=-1)  # (N, T)
     lift = np.maximum(cfg.table_top + cfg.table_clearance - low, 0.0)
+    N, T = lift.shape
+    steps = np.broadcast_to(np.arange(T), (N, T))
     poses = poses.copy()
-    poses[..., 2, 3] += lift
-    pts[..., 2] += lift[..., None]
+    if cfg.table_contact == "lift":
+        poses[..., 2, 3] += lift
+        pts[..., 2] += lift[..., None]
+        return poses, pts, steps.copy()
+    sink = lift > 0
+    ok = ~sink
+    if sink.any():
+        phi, turned, rot = grip_pivot(poses[sink], pts[sink], geo, cfg)
+        grip = poses[sink][:, None, :3, 3]
+        new_pts = grip + np.einsum("mij,mpj->mpi", rot, pts[sink] - grip)
+        new_R = rot @ poses[sink][:, :3, :3]
+        # a step the grip cannot rest on the table: lifted, used only before the first one it can
+        lifted = lift[sink][:, None]
+        new_pts = np.where(turned[:, None, None], new_pts, pts[sink] + np.array([0.0, 0.0, 1.0]) * lifted[..., None])
+        P = poses[sink]
+        P[:, :3, :3] = np.where(turned[:, None, None], new_R, P[:, :3, :3])
+        P[:, 2, 3] += np.where(turned, 0.0, lift[sink])
+        poses[sink], pts[sink] = P, new_pts
+        ok[sink] = turned
+    # the table stops the arm at its first step the grip cannot rest on the table, for the rest
+    # of the movement; a start it cannot (never one of the four postures) keeps the lift throughout
+    first_bad = np.where(ok.all(axis=1), T, (~ok).argmax(axis=1))
+    arm = np.where(first_bad[:, None] >= 1, np.minimum(steps, first_bad[:, None] - 1), steps)
+    if (arm != steps).any():
+        poses = np.take_along_axis(poses, arm[..., None, None], axis=1)
+        pts = np.take_along_axis(pts, arm[..., None, None], axis=1)
+    return poses, pts, arm
+
+
+def plan(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig, substeps: int) -> dict:
+    """``poses`` (N, T, 4, 4) grip poses -> the plan's arrays (module doc), batch axes kept.
+
+    The table meets the rake by ``cfg.table_contact`` (:func:`table_poses`); ``arm_step`` (N, T)
+    says which trajectory point's joints the arm holds at each step.  The velocities include the
+    gravity the physics steps take off, so that the rake lands exactly on pose ``t``: ``n``
+    semi-implicit Euler steps of ``h = dt / n`` lose ``g h dt (n + 1) / 2`` of height.
+    """
+    poses, pts, arm = table_poses(poses, geo, cfg)
     R = poses[..., :3, :3] @ geo.R_com
     pos = poses[..., :3, 3] + poses[..., :3, :3] @ geo.com
     quat = quat_from_matrix(R)
@@ -83,7 +171,7 @@ def plan(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig, substeps: int) 
     nsub = substeps_for(sweep, cfg, substeps)
     lin[:, 1:, 2] += GRAVITY * dt * (nsub[:, 1:] + 1) / (2 * nsub[:, 1:])
     return {"poses": poses, "pts": pts, "pos": pos, "orn": quat, "lin": lin, "ang": ang, "sweep": sweep,
-            "nsub": nsub}
+            "nsub": nsub, "arm_step": arm}
 
 
 def gaps(pts: np.ndarray, toy_xy, sweep: np.ndarray, cfg: WorldConfig, point_radius_max: float) -> np.ndarray:

@@ -8,13 +8,15 @@ must have at every control step.
 Rake drive (``WorldConfig.rake_drive``):
     "kinematic" (default)  at the start of control step t the rake is put at pose t-1 with the
         velocity that carries it to pose t; pybullet's substeps resolve rake-toy and toy-table
-        contact (a heavy rake barely yields to the 50 g toy).  The table stops the rake: a pose
-        whose lowest rake point would sink into the table is lifted vertically (rake-table
-        collisions are not computed).  While the toy is at rest, control steps in which no rake
-        point comes within ``filter_margin`` of the toy (ends of the step, allowing for the
+        contact (a heavy rake barely yields to the 50 g toy).  The table meets the rake by
+        ``table_contact`` (``rake_plan.table_poses``: "lift", the default, raises a pose that would
+        sink vertically; "grip" turns the rake in a compliant grip, beyond its bound the table stops
+        the arm; rake-table collisions are not computed).  While the toy is at rest, control steps
+        in which no rake point comes within ``filter_margin`` of the toy (ends of the step, allowing for the
         distance swept in it) cannot change anything and are skipped (``skip_far_steps``).
-    "constraint"  a fixed constraint of force ``rake_max_force`` drags the dynamic rake to every
-        pose and every control step is simulated (the slower reference).
+    "constraint"  a fixed constraint of force ``rake_max_force`` drags the dynamic rake, every
+        control step simulated (the slower reference): under "lift" to the commanded poses, the
+        table stopping it by contact; under "grip" to the poses of the grip rule.
 pybullet resolves the contacts; the toy moves only when pushed.
 
 Compass and events: :mod:`neuroimagery.robot.events` (south = toward the robot, -x; west = its
@@ -53,6 +55,9 @@ class ToolWorld:
 
         self.cfg = config or WorldConfig()
         cfg = self.cfg
+        # the reference drive under the lift drags the rake to the commanded poses and lets the
+        # table stop it; every other drive and rule takes the poses of ``_plan``
+        self._table_collides = cfg.rake_drive == "constraint" and cfg.table_contact == "lift"
         self.kin = ArmKinematics(
             root_height=cfg.root_height,
             grasp=torch.tensor(cfg.grasp, dtype=torch.float32),
@@ -95,15 +100,17 @@ class ToolWorld:
         self._point_radius_max = 0.008
         self._geometry = rake_plan.RakeGeometry(self._rake_points_np[:, :3], self._point_radius,
                                                 self._point_radius_max, self._R_com, self._rake_com)
+        # the table meets the rake through the table rule of ``_plan``: rake-table collisions are
+        # not computed, except where the constraint drive drags the rake to the commanded poses
+        # and the table stops it (``_table_collides``)
+        if not self._table_collides:
+            c.setCollisionFilterPair(self.rake, self.table, -1, -1, 0)
         if cfg.rake_drive == "constraint":
             self.constraint = c.createConstraint(
                 self.rake, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [0, 0, 2]
             )
         else:
             self.constraint = None
-            # the rake's pose is imposed at every control step and the table's contact is replaced
-            # by lifting the pose (``_plan``): rake-table collisions are not computed
-            c.setCollisionFilterPair(self.rake, self.table, -1, -1, 0)
             # a heavy rake barely yields to the toy during the substeps between two imposed poses
             m0 = c.getDynamicsInfo(self.rake, -1)[0]
             inertia = np.array(c.getDynamicsInfo(self.rake, -1)[2]) * (cfg.rake_mass / m0)
@@ -182,7 +189,10 @@ class ToolWorld:
         c = self.client
         if self.constraint is not None:
             self.kin.check_limits(q0)
-            T = self.kin.rake_pose(q0).detach().double().numpy()
+            q_np = np.asarray(torch.as_tensor(q0, dtype=torch.float32).detach().numpy(), dtype=np.float64)
+            T = self.kin.rake_pose_np(q_np)
+            if not self._table_collides:
+                T = self._plan(T[None, None])["poses"][0, 0]  # the table rule
             self._set_rake(T, teleport=True)
             c.resetBasePositionAndOrientation(self.toy, start, toy_orn)
             c.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
@@ -195,7 +205,7 @@ class ToolWorld:
         pose = self._reset_cache.get(key)
         if pose is None:
             self.kin.check_limits(torch.as_tensor(q_np))
-            plan = self._plan(self.kin.rake_pose_np(q_np)[None, None])  # lifted like every driven pose
+            plan = self._plan(self.kin.rake_pose_np(q_np)[None, None])  # the table rule, as every driven pose
             pose = (plan["pos"][0, 0].tolist(), plan["orn"][0, 0].tolist())
             if len(self._reset_cache) > 256:
                 self._reset_cache.clear()
@@ -296,22 +306,29 @@ class ToolWorld:
         t0 = time.perf_counter()
         traj = trajectories.detach().to(torch.float32)
         N, T = traj.shape[:2]
+        plan = self._plan(self.kin.rake_pose_np(traj.numpy()))
+        arm = plan["arm_step"]
         if self.constraint is not None:  # reference drive: dragged by a constraint, every step simulated
-            with torch.no_grad():
-                poses_t = self.kin.rake_pose(traj)
-                near = self.near_toy(traj, poses=poses_t) if use_filter else torch.ones(N, dtype=torch.bool)
-            poses = poses_t.double().numpy()
+            if self._table_collides:  # to the commanded poses, the table stopping the rake (table_contact="lift")
+                with torch.no_grad():
+                    poses_t = self.kin.rake_pose(traj)
+                    near = self.near_toy(traj, poses=poses_t) if use_filter else torch.ones(N, dtype=torch.bool)
+                near, poses = near.numpy(), poses_t.double().numpy()
+            else:  # to the poses the table rule lets the rake take (``_plan``)
+                near = (self._gaps(plan["pts"], self.cfg.toy_xy, plan["sweep"]).min(axis=-1) < self.cfg.filter_margin
+                        if use_filter else np.ones(N, dtype=bool))
+                poses = plan["poses"]
             self.timing["tensor_s"] += time.perf_counter() - t0
             outcomes = []
             for n in range(N):
                 if not bool(near[n]):
-                    outcomes.append(self._skipped(T))
+                    outcomes.append(dataclasses.replace(self._skipped(T), arm_step=int(arm[n, T - 1])))
                     continue
                 t1 = time.perf_counter()
-                outcomes.append(simulate_constraint(self, poses[n], posture, traj[n, 0], watched))
+                out = simulate_constraint(self, poses[n], posture, traj[n, 0], watched)
+                outcomes.append(dataclasses.replace(out, arm_step=int(arm[n, out.stop_step])))
                 self.timing["physics_s"] += time.perf_counter() - t1
             return outcomes
-        plan = self._plan(self.kin.rake_pose_np(traj.numpy()))
         plan["gaps0"] = self._gaps(plan["pts"], self.cfg.toy_xy, plan["sweep"])  # toy at its start
         if use_filter:
             near = plan["gaps0"].min(axis=-1) < self.cfg.filter_margin
@@ -321,11 +338,13 @@ class ToolWorld:
         outcomes = []
         for n in range(N):
             if not near[n]:
-                outcomes.append(dataclasses.replace(self._skipped(T), min_gap=float(max(plan["gaps0"][n].min(), 0.0))))
+                outcomes.append(dataclasses.replace(self._skipped(T), min_gap=float(max(plan["gaps0"][n].min(), 0.0)),
+                                                    arm_step=int(arm[n, T - 1])))
                 continue
             t1 = time.perf_counter()
             out = self._simulate_kinematic({k: v[n] for k, v in plan.items()}, posture, watched)
-            outcomes.append(dataclasses.replace(out, min_gap=float(max(plan["gaps0"][n].min(), 0.0))))
+            outcomes.append(dataclasses.replace(out, min_gap=float(max(plan["gaps0"][n].min(), 0.0)),
+                                                arm_step=int(arm[n, out.stop_step])))
             self.timing["physics_s"] += time.perf_counter() - t1
         return outcomes
 
