@@ -31,7 +31,6 @@ axes (the best of all eight sign combinations proper or not) decides at once.
 """
 from __future__ import annotations
 
-import itertools
 import math
 from typing import Sequence
 
@@ -42,67 +41,15 @@ from ..nn import Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, San
 from ..nn.connections import Connection
 from ..nn.decision import full_match_gain
 from ..nn.functional import gain_field, softmax_select
-from ..nn.local import LocalConnection, offset_count
+from ..nn.local import LocalConnection
 from . import voxel_code as vc
+from .layout_3d import (AXES, MOVES, SIGNS, WRIST_AXIS, c20_weights, fill_offsets, fm_bytes,  # noqa: F401 (re-exported)
+                        grid_for_budget, matched_axes, move_angles, receptive_radius)
 from .rotation_embodied import check_proprioception
 from .search_starts import multi_start
 
-AXES = ("x", "y", "z")
-WRIST_AXIS = "z"  # the line of sight: the axis the wrist turns the held object about (as in Exp 4)
-MOVES = ("still",) + tuple(f"{a}{s}" for a in AXES for s in ("-", "+"))  # PMCm units
 MATCH_CHUNK = 8  # rows of the coarse comparison formed together (speed only)
 COARSE_UNITS = 128  # blocks of a coarse image the search compares (the most active ones)
-SIGNS = [torch.tensor(s, dtype=torch.float64) for s in itertools.product((1.0, -1.0), repeat=3)]
-
-
-def move_angles(step: float) -> list[tuple[str | None, float]]:
-    """(axis, degrees) of every PMCm unit, in :data:`MOVES` order."""
-    return [(None, 0.0)] + [(a, s * step) for a in AXES for s in (-1.0, 1.0)]
-
-
-def receptive_radius(side: int, step_deg: float) -> int:
-    """Radius covering the largest displacement of one step inside the dot ball of radius G/2 - 1.5."""
-    r = side / 2.0 - 1.5
-    return int(math.ceil(2.0 * r * math.sin(math.radians(step_deg) / 2.0) - 1e-9))
-
-
-def fm_bytes(side: int, step_deg: float, moves: int = len(MOVES) - 1) -> int:
-    """Bytes of the forward models of one participant (float32)."""
-    return moves * side ** 3 * offset_count(receptive_radius(side, step_deg)) * 4
-
-
-def grid_for_budget(budget_mb: float, step_deg: float, moves: int = len(MOVES) - 1) -> int:
-    """The largest even grid side in [8, 64] whose forward models fit ``budget_mb`` per participant."""
-    best = None
-    for g in range(8, 65, 2):
-        if fm_bytes(g, step_deg, moves) <= budget_mb * 1e6:
-            best = g
-    if best is None:
-        raise ValueError(f"a forward-model budget of {budget_mb} MB per participant holds no grid of side >= 8")
-    return best
-
-
-def fill_offsets(depth: int, lateral: int = 1) -> torch.Tensor:
-    """Receptive field of C_fill ``(K, 3)`` (z, y, x): the voxels in front of a voxel along the line of
-    sight (dz = -1 .. depth toward the eye) and their lateral neighbours up to ``lateral`` voxels."""
-    r = torch.arange(-lateral, lateral + 1)
-    return torch.tensor([(dz, dy, dx) for dz in range(-1, depth + 1) for dy in r.tolist() for dx in r.tolist()])
-
-
-def c20_weights(units: int, axes: int = len(AXES)) -> torch.Tensor:
-    """Hard-wired PPCc -> PMCm weights ``(1 + 2 axes, axes * units^2)``: per axis the upper triangle
-    (done so far larger than required; rows = PPCt, columns = PPCp) to that axis's -step unit, the
-    lower triangle to +step, each diagonal with weight 1/axes to "still"."""
-    r = torch.arange(units).view(units, 1).expand(units, units)
-    c = torch.arange(units).view(1, units).expand(units, units)
-    upper, lower, diag = (r < c).float().reshape(-1), (r > c).float().reshape(-1), (r == c).float().reshape(-1)
-    W = torch.zeros(1 + 2 * axes, axes * units * units)
-    for a in range(axes):
-        sl = slice(a * units * units, (a + 1) * units * units)
-        W[0, sl] = diag / axes
-        W[1 + 2 * a, sl] = upper
-        W[2 + 2 * a, sl] = lower
-    return W
 
 
 class Rotation3D(nn.Module):
@@ -271,10 +218,10 @@ class Rotation3D(nn.Module):
         Et, Ec = E[:target.shape[0]], E[target.shape[0]:]
         ct, cc = self.coarse_code(target), self.coarse_code(comp)
         if self.p.search.starts and self.p.search.refine:
-            return multi_start(self, Et, Ec, ct, cc, proper, SIGNS, AXES)
+            return multi_start(self, Et, Ec, ct, cc, proper)
         cands, dets, scores = [], [], []
         for s in SIGNS:
-            R = Et.transpose(1, 2) @ torch.diag(s) @ Ec  # comparison coordinates -> target coordinates
+            R = matched_axes(Et, Ec, s)
             det = torch.linalg.det(R)
             sc = self.coarse_match(ct, cc, R)
             k = (det > 0).nonzero().squeeze(-1) if proper else torch.arange(R.shape[0])  # reflections only if they may win

@@ -9,28 +9,26 @@ start is refined at the first scale of ``search.refine`` by the search's coarse 
 from __future__ import annotations
 
 import math
-from typing import Sequence
 
 import torch
 
 from . import voxel_code as vc
+from .layout_3d import AXES, SIGNS, matched_axes
 
 
-def multi_start(model, Et: torch.Tensor, Ec: torch.Tensor, ct, cc, proper: bool, signs: Sequence[torch.Tensor],
-                axes: Sequence[str]):
+def multi_start(model, Et: torch.Tensor, Ec: torch.Tensor, ct, cc, proper: bool):
     """Rotations ``(rows, 3, 3)`` turning the comparison image onto the target, and whether each is
     proper. ``model``: the :class:`~neuroimagery.models.rotation_3d.Rotation3D` (its ``refine``,
     ``coarse_match`` and ``p.search``); ``Et``, ``Ec``: the two images' principal axes
-    ``(rows, 3, 3)``; ``ct``, ``cc``: their coarse codes; ``signs``: the sign combinations;
-    ``axes``: the camera axes."""
+    ``(rows, 3, 3)``; ``ct``, ``cc``: their coarse codes."""
     p = model.p.search
     turns = [torch.eye(3, dtype=torch.float64)] + [vc.axis_rotation(a, sg * d) for d in p.starts
-                                                     for a in axes for sg in (-1.0, 1.0)]
+                                                     for a in AXES for sg in (-1.0, 1.0)]
     scales = list(p.refine)
     n = Et.shape[0]
     Rs, scores = [], []
-    for s in signs:
-        R0 = Et.transpose(1, 2) @ torch.diag(s) @ Ec
+    for s in SIGNS:
+        R0 = matched_axes(Et, Ec, s)
         k = (torch.linalg.det(R0) > 0).nonzero().squeeze(-1) if proper else torch.arange(n)
         sub = tuple(tuple(x[k] for x in code) for code in (ct, cc))
         for U in turns:
