@@ -14,8 +14,6 @@ the torch code runs.
 """
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 import torch
 
@@ -23,6 +21,8 @@ try:
     import numba
 except ImportError:  # the torch code then runs (the same numbers, more slowly)
     numba = None
+
+from ..nn.compiled import Kernels
 
 
 def available() -> bool:
@@ -111,17 +111,7 @@ def _largest(on, side, out):  # pragma: no cover (compiled)
         out[r] = best
 
 
-_compiled: dict[str, object] = {}
-
-
-_LOCK = threading.Lock()
-
-
-def _fn(name: str):
-    with _LOCK:  # compiled once, also when several threads ask at first
-        if name not in _compiled:
-            _compiled[name] = numba.njit(cache=True, nogil=True)(globals()["_" + name])
-        return _compiled[name]
+_fn = Kernels(globals())  # the compiled loops, each once
 
 
 def arguments(pos: torch.Tensor, near: torch.Tensor, t: torch.Tensor, side: int, c2: float):

@@ -20,8 +20,6 @@ Without numba, or for tensors elsewhere than on the CPU, the torch code runs.
 """
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 import torch
 
@@ -29,6 +27,8 @@ try:
     import numba
 except ImportError:  # the torch code then runs (the same numbers, more slowly)
     numba = None
+
+from .compiled import Kernels
 
 
 def available(*tensors: torch.Tensor) -> bool:
@@ -113,17 +113,7 @@ def _learn_sparse(w, target_of, pre, target, rate, out):  # pragma: no cover (co
                             out[p, o, k] += rate * (post[b, o] * v)
 
 
-_compiled: dict[str, object] = {}
-
-
-_LOCK = threading.Lock()
-
-
-def _fn(name: str):
-    with _LOCK:  # compiled once, also when several threads ask at first
-        if name not in _compiled:
-            _compiled[name] = numba.njit(cache=True, nogil=True)(globals()["_" + name])
-        return _compiled[name]
+_fn = Kernels(globals())  # the compiled loops, each once
 
 
 def _np(t: torch.Tensor) -> np.ndarray:
