@@ -44,18 +44,43 @@ def available(*tensors: torch.Tensor) -> bool:
     return all(t.device.type == "cpu" and not (grad and t.requires_grad) for t in tensors)
 
 
-def _net_sparse(w, target_of, x, group, out):  # pragma: no cover (compiled)
-    N, n = x.shape
+def _inner(f):
+    """A loop the compiled loops below share, made a numba function at import so that they can call it
+    (numba compiles it at its first call)."""
+    return numba.njit(cache=True, nogil=True)(f) if numba is not None else f
+
+
+@_inner
+def _add_products(w, target_of, x, out):  # pragma: no cover (compiled)
+    """``out[o] += w[o, k] x_i`` for each active input ``i`` of one row ``x`` in ascending order and each offset ``k``."""
+    n = x.shape[0]
     K = target_of.shape[1]
-    for r in range(N):
-        g = group[r]
-        for i in range(n):
-            v = x[r, i]
-            if v != 0:
-                for k in range(K):
-                    o = target_of[i, k]
-                    if o < n:
-                        out[r, o] += w[g, o, k] * v
+    for i in range(n):
+        v = x[i]
+        if v != 0:
+            for k in range(K):
+                o = target_of[i, k]
+                if o < n:
+                    out[o] += w[o, k] * v
+
+
+@_inner
+def _add_change(err, pre, target_of, rate, out):  # pragma: no cover (compiled)
+    """``out[o, k] += rate (err[o] pre_i)`` for each active input ``i`` of one pattern in ascending order."""
+    n = pre.shape[0]
+    K = target_of.shape[1]
+    for i in range(n):
+        v = pre[i]
+        if v != 0:
+            for k in range(K):
+                o = target_of[i, k]
+                if o < n:
+                    out[o, k] += rate * (err[o] * v)
+
+
+def _net_sparse(w, target_of, x, group, out):  # pragma: no cover (compiled)
+    for r in range(x.shape[0]):
+        _add_products(w[group[r]], target_of, x[r], out[r])
 
 
 def _net_dense(w, source, x, group, out):  # pragma: no cover (compiled)
@@ -73,44 +98,24 @@ def _net_dense(w, source, x, group, out):  # pragma: no cover (compiled)
 
 
 def _delta_sparse(pre, err, target_of, rate, out):  # pragma: no cover (compiled)
-    P, B, n = pre.shape
-    K = target_of.shape[1]
+    P, B, _ = pre.shape
     for p in range(P):
         for b in range(B):
-            for i in range(n):
-                v = pre[p, b, i]
-                if v != 0:
-                    for k in range(K):
-                        o = target_of[i, k]
-                        if o < n:
-                            out[p, o, k] += rate * (err[p, b, o] * v)
+            _add_change(err[p, b], pre[p, b], target_of, rate, out[p])
 
 
 def _learn_sparse(w, target_of, pre, target, rate, out):  # pragma: no cover (compiled)
     P, B, n = pre.shape
-    K = target_of.shape[1]
     post = np.zeros((B, n), dtype=pre.dtype)
     for p in range(P):  # a participant's weights read for its output and changed while in the cache
         post[:, :] = 0
         for b in range(B):
-            for i in range(n):
-                v = pre[p, b, i]
-                if v != 0:
-                    for k in range(K):
-                        o = target_of[i, k]
-                        if o < n:
-                            post[b, o] += w[p, o, k] * v
+            _add_products(w[p], target_of, pre[p, b], post[b])
         for b in range(B):
             for o in range(n):
                 post[b, o] = target[p, b, o] - post[b, o]  # the error
         for b in range(B):
-            for i in range(n):
-                v = pre[p, b, i]
-                if v != 0:
-                    for k in range(K):
-                        o = target_of[i, k]
-                        if o < n:
-                            out[p, o, k] += rate * (post[b, o] * v)
+            _add_change(post[b], pre[p, b], target_of, rate, out[p])
 
 
 _fn = Kernels(globals())  # the compiled loops, each once
