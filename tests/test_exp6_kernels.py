@@ -13,7 +13,7 @@ from neuroimagery.experiments import exp6
 from neuroimagery.models import voxel_code as vc
 from neuroimagery.models import voxel_code_kernel
 from neuroimagery.models.rotation_3d import AXES, fill_offsets
-from neuroimagery.nn import Delta, local_kernel, seeding
+from neuroimagery.nn import Delta, compiled, local_kernel, seeding
 from neuroimagery.nn.functional import intra_op_threads
 from neuroimagery.nn.local import LocalConnection
 
@@ -46,12 +46,12 @@ def _train_and_apply(dtype, offset_set=None):
 @pytest.mark.parametrize("offsets", ["ball", "column"])
 def test_local_kernels_equal_the_torch_code(monkeypatch, dtype, offsets):
     offset_set = fill_offsets(3, 1) if offsets == "column" else None
-    compiled = _train_and_apply(dtype, offset_set)
-    monkeypatch.setattr(local_kernel, "numba", None)
+    fast = _train_and_apply(dtype, offset_set)
+    monkeypatch.setattr(compiled, "numba", None)
     plain = _train_and_apply(dtype, offset_set)
-    assert not torch.allclose(compiled[0], LocalConnection(9, 2, seeding.participant_generators(0, 3),
-                                                           offset_set=offset_set).weight.to(dtype))
-    for a, b in zip(compiled, plain):
+    assert not torch.allclose(fast[0], LocalConnection(9, 2, seeding.participant_generators(0, 3),
+                                                       offset_set=offset_set).weight.to(dtype))
+    for a, b in zip(fast, plain):
         assert a.dtype == b.dtype and torch.allclose(a, b, rtol=0, atol=1e-6)
 
 
@@ -60,7 +60,7 @@ def test_dot_map_kernel_equals_the_torch_code(monkeypatch):
     g = torch.Generator().manual_seed(0)
     pts = ((torch.rand(40, 24, 3, generator=g, dtype=torch.float64) - 0.5) * 19).float()  # some dots at the edge
     a = vc.blobs(pts, 18, 0.7)
-    monkeypatch.setattr(voxel_code_kernel, "numba", None)
+    monkeypatch.setattr(compiled, "numba", None)
     b = vc.blobs(pts, 18, 0.7)
     assert 0 < float((b != 0).float().mean()) < 0.5 and bool((b == 1).any())
     assert torch.allclose(a, b, rtol=0, atol=1e-7)
@@ -124,7 +124,7 @@ def test_largest_cluster_kernel_equals_spreading_labels(monkeypatch):
     masks = (torch.rand(12, side ** 3, generator=g) < torch.linspace(0.02, 0.4, 12).unsqueeze(1)).float()
     masks[0] = 0.0
     a = vc.largest_cluster(masks, side)
-    monkeypatch.setattr(voxel_code_kernel, "numba", None)
+    monkeypatch.setattr(compiled, "numba", None)
     b = vc.largest_cluster(masks, side)
     assert a.dtype == b.dtype and torch.equal(a, b) and b[0] == 0 and len(set(b.tolist())) > 5
 

@@ -141,9 +141,11 @@ def test_windowed_compiled_loop_gives_the_torch_loops_bits(monkeypatch):
     ox = seeding.randint(participant_generators(1, 3), 12, (400,))
     oy = seeding.randint(participant_generators(2, 3), 9, (400,))
     runs = []
+    from neuroimagery.nn import compiled as numba_loops
+
     for compiled in (True, False):
         if not compiled:
-            monkeypatch.setattr(kernel, "numba", None)
+            monkeypatch.setattr(numba_loops, "numba", None)
         maps = SOM((6, 7), 100, seed=3, **kw), SOM((6, 7), 70, seed=4, **kw)
         for m in maps:
             m.rule.cutoff = 0.01

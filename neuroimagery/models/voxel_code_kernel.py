@@ -17,17 +17,12 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-try:
-    import numba
-except ImportError:  # the torch code then runs (the same numbers, more slowly)
-    numba = None
-
-from ..nn.compiled import Kernels
+from ..nn import compiled
 
 
 def available() -> bool:
     """Whether the compiled loops can run (numba installed, not while ``torch.compile`` traces)."""
-    return numba is not None and not torch.compiler.is_compiling()
+    return compiled.available()
 
 
 def _arguments(pos, near, t, side, c2, arg, flat):  # pragma: no cover (compiled)
@@ -111,7 +106,7 @@ def _largest(on, side, out):  # pragma: no cover (compiled)
         out[r] = best
 
 
-_fn = Kernels(globals())  # the compiled loops, each once
+_fn = compiled.Kernels(globals())  # the compiled loops, each once
 
 
 def arguments(pos: torch.Tensor, near: torch.Tensor, t: torch.Tensor, side: int, c2: float):

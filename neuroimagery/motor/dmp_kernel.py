@@ -10,16 +10,13 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-try:
-    import numba
-except ImportError:  # the torch loop then runs (the same numbers, more slowly)
-    numba = None
+from ..nn import compiled
 
 
 def available(*tensors: torch.Tensor) -> bool:
     """Whether the compiled loop can integrate these tensors: numba installed, float32 CPU tensors
     that no gradient flows through, and not while ``torch.compile`` traces (those take the torch loop)."""
-    if numba is None or torch.compiler.is_compiling():
+    if not compiled.available():
         return False
     grad = torch.is_grad_enabled()
     return all(t.device.type == "cpu" and t.dtype == torch.float32 and not (grad and t.requires_grad) for t in tensors)
@@ -40,16 +37,14 @@ def _loop(g, y0, f, k, c, dt, out):
                 out[n, s + 1, j] = y
 
 
-_compiled = []
+_kernels = compiled.Kernels(globals())
 
 
 def integrate(g: torch.Tensor, y0: torch.Tensor, f: torch.Tensor, k: float, c: float, dt: float,
               out: torch.Tensor) -> torch.Tensor:
     """Fill ``out`` ``(N, S + 1, J)`` with the trajectory from ``y0`` (at rest) under goals ``g``
     ``(N, J)`` and forcing ``f`` ``(S, N, J)`` (float32, contiguous CPU tensors)."""
-    if not _compiled:
-        _compiled.append(numba.njit(cache=True, nogil=True)(_loop))
     f32 = np.float32
-    _compiled[0](g.contiguous().numpy(), y0.contiguous().numpy(), f.contiguous().numpy(), f32(k), f32(c), f32(dt),
+    _kernels("loop")(g.contiguous().numpy(), y0.contiguous().numpy(), f.contiguous().numpy(), f32(k), f32(c), f32(dt),
                  out.numpy())
     return out

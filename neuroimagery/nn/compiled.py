@@ -1,15 +1,36 @@
-"""Numba compilation of a module's loop functions (the kernels of :mod:`~neuroimagery.nn.local_kernel`
-and :mod:`~neuroimagery.models.voxel_code_kernel`): each loop ``_name`` of the module is compiled the
-first time ``name`` is asked for, once, also when several threads ask at the same time."""
+"""Numba for the package's compiled loops (:mod:`~neuroimagery.nn.local_kernel`,
+:mod:`~neuroimagery.nn.som_windowed_kernel`, :mod:`~neuroimagery.nn.hebbian_closed_form`,
+:mod:`~neuroimagery.motor.dmp_kernel`, :mod:`~neuroimagery.models.voxel_code_kernel`): whether it is installed, a loop made a numba
+function, and :class:`Kernels`, which compiles each loop ``_name`` of a module the first time
+``name`` is asked for, once, also when several threads ask at the same time. Without numba the
+callers run their torch code."""
 from __future__ import annotations
 
 import threading
 from typing import Any, Callable, Mapping
 
+import torch
+
 try:
     import numba
-except ImportError:  # the callers then run their torch code
+except ImportError:  # the callers then run their torch code (the same numbers, more slowly)
     numba = None
+
+
+def installed() -> bool:
+    """Whether numba is installed."""
+    return numba is not None
+
+
+def available() -> bool:
+    """Whether compiled loops can run now: numba installed, and not while ``torch.compile`` traces."""
+    return numba is not None and not torch.compiler.is_compiling()
+
+
+def jit(f: Callable) -> Callable:
+    """``f`` made a numba function (compiled at its first call), so that compiled loops can call it;
+    ``f`` itself without numba."""
+    return numba.njit(cache=True, nogil=True)(f) if numba is not None else f
 
 
 class Kernels:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from . import compiled
 from .connections import AllToAll, Connection
 from .forms import Form, register
 from .learning import IndexedRows
@@ -137,19 +138,12 @@ def _suffix_loop(keep, suffix, whole):  # pragma: no cover  (compiled)
         whole[i] = np.float32(cum[i])
 
 
-_SUFFIX = []
+_kernels = compiled.Kernels(globals())
 
 
 def _suffix_kernel():
     """The compiled :func:`_suffix_loop`, or None without numba."""
-    if not _SUFFIX:
-        try:
-            import numba
-        except ImportError:
-            _SUFFIX.append(None)
-        else:
-            _SUFFIX.append(numba.njit(cache=True, nogil=True)(_suffix_loop))
-    return _SUFFIX[0]
+    return _kernels("suffix_loop") if compiled.installed() else None
 
 
 def _form_indexed(out: torch.Tensor, weight0: torch.Tensor, a: torch.Tensor, C: torch.Tensor,

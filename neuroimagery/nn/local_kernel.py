@@ -23,19 +23,14 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-try:
-    import numba
-except ImportError:  # the torch code then runs (the same numbers, more slowly)
-    numba = None
-
-from .compiled import Kernels
+from . import compiled
 
 
 def available(*tensors: torch.Tensor) -> bool:
     """Whether the compiled loops can take these tensors: numba installed, CPU tensors of one
     floating dtype (float32 or float64) that no gradient flows through, and not while
     ``torch.compile`` traces."""
-    if numba is None or torch.compiler.is_compiling():
+    if not compiled.available():
         return False
     dtypes = {t.dtype for t in tensors}
     if len(dtypes) != 1 or dtypes.pop() not in (torch.float32, torch.float64):
@@ -44,13 +39,7 @@ def available(*tensors: torch.Tensor) -> bool:
     return all(t.device.type == "cpu" and not (grad and t.requires_grad) for t in tensors)
 
 
-def _inner(f):
-    """A loop the compiled loops below share, made a numba function at import so that they can call it
-    (numba compiles it at its first call)."""
-    return numba.njit(cache=True, nogil=True)(f) if numba is not None else f
-
-
-@_inner
+@compiled.jit  # shared by the compiled loops below
 def _add_products(w, target_of, x, out):  # pragma: no cover (compiled)
     """``out[o] += w[o, k] x_i`` for each active input ``i`` of one row ``x`` in ascending order and each offset ``k``."""
     n = x.shape[0]
@@ -64,7 +53,7 @@ def _add_products(w, target_of, x, out):  # pragma: no cover (compiled)
                     out[o] += w[o, k] * v
 
 
-@_inner
+@compiled.jit
 def _add_change(err, pre, target_of, rate, out):  # pragma: no cover (compiled)
     """``out[o, k] += rate (err[o] pre_i)`` for each active input ``i`` of one pattern in ascending order."""
     n = pre.shape[0]
@@ -118,7 +107,7 @@ def _learn_sparse(w, target_of, pre, target, rate, out):  # pragma: no cover (co
             _add_change(post[b], pre[p, b], target_of, rate, out[p])
 
 
-_fn = Kernels(globals())  # the compiled loops, each once
+_fn = compiled.Kernels(globals())  # the compiled loops, each once
 
 
 def _np(t: torch.Tensor) -> np.ndarray:

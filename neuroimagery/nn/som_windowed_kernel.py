@@ -16,17 +16,14 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-try:
-    import numba
-except ImportError:  # the torch loop then runs instead (the same numbers, more slowly)
-    numba = None
+from . import compiled
 
 CHUNK = 256  # steps whose rates are formed (in torch) before the compiled loop runs them
 
 
 def available() -> bool:
     """Whether the compiled loop can run (numba is installed)."""
-    return numba is not None
+    return compiled.installed()
 
 
 def rates(rule, t0: int, T: int, d2_offs: torch.Tensor, rows: int, cols: int):
@@ -107,19 +104,17 @@ def _loop(V, nrm, c, f, R, G, gdiag, piece_of, order, winners, ns, a, dr, dq, ro
                     c[p, k] = 1.0
 
 
-_compiled = None
+_kernels = compiled.Kernels(globals())
 
 
 def run(rule, t0: int, V, nrm, c, f, R, G, gdiag, piece_of, order, winners, offs, d2_offs, rows: int, cols: int) -> None:
     """All ``order.shape[1]`` steps of the windowed fit, in place on the torch tensors ``V``,
     ``nrm``, ``c``, ``f``, ``R`` (float64, contiguous) and ``winners``."""
-    global _compiled
-    if _compiled is None:
-        _compiled = numba.njit(cache=True, nogil=True)(_loop)
+    loop = _kernels("loop")
     arrs = [x.numpy() for x in (V, nrm, c, f, R, G.contiguous(), gdiag.contiguous(), piece_of.contiguous(),
                                 order.contiguous(), winners)]
     dr, dq = offs[:, 0].contiguous().numpy(), offs[:, 1].contiguous().numpy()
     T = order.shape[1]
     for lo in range(0, T, CHUNK):
         ns, a = rates(rule, t0 + lo, min(CHUNK, T - lo), d2_offs, rows, cols)
-        _compiled(*arrs, ns, a, dr, dq, rows, cols, lo)
+        loop(*arrs, ns, a, dr, dq, rows, cols, lo)
