@@ -64,6 +64,8 @@ class Rotation3D(nn.Module):
         self.cube_voxels = float(cube_voxels)
         self.radius = receptive_radius(side, p.step_deg)
         self.moves = move_angles(float(p.step_deg))
+        # the rotation of each PMCm unit's move (moves, 3, 3) (still: identity)
+        self.move_turns = torch.stack([torch.eye(3, dtype=torch.float64)] + [vc.axis_rotation(a, d) for a, d in self.moves[1:]])
         init = (0.0, p.init_high)
         self.fill = LocalConnection(side, 0, generators, init=init, rules=Delta(p.image.eta), name="C_fill",
                                     offset_set=fill_offsets(p.image.fill_depth, p.image.lateral))
@@ -347,14 +349,6 @@ class Rotation3D(nn.Module):
         if self.p.move_rule == "composed_softmax":
             return softmax_select(am, self.p.selection.tau, uniforms=uniforms)
         return am.argmax(-1)  # the first of equals: "still" unless a move brings the remaining rotation closer
-
-    @property
-    def move_turns(self) -> torch.Tensor:
-        """The rotation of each PMCm unit's move ``(moves, 3, 3)`` (still: identity), formed once."""
-        if getattr(self, "_move_turns", None) is None:
-            self._move_turns = torch.stack([torch.eye(3, dtype=torch.float64)]
-                                           + [vc.axis_rotation(a, d) for a, d in self.moves[1:]])
-        return self._move_turns
 
     @torch.no_grad()
     def align(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int = 0,
