@@ -90,7 +90,7 @@ def ik(kin: ArmKinematics, target: torch.Tensor, q: torch.Tensor, iters: int = 1
 def measure(world, kin: ArmKinematics, posture: int, n: int, seed: int, restarts: int = 4, chunk: int = 20000) -> dict:
     traj = movements(world, posture, n, seed).double()
     cmd = world.kin.rake_pose_np(traj.numpy())
-    lifted = world._plan(cmd)["poses"]
+    lifted = world._plan(traj.numpy())["poses"]
     lift = lifted[..., 2, 3] - cmd[..., 2, 3]
     sel = lift > 0
     q_cmd = traj[torch.from_numpy(sel)]

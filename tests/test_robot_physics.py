@@ -23,7 +23,7 @@ def _random_trajectories(world, posture, n, seed):
 
 
 def test_no_rake_point_travels_farther_than_the_bound_in_one_physics_step(world):
-    plan = world._plan(world.kin.rake_pose_np(_random_trajectories(world, 1, 40, 3).numpy()))
+    plan = world._plan(_random_trajectories(world, 1, 40, 3).numpy())
     travel = world.cfg.max_substep_travel
     assert travel == pytest.approx(0.008)
     assert (plan["nsub"] >= world.substeps).all()
@@ -33,7 +33,7 @@ def test_no_rake_point_travels_farther_than_the_bound_in_one_physics_step(world)
     more = plan["nsub"] > world.substeps
     assert (plan["sweep"][more] / (plan["nsub"][more] - 1) > travel).all()
     with ToolWorld(WorldConfig(max_substep_travel=None)) as fixed:
-        plan = fixed._plan(fixed.kin.rake_pose_np(_random_trajectories(fixed, 1, 10, 3).numpy()))
+        plan = fixed._plan(_random_trajectories(fixed, 1, 10, 3).numpy())
         assert (plan["nsub"] == fixed.substeps).all()
 
 
@@ -44,8 +44,7 @@ def test_a_lone_rake_lands_on_its_next_pose_with_any_number_of_physics_steps(wor
     q0 = world.initial_posture(3)
     q1 = q0.clone()
     q1[0] -= 0.3  # lift the arm: the rake moves in the air, nothing to hit
-    poses = world.kin.rake_pose_np(torch.stack([q0, q1]).numpy()[None])
-    plan = world._plan(poses)
+    plan = world._plan(torch.stack([q0, q1]).numpy()[None])
     sweep = plan["sweep"][0, 1]
     fixed = dict(plan)
     fixed["nsub"] = np.full_like(plan["nsub"], n)

@@ -195,7 +195,7 @@ def test_kinematic_drive_agrees_with_constraint_drive_under_the_grip(world):
         held = []
         for k, delta in [(1, d) for d in pulls] + list(sweeps):
             traj = _line(world, k, delta)
-            held.append(bool((kin._plan(kin.kin.rake_pose_np(traj.numpy()))["arm_step"] != np.arange(traj.shape[1])).any()))
+            held.append(bool((kin._plan(traj.numpy())["arm_step"] != np.arange(traj.shape[1])).any()))
             a, b = kin.rollout(traj, k, None)[0], ref.rollout(traj, k, None)[0]
             # the final north/west/east displacements here are >= 0.009 m from the 0.02 m threshold:
             # the events, touch included, agree
@@ -244,7 +244,7 @@ def test_rake_never_goes_through_the_table(world):
     down[0] += 0.4  # shoulder pitch: swing the arm down, the head would sink into the table
     traj = (q0 + torch.linspace(0, 1, 30)[:, None] * (down - q0))[None]
     cmd = world.kin.rake_pose_np(traj.numpy())
-    plan = world._plan(cmd)
+    plan = world._plan(traj.numpy())
     low = (plan["pts"][..., 2] - world._point_radius).min(-1)
     assert low.min() >= world.cfg.table_top + world.cfg.table_clearance - 1e-9
     # the default rule (table_contact="lift"): the pose lifted vertically, its turn kept, never held
@@ -256,7 +256,7 @@ def test_rake_never_goes_through_the_table(world):
     # joints put the hand, turned in the hand by at most the grip's bound; the arm goes on until the
     # bound is spent, then is held
     with ToolWorld(WorldConfig(table_contact="grip")) as gripped:
-        plan = gripped._plan(cmd)
+        plan = gripped._plan(traj.numpy())
         low = (plan["pts"][..., 2] - gripped._point_radius).min(-1)
         assert low.min() >= gripped.cfg.table_top + gripped.cfg.table_clearance - 1e-9
         arm = plan["arm_step"][0]

@@ -17,6 +17,7 @@ from typing import Optional
 from ..bounds import Rule, bounded, check_declared
 from ..moved_keys import moved
 from ..models.tool_use import CHOICES, EVENTS, AcquisitionParams, BrainParams, SequencingParams
+from ..robot.config import TABLE_CONTACTS
 from ..thesis import EXP5, EXP5_TABLE_7_1
 
 SITUATIONS = {"behind": 1, "far": 4}  # thesis: posture 1 = tool behind toy, posture 4 = tool far from toy
@@ -51,7 +52,7 @@ class WorldParams:
     # how the table meets the rake (robot.config.WorldConfig, docs/robot.md "The table, the grip and
     # the arm"): 'lift' = the pose lifted vertically where the command would sink it | 'grip' = the
     # rake turns in the hand by at most grip_pivot_max (rad), beyond that the table stops the arm
-    table_contact: str = bounded("lift", choices=("lift", "grip"))
+    table_contact: str = bounded("lift", choices=TABLE_CONTACTS)
     grip_pivot_max: float = bounded(0.17453292519943295, ge=0, lt=1.5707963267948966)
 
     RULES = (Rule("environment", lambda w: w.environment == "robot" or ":" in w.environment,

@@ -29,6 +29,7 @@ from pathlib import Path
 from ..errors import UserInputError
 from ..files import writable_folder, write_text
 from ..models.tool_use import EVENTS
+from ..robot.config import TABLE_CONTACTS
 from ..robot.babble import CURVE_THRESHOLDS, POSSIBLE_RATE, THESIS_SKILLS, OneLineParser, agreement, count, wilson
 
 SKILL_NAMES = ("P", "T", "S", "N", "W", "E")
@@ -113,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=count, default=0)
     parser.add_argument("--jobs", type=count, default=2, help="worker processes")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--table-contact", choices=("lift", "grip"), default="lift",
+    parser.add_argument("--table-contact", choices=TABLE_CONTACTS, default="lift",
                         help="how the table meets the rake (experiment.world.table_contact; docs/robot.md)")
     try:
         args = parser.parse_args(argv)

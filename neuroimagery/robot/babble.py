@@ -29,7 +29,7 @@ import torch
 from neuroimagery.errors import UserInputError
 from neuroimagery.files import writable_folder, write_text
 from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
-from neuroimagery.robot.config import WorldConfig
+from neuroimagery.robot.config import TABLE_CONTACTS, WorldConfig
 from neuroimagery.robot.world import EVENTS, ToolWorld
 from neuroimagery.thesis import EXP5_TABLE_7_1
 
@@ -186,7 +186,7 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--allow-large", action="store_true",
                         help=f"allow more than {MAX_ROLLOUTS} rollouts per posture and seed or {MAX_SEEDS} seeds")
-    parser.add_argument("--table-contact", choices=("lift", "grip"), default="lift",
+    parser.add_argument("--table-contact", choices=TABLE_CONTACTS, default="lift",
                         help="how the table meets the rake (WorldConfig.table_contact; docs/robot.md)")
     args = parser.parse_args(argv)
     for name, value, most in (("--rollouts", args.rollouts, MAX_ROLLOUTS), ("--seeds", args.seeds, MAX_SEEDS)):

@@ -49,6 +49,9 @@ DEFAULT_GRASP: tuple[tuple[float, ...], ...] = (
 OFF_TABLE_XY = (-3.0, 0.0)
 
 
+TABLE_CONTACTS = ("lift", "grip", "yield")  # the table rules (WorldConfig.table_contact; docs/robot.md)
+
+
 @dataclass
 class WorldConfig:
     """Everything physical about the rake / toy / table scene.
@@ -93,6 +96,8 @@ class WorldConfig:
     # how the table meets the rake (docs/robot.md, "The table, the grip and the arm"): "lift" = the
     # pose is lifted vertically (an arm that yields upward) | "grip" = the rake turns in the hand
     # about the grip by at most grip_pivot_max, beyond that the table stops the arm (the pose is held)
+    # | "yield" = the arm (equal joint springs) takes the nearest joints that rest the rake on the
+    # table, and is stopped where the joint limits allow none (robot.arm_yield)
     table_contact: str = "lift"
     grip_pivot_max: float = math.radians(10.0)  # rad the compliant grip lets the handle turn (grip only)
     friction: float = 0.5  # lateral friction of toy, rake and table
@@ -146,8 +151,8 @@ class WorldConfig:
             raise ValueError(f"WorldConfig.explore_goals must be 'posture' or 'anywhere', got {self.explore_goals!r}")
         if self.rake_drive not in ("kinematic", "constraint"):
             raise ValueError(f"WorldConfig.rake_drive must be 'kinematic' or 'constraint', got {self.rake_drive!r}")
-        if self.table_contact not in ("grip", "lift"):
-            raise ValueError(f"WorldConfig.table_contact must be 'grip' or 'lift', got {self.table_contact!r}")
+        if self.table_contact not in TABLE_CONTACTS:
+            raise ValueError(f"WorldConfig.table_contact must be one of {TABLE_CONTACTS}, got {self.table_contact!r}")
         if not 0 <= self.grip_pivot_max < math.pi / 2:
             raise ValueError(f"WorldConfig.grip_pivot_max must be in [0, pi/2), got {self.grip_pivot_max!r}")
         if not self.table_clearance >= 0:

@@ -178,6 +178,12 @@ class ArmKinematics(torch.nn.Module):
         A plain product of the chain's fixed transforms and Rodrigues rotations, several times
         cheaper than the general tree FK for the rollouts' large batches.
         """
+        return self.rake_frames_np(q)[0]
+
+    def rake_frames_np(self, q: np.ndarray, joints: bool = False):
+        """:meth:`rake_pose_np`'s FK -> the rake poses (..., 4, 4) and, with ``joints``, each arm
+        joint's world axis (..., 7, 3) and a point on it (..., 7, 3), in joint order: the
+        columns of the point Jacobian (``axis x (p - point)``)."""
         if getattr(self, "_np_chain", None) is None:
             a = self.arm
             offsets = a._static_offsets.detach().double().cpu().numpy()
@@ -197,15 +203,23 @@ class ArmKinematics(torch.nn.Module):
         shape = q.shape[:-1]
         q = q.reshape(-1, 7)
         T = np.broadcast_to(world_T_chest, (len(q), 4, 4)).copy()
+        axis_w = np.zeros((len(q), 7, 3)) if joints else None
+        point_w = np.zeros((len(q), 7, 3)) if joints else None
         for offset, j in chain:
             T = T @ offset
             if j is not None:
                 k = axes[j]
+                if joints:
+                    axis_w[:, j] = T[:, :3, :3] @ k
+                    point_w[:, j] = T[:, :3, 3]
                 K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
                 s, c = np.sin(q[:, j])[:, None, None], np.cos(q[:, j])[:, None, None]
                 R = np.eye(3) + s * K + (1 - c) * (K @ K)
                 T[:, :, :3] = T[:, :, :3] @ R
-        return (T @ grasp).reshape(*shape, 4, 4)
+        pose = (T @ grasp).reshape(*shape, 4, 4)
+        if not joints:
+            return pose, None, None
+        return pose, axis_w.reshape(*shape, 7, 3), point_w.reshape(*shape, 7, 3)
 
     def rake_pose(self, q: torch.Tensor) -> torch.Tensor:
         """World pose (..., 4, 4) of the rake frame (hand pose times the fixed grasp)."""

@@ -104,23 +104,31 @@ def grip_pivot(poses: np.ndarray, pts: np.ndarray, geo: RakeGeometry, cfg: World
     return phi, ok, _rotation(a, phi)
 
 
+def _rake_points(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Grip poses (N, T, 4, 4) -> the rake's points (N, T, P, 3) and how far each pose's lowest
+    point lies below ``table_top + table_clearance`` (N, T; 0 where it does not)."""
+    pts = poses[..., None, :3, 3] + geo.points @ np.swapaxes(poses[..., :3, :3], -1, -2)
+    low = (pts[..., 2] - geo.point_radius).min(axis=-1)
+    return pts, np.maximum(cfg.table_top + cfg.table_clearance - low, 0.0)
+
+
 def table_poses(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``poses`` (N, T, 4, 4) commanded grip poses -> the poses the table lets the rake take, their
     rake points (N, T, P, 3) and the arm's step (N, T): the index of the trajectory point whose
     joints the arm holds (``t`` unless the table stopped it).
 
     ``table_contact = "lift"`` (default): every pose that would sink is lifted vertically.
+    ``"yield"``: the poses come from the yielding arm's joints (:mod:`robot.arm_yield`) and rest
+    on the table; what still lies below it (within the yield's tolerance) is lifted.
     ``"grip"``: the compliant grip (:func:`grip_pivot`); from the first step it cannot rest on the
     table the arm holds the step before for the rest of the movement; a start the grip cannot rest
     on the table keeps the vertical lift throughout.
     """
-    pts = poses[..., None, :3, 3] + geo.points @ np.swapaxes(poses[..., :3, :3], -1, -2)  # (N, T, P, 3)
-    low = (pts[..., 2] - geo.point_radius).min(axis=-1)  # (N, T)
-    lift = np.maximum(cfg.table_top + cfg.table_clearance - low, 0.0)
+    pts, lift = _rake_points(poses, geo, cfg)
     N, T = lift.shape
     steps = np.broadcast_to(np.arange(T), (N, T))
     poses = poses.copy()
-    if cfg.table_contact == "lift":
+    if cfg.table_contact != "grip":  # lift; under "yield" (robot.arm_yield) only what stays below
         poses[..., 2, 3] += lift
         pts[..., 2] += lift[..., None]
         return poses, pts, steps.copy()
@@ -149,15 +157,19 @@ def table_poses(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tuple
     return poses, pts, arm
 
 
-def plan(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig, substeps: int) -> dict:
+def plan(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig, substeps: int,
+         arm_step: np.ndarray | None = None) -> dict:
     """``poses`` (N, T, 4, 4) grip poses -> the plan's arrays (module doc), batch axes kept.
 
     The table meets the rake by ``cfg.table_contact`` (:func:`table_poses`); ``arm_step`` (N, T)
-    says which trajectory point's joints the arm holds at each step.  The velocities include the
+    says which trajectory point's joints the arm holds at each step (given by the caller under
+    ``"yield"``, whose arm the caller moves).  The velocities include the
     gravity the physics steps take off, so that the rake lands exactly on pose ``t``: ``n``
     semi-implicit Euler steps of ``h = dt / n`` lose ``g h dt (n + 1) / 2`` of height.
     """
     poses, pts, arm = table_poses(poses, geo, cfg)
+    if arm_step is not None:
+        arm = arm_step
     R = poses[..., :3, :3] @ geo.R_com
     pos = poses[..., :3, 3] + poses[..., :3, :3] @ geo.com
     quat = quat_from_matrix(R)

@@ -40,7 +40,7 @@ from neuroimagery.robot.constraint_drive import simulate_constraint
 from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, watched_indices, toy_events, toy_fate, toy_yaw_of
 from neuroimagery.robot.eye import colour_masks
 from neuroimagery.robot.kinematics import ArmKinematics
-from neuroimagery.robot import rake_plan
+from neuroimagery.robot import arm_yield, rake_plan
 
 class ToolWorld:
     """pybullet scene of rake, toy and table driven by iCub arm trajectories.
@@ -192,7 +192,7 @@ class ToolWorld:
             q_np = np.asarray(torch.as_tensor(q0, dtype=torch.float32).detach().numpy(), dtype=np.float64)
             T = self.kin.rake_pose_np(q_np)
             if not self._table_collides:
-                T = self._plan(T[None, None])["poses"][0, 0]  # the table rule
+                T = self._plan(q_np[None, None])["poses"][0, 0]  # the table rule
             self._set_rake(T, teleport=True)
             c.resetBasePositionAndOrientation(self.toy, start, toy_orn)
             c.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
@@ -205,7 +205,7 @@ class ToolWorld:
         pose = self._reset_cache.get(key)
         if pose is None:
             self.kin.check_limits(torch.as_tensor(q_np))
-            plan = self._plan(self.kin.rake_pose_np(q_np)[None, None])  # the table rule, as every driven pose
+            plan = self._plan(q_np[None, None])  # the table rule, as every driven pose
             pose = (plan["pos"][0, 0].tolist(), plan["orn"][0, 0].tolist())
             if len(self._reset_cache) > 256:
                 self._reset_cache.clear()
@@ -306,7 +306,7 @@ class ToolWorld:
         t0 = time.perf_counter()
         traj = trajectories.detach().to(torch.float32)
         N, T = traj.shape[:2]
-        plan = self._plan(self.kin.rake_pose_np(traj.numpy()))
+        plan = self._plan(traj.numpy())
         arm = plan["arm_step"]
         if self.constraint is not None:  # reference drive: dragged by a constraint, every step simulated
             if self._table_collides:  # to the commanded poses, the table stopping the rake (table_contact="lift")
@@ -354,9 +354,25 @@ class ToolWorld:
         return Outcome((False,) * 6, None, (0.0, 0.0), T - 1, xy, False, simulated=False)
 
     # ---------------------------------------------------------------- kinematic drive (default)
-    def _plan(self, poses: np.ndarray) -> dict:
-        """Everything about trajectories that does not depend on the toy (:func:`rake_plan.plan`)."""
-        return rake_plan.plan(poses, self._geometry, self.cfg, self.substeps)
+    def _plan(self, q: np.ndarray) -> dict:
+        """Joint trajectories ``q`` (N, T, 7) -> everything about them that does not depend on the
+        toy (:func:`rake_plan.plan`); under ``table_contact = "yield"`` the poses of the yielding
+        arm (:mod:`robot.arm_yield`)."""
+        q = np.asarray(q, dtype=np.float64)
+        if self.cfg.table_contact != "yield":
+            return rake_plan.plan(self.kin.rake_pose_np(q), self._geometry, self.cfg, self.substeps)
+        geo, lead = self._geometry, q.shape[:-1]
+        flat = q.reshape(-1, 7)
+        poses = self.kin.rake_pose_np(flat)
+        _, below = arm_yield.lowest(poses, geo.points, geo.point_radius, self.cfg.table_top + self.cfg.table_clearance)
+        sink = below.max(axis=-1) > 0
+        ok = np.ones(len(flat), dtype=bool)
+        if sink.any():
+            _, ok[sink], poses[sink] = arm_yield.yield_joints(self.kin, flat[sink], geo.points, geo.point_radius, self.cfg)
+        poses, ok = poses.reshape(*lead, 4, 4), ok.reshape(lead)
+        arm = arm_yield.held_steps(ok)
+        poses = np.take_along_axis(poses, arm[..., None, None], axis=1)
+        return rake_plan.plan(poses, geo, self.cfg, self.substeps, arm_step=arm)
 
     def _gaps(self, pts: np.ndarray, toy_xy, sweep: np.ndarray) -> np.ndarray:
         """Per control step, the rake's smallest distance to the toy's box (:func:`rake_plan.gaps`)."""

@@ -1,0 +1,78 @@
+"""An arm that yields to the table (``WorldConfig.table_contact = "yield"``; docs/robot.md, "The
+table and the arm").
+
+The seven arm joints are springs of equal stiffness about the commanded joints and the table is
+rigid, frictionless and pushes only upward.  Where the command would put a rake point below
+``table_top + table_clearance``, the arm takes the joints nearest the command (least sum of squared
+changes) that rest the rake on the table.  An upward push ``f`` at the rake's lowest point ``p``
+moves equal springs by ``f * dz_p/dq``, so the change lies along the gradient of that point's
+height; :func:`yield_joints` first projects the command onto the lowest point's linearised
+constraint (Gauss-Newton steps toward the least change), then lifts what still sinks by the
+least change from where the arm is (``deficit * g / |g|^2``), a joint at a limit that a step would
+push beyond it held there.  Where no such joints exist within the limits, the arm cannot yield
+(``ok`` False) and the table stops it (:func:`held_steps`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from neuroimagery.robot.config import WorldConfig
+
+YIELD_TOLERANCE = 0.001  # m: a rake point this little below the table counts as resting on it
+
+
+def lowest(poses: np.ndarray, points: np.ndarray, point_radius: np.ndarray, floor: float):
+    """Rake poses (M, 4, 4) -> every rake point in the world (M, P, 3) and how far each point's
+    bottom lies below ``floor`` (M, P; negative above it)."""
+    pts = poses[:, None, :3, 3] + points @ np.swapaxes(poses[:, :3, :3], -1, -2)
+    return pts, floor - (pts[..., 2] - point_radius)
+
+
+def yield_joints(kin, q: np.ndarray, points: np.ndarray, point_radius: np.ndarray, cfg: WorldConfig,
+                 iters: int = 16) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Commanded joints ``q`` (M, 7) -> the joints the yielding arm takes (M, 7), whether they rest
+    the rake on the table within ``YIELD_TOLERANCE`` (M,) bool, and their rake poses (M, 4, 4).
+
+    A command that does not sink is returned unchanged.  ``kin`` is the world's
+    :class:`~neuroimagery.robot.kinematics.ArmKinematics`; ``points`` (P, 3) and
+    ``point_radius`` (P,) the rake's sample points in its frame.
+    """
+    lim = kin.joint_limits.detach().double().cpu().numpy()
+    lo, hi = lim[:, 0], lim[:, 1]
+    floor = cfg.table_top + cfg.table_clearance
+    q0 = np.array(q, dtype=np.float64, copy=True)
+    qy = q0.copy()
+    rows = np.arange(len(qy))
+    for it in range(iters + 1):
+        poses, axis, point = kin.rake_frames_np(qy, joints=True)
+        pts, below = lowest(poses, points, point_radius, floor)
+        worst = below.argmax(axis=-1)
+        deficit = below[rows, worst]
+        if it == iters:
+            break
+        p = pts[rows, worst]  # (M, 3) the lowest point
+        g = np.cross(axis, p[:, None, :] - point)[..., 2]  # d z_p / d q  (M, 7)
+        held = ((qy <= lo + 1e-9) & (g < 0)) | ((qy >= hi - 1e-9) & (g > 0))
+        g = np.where(held, 0.0, g)
+        n2 = np.maximum((g * g).sum(axis=-1), 1e-12)
+        if it < iters // 2:
+            # the point of least change from the command on the lowest point's linearised
+            # constraint (a Gauss-Newton projection: q0 + a g, with a from the model at qy)
+            a = np.maximum(deficit + (g * (qy - q0)).sum(axis=-1), 0.0) / n2
+            qy = np.clip(q0 + a[:, None] * g, lo, hi)
+        else:
+            # what still sinks (another point lowest, a joint at its limit): the least change
+            # that lifts the lowest point from where the arm is
+            a = np.maximum(deficit, 0.0) / n2
+            qy = np.clip(qy + a[:, None] * g, lo, hi)
+    return qy, deficit <= YIELD_TOLERANCE, poses
+
+
+def held_steps(ok: np.ndarray) -> np.ndarray:
+    """``ok`` (N, T) whether the arm can rest the rake on the table at each step -> the step whose
+    joints the arm holds (N, T): ``t`` up to the first step it cannot, the step before that one
+    from there to the end (a start it cannot, never one of the four postures, is kept throughout)."""
+    N, T = ok.shape
+    steps = np.broadcast_to(np.arange(T), (N, T))
+    first_bad = np.where(ok.all(axis=1), T, (~ok).argmax(axis=1))
+    return np.where(first_bad[:, None] >= 1, np.minimum(steps, first_bad[:, None] - 1), steps)
