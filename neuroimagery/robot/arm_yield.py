@@ -19,6 +19,8 @@ import numpy as np
 from neuroimagery.robot.config import WorldConfig
 
 YIELD_TOLERANCE = 0.001  # m: a rake point this little below the table counts as resting on it
+STAGES = 4  # the Gauss-Newton projection raises the floor in this many equal parts
+CORRECTIONS = 4  # lifting steps from where the arm is, after the projection
 
 
 def lowest(poses: np.ndarray, points: np.ndarray, point_radius: np.ndarray, floor: float):
@@ -43,11 +45,14 @@ def yield_joints(kin, q: np.ndarray, points: np.ndarray, point_radius: np.ndarra
     q0 = np.array(q, dtype=np.float64, copy=True)
     qy = q0.copy()
     rows = np.arange(len(qy))
+    depth0 = None
     for it in range(iters + 1):
         poses, axis, point = kin.rake_frames_np(qy, joints=True)
         pts, below = lowest(poses, points, point_radius, floor)
         worst = below.argmax(axis=-1)
         deficit = below[rows, worst]
+        if depth0 is None:
+            depth0 = np.maximum(deficit, 0.0)
         if it == iters:
             break
         p = pts[rows, worst]  # (M, 3) the lowest point
@@ -55,10 +60,13 @@ def yield_joints(kin, q: np.ndarray, points: np.ndarray, point_radius: np.ndarra
         held = ((qy <= lo + 1e-9) & (g < 0)) | ((qy >= hi - 1e-9) & (g > 0))
         g = np.where(held, 0.0, g)
         n2 = np.maximum((g * g).sum(axis=-1), 1e-12)
-        if it < iters // 2:
+        if it < iters - CORRECTIONS:
             # the point of least change from the command on the lowest point's linearised
-            # constraint (a Gauss-Newton projection: q0 + a g, with a from the model at qy)
-            a = np.maximum(deficit + (g * (qy - q0)).sum(axis=-1), 0.0) / n2
+            # constraint (Gauss-Newton: q0 + a g), the floor raised in STAGES equal parts of the
+            # first depth so that each stage starts near its solution
+            stage = min(it * STAGES // (iters - CORRECTIONS) + 1, STAGES)
+            short = deficit - (1.0 - stage / STAGES) * depth0
+            a = np.maximum(short + (g * (qy - q0)).sum(axis=-1), 0.0) / n2
             qy = np.clip(q0 + a[:, None] * g, lo, hi)
         else:
             # what still sinks (another point lowest, a joint at its limit): the least change
