@@ -4,7 +4,7 @@ import pytest
 import torch
 from scipy.optimize import minimize
 
-from neuroimagery.robot import arm_yield
+from neuroimagery.robot import arm_yield, rake_plan
 from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.world import ToolWorld
@@ -74,7 +74,7 @@ def test_the_arm_is_held_from_the_first_step_it_cannot_yield():
     ok = np.array([[True, True, False, True, True],
                    [True, True, True, True, True],
                    [False, True, True, True, True]])
-    assert arm_yield.held_steps(ok).tolist() == [[0, 1, 1, 1, 1], [0, 1, 2, 3, 4], [0, 1, 2, 3, 4]]
+    assert rake_plan.held_steps(ok).tolist() == [[0, 1, 1, 1, 1], [0, 1, 2, 3, 4], [0, 1, 2, 3, 4]]
 
 
 def test_under_the_yield_the_plan_rests_the_rake_on_the_table_and_keeps_it_in_the_hand(yielding):

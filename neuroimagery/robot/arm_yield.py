@@ -10,13 +10,14 @@ height; :func:`yield_joints` first projects the command onto the lowest point's 
 constraint (Gauss-Newton steps toward the least change), then lifts what still sinks by the
 least change from where the arm is (``deficit * g / |g|^2``), a joint at a limit that a step would
 push beyond it held there.  Where no such joints exist within the limits, the arm cannot yield
-(``ok`` False) and the table stops it (:func:`held_steps`).
+(``ok`` False) and the table stops it (:func:`robot.rake_plan.held_steps`).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from neuroimagery.robot.config import WorldConfig
+from neuroimagery.robot.rake_plan import held_steps
 
 YIELD_TOLERANCE = 0.001  # m: a rake point this little below the table counts as resting on it
 STAGES = 4  # the Gauss-Newton projection raises the floor in this many equal parts
@@ -76,11 +77,19 @@ def yield_joints(kin, q: np.ndarray, points: np.ndarray, point_radius: np.ndarra
     return qy, deficit <= YIELD_TOLERANCE, poses
 
 
-def held_steps(ok: np.ndarray) -> np.ndarray:
-    """``ok`` (N, T) whether the arm can rest the rake on the table at each step -> the step whose
-    joints the arm holds (N, T): ``t`` up to the first step it cannot, the step before that one
-    from there to the end (a start it cannot, never one of the four postures, is kept throughout)."""
-    N, T = ok.shape
-    steps = np.broadcast_to(np.arange(T), (N, T))
-    first_bad = np.where(ok.all(axis=1), T, (~ok).argmax(axis=1))
-    return np.where(first_bad[:, None] >= 1, np.minimum(steps, first_bad[:, None] - 1), steps)
+def yielded_poses(kin, q: np.ndarray, geo, cfg: WorldConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Joint trajectories ``q`` (N, T, 7) -> the rake poses the yielding arm gives (N, T, 4, 4)
+    and the step whose joints the arm holds (N, T): from the first step it cannot yield, the
+    pose of the step before (``rake_plan.held_steps``).  ``geo`` is the world's
+    ``rake_plan.RakeGeometry``."""
+    lead = q.shape[:-1]
+    flat = np.asarray(q, dtype=np.float64).reshape(-1, 7)
+    poses = kin.rake_pose_np(flat)
+    _, below = lowest(poses, geo.points, geo.point_radius, cfg.table_top + cfg.table_clearance)
+    sink = below.max(axis=-1) > 0
+    ok = np.ones(len(flat), dtype=bool)
+    if sink.any():
+        _, ok[sink], poses[sink] = yield_joints(kin, flat[sink], geo.points, geo.point_radius, cfg)
+    poses, ok = poses.reshape(*lead, 4, 4), ok.reshape(lead)
+    arm = held_steps(ok)
+    return np.take_along_axis(poses, arm[..., None, None], axis=1), arm

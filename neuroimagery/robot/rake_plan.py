@@ -112,6 +112,16 @@ def _rake_points(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tupl
     return pts, np.maximum(cfg.table_top + cfg.table_clearance - low, 0.0)
 
 
+def held_steps(ok: np.ndarray) -> np.ndarray:
+    """``ok`` (N, T) whether the arm can rest the rake on the table at each step -> the step whose
+    joints the arm holds (N, T): ``t`` up to the first step it cannot, the step before that one
+    from there to the end (a start it cannot, never one of the four postures, is kept throughout)."""
+    N, T = ok.shape
+    steps = np.broadcast_to(np.arange(T), (N, T))
+    first_bad = np.where(ok.all(axis=1), T, (~ok).argmax(axis=1))
+    return np.where(first_bad[:, None] >= 1, np.minimum(steps, first_bad[:, None] - 1), steps)
+
+
 def table_poses(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``poses`` (N, T, 4, 4) commanded grip poses -> the poses the table lets the rake take, their
     rake points (N, T, P, 3) and the arm's step (N, T): the index of the trajectory point whose
@@ -149,8 +159,7 @@ def table_poses(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tuple
         ok[sink] = turned
     # the table stops the arm at its first step the grip cannot rest on the table, for the rest
     # of the movement; a start it cannot (never one of the four postures) keeps the lift throughout
-    first_bad = np.where(ok.all(axis=1), T, (~ok).argmax(axis=1))
-    arm = np.where(first_bad[:, None] >= 1, np.minimum(steps, first_bad[:, None] - 1), steps)
+    arm = held_steps(ok)
     if (arm != steps).any():
         poses = np.take_along_axis(poses, arm[..., None, None], axis=1)
         pts = np.take_along_axis(pts, arm[..., None, None], axis=1)

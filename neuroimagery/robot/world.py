@@ -361,18 +361,8 @@ class ToolWorld:
         q = np.asarray(q, dtype=np.float64)
         if self.cfg.table_contact != "yield":
             return rake_plan.plan(self.kin.rake_pose_np(q), self._geometry, self.cfg, self.substeps)
-        geo, lead = self._geometry, q.shape[:-1]
-        flat = q.reshape(-1, 7)
-        poses = self.kin.rake_pose_np(flat)
-        _, below = arm_yield.lowest(poses, geo.points, geo.point_radius, self.cfg.table_top + self.cfg.table_clearance)
-        sink = below.max(axis=-1) > 0
-        ok = np.ones(len(flat), dtype=bool)
-        if sink.any():
-            _, ok[sink], poses[sink] = arm_yield.yield_joints(self.kin, flat[sink], geo.points, geo.point_radius, self.cfg)
-        poses, ok = poses.reshape(*lead, 4, 4), ok.reshape(lead)
-        arm = arm_yield.held_steps(ok)
-        poses = np.take_along_axis(poses, arm[..., None, None], axis=1)
-        return rake_plan.plan(poses, geo, self.cfg, self.substeps, arm_step=arm)
+        poses, arm = arm_yield.yielded_poses(self.kin, q, self._geometry, self.cfg)
+        return rake_plan.plan(poses, self._geometry, self.cfg, self.substeps, arm_step=arm)
 
     def _gaps(self, pts: np.ndarray, toy_xy, sweep: np.ndarray) -> np.ndarray:
         """Per control step, the rake's smallest distance to the toy's box (:func:`rake_plan.gaps`)."""
