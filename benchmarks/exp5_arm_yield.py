@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from exp5_yield import movements
-from neuroimagery.robot import arm_yield
+from neuroimagery.robot import arm_yield, rake_plan
 from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.world import ToolWorld
 
@@ -39,7 +39,7 @@ def main() -> None:
             traj = movements(w, k, args.rollouts, args.seed).double().numpy()
             flat = traj.reshape(-1, 7)
             poses = w.kin.rake_pose_np(flat)
-            _, below = arm_yield.lowest(poses, geo.points, geo.point_radius, cfg.table_top + cfg.table_clearance)
+            _, below = rake_plan.below_floor(poses, geo.points, geo.point_radius, cfg.table_top + cfg.table_clearance)
             sink = below.max(axis=-1) > 0
             t0 = time.perf_counter()
             qy, ok, py = arm_yield.yield_joints(w.kin, flat[sink], geo.points, geo.point_radius, cfg)

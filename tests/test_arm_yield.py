@@ -23,7 +23,7 @@ def _sinking_steps(world, n=12, seed=3):
     theta = goal_noise(world, dmp, random_primitives(world, dmp, n, MovementConfig(), gen), gen)
     q = trajectories(world, dmp, theta, world.initial_posture(1), MovementConfig()).double().numpy().reshape(-1, 7)
     geo, cfg = world._geometry, world.cfg
-    _, below = arm_yield.lowest(world.kin.rake_pose_np(q), geo.points, geo.point_radius, cfg.table_top + cfg.table_clearance)
+    _, below = rake_plan.below_floor(world.kin.rake_pose_np(q), geo.points, geo.point_radius, cfg.table_top + cfg.table_clearance)
     deep = below.max(axis=-1)
     return q[deep > 0], deep[deep > 0]
 
@@ -37,7 +37,7 @@ def test_the_yield_rests_the_rake_on_the_table_within_the_limits(yielding):
     lim = w.kin.joint_limits.double().numpy()
     assert ok.all()
     assert ((qy >= lim[:, 0] - 1e-12) & (qy <= lim[:, 1] + 1e-12)).all()
-    _, below = arm_yield.lowest(w.kin.rake_pose_np(qy), geo.points, geo.point_radius, floor)
+    _, below = rake_plan.below_floor(w.kin.rake_pose_np(qy), geo.points, geo.point_radius, floor)
     assert below.max() <= arm_yield.YIELD_TOLERANCE
     assert np.allclose(poses, w.kin.rake_pose_np(qy))  # the rake rigid in the hand
     # a command that does not sink is left alone
@@ -60,7 +60,7 @@ def test_the_yield_is_close_to_the_least_joint_change(yielding):
         q0 = q[m]
 
         def above(x):
-            return -arm_yield.lowest(w.kin.rake_pose_np(x[None]), geo.points, geo.point_radius, floor)[1][0]
+            return -rake_plan.below_floor(w.kin.rake_pose_np(x[None]), geo.points, geo.point_radius, floor)[1][0]
 
         best = minimize(lambda x: ((x - q0) ** 2).sum(), qy[i], method="SLSQP", bounds=lim,
                         constraints=[{"type": "ineq", "fun": above}], options={"maxiter": 300, "ftol": 1e-12})

@@ -17,18 +17,11 @@ from __future__ import annotations
 import numpy as np
 
 from neuroimagery.robot.config import WorldConfig
-from neuroimagery.robot.rake_plan import held_steps
+from neuroimagery.robot.rake_plan import below_floor, held_steps
 
 YIELD_TOLERANCE = 0.001  # m: a rake point this little below the table counts as resting on it
 STAGES = 4  # the Gauss-Newton projection raises the floor in this many equal parts
 CORRECTIONS = 4  # lifting steps from where the arm is, after the projection
-
-
-def lowest(poses: np.ndarray, points: np.ndarray, point_radius: np.ndarray, floor: float):
-    """Rake poses (M, 4, 4) -> every rake point in the world (M, P, 3) and how far each point's
-    bottom lies below ``floor`` (M, P; negative above it)."""
-    pts = poses[:, None, :3, 3] + points @ np.swapaxes(poses[:, :3, :3], -1, -2)
-    return pts, floor - (pts[..., 2] - point_radius)
 
 
 def yield_joints(kin, q: np.ndarray, points: np.ndarray, point_radius: np.ndarray, cfg: WorldConfig,
@@ -49,7 +42,7 @@ def yield_joints(kin, q: np.ndarray, points: np.ndarray, point_radius: np.ndarra
     depth0 = None
     for it in range(iters + 1):
         poses, axis, point = kin.rake_frames_np(qy, joints=True)
-        pts, below = lowest(poses, points, point_radius, floor)
+        pts, below = below_floor(poses, points, point_radius, floor)
         worst = below.argmax(axis=-1)
         deficit = below[rows, worst]
         if depth0 is None:
@@ -85,7 +78,7 @@ def yielded_poses(kin, q: np.ndarray, geo, cfg: WorldConfig) -> tuple[np.ndarray
     lead = q.shape[:-1]
     flat = np.asarray(q, dtype=np.float64).reshape(-1, 7)
     poses = kin.rake_pose_np(flat)
-    _, below = lowest(poses, geo.points, geo.point_radius, cfg.table_top + cfg.table_clearance)
+    _, below = below_floor(poses, geo.points, geo.point_radius, cfg.table_top + cfg.table_clearance)
     sink = below.max(axis=-1) > 0
     ok = np.ones(len(flat), dtype=bool)
     if sink.any():

@@ -104,12 +104,18 @@ def grip_pivot(poses: np.ndarray, pts: np.ndarray, geo: RakeGeometry, cfg: World
     return phi, ok, _rotation(a, phi)
 
 
+def below_floor(poses: np.ndarray, points: np.ndarray, point_radius: np.ndarray, floor: float):
+    """Grip poses (..., 4, 4) -> every rake point in the world (..., P, 3) and how far each point's
+    bottom lies below ``floor`` (..., P; negative above it)."""
+    pts = poses[..., None, :3, 3] + points @ np.swapaxes(poses[..., :3, :3], -1, -2)
+    return pts, floor - (pts[..., 2] - point_radius)
+
+
 def _rake_points(poses: np.ndarray, geo: RakeGeometry, cfg: WorldConfig) -> tuple[np.ndarray, np.ndarray]:
     """Grip poses (N, T, 4, 4) -> the rake's points (N, T, P, 3) and how far each pose's lowest
     point lies below ``table_top + table_clearance`` (N, T; 0 where it does not)."""
-    pts = poses[..., None, :3, 3] + geo.points @ np.swapaxes(poses[..., :3, :3], -1, -2)
-    low = (pts[..., 2] - geo.point_radius).min(axis=-1)
-    return pts, np.maximum(cfg.table_top + cfg.table_clearance - low, 0.0)
+    pts, below = below_floor(poses, geo.points, geo.point_radius, cfg.table_top + cfg.table_clearance)
+    return pts, np.maximum(below.max(axis=-1), 0.0)
 
 
 def held_steps(ok: np.ndarray) -> np.ndarray:
