@@ -9,7 +9,7 @@ import pytest
 
 from neuroimagery import files
 from neuroimagery.robot import babble
-from neuroimagery.robot.world import EVENTS
+from neuroimagery.robot.events import EVENTS
 
 
 def _table(rollouts: int = 4) -> dict:

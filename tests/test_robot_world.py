@@ -8,7 +8,8 @@ from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.events import toy_events
 from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.scene_check import check_scene, scene_geometry
-from neuroimagery.robot.world import EVENTS, ToolWorld, toy_yaw_of
+from neuroimagery.robot.events import EVENTS
+from neuroimagery.robot.world import ToolWorld, toy_yaw_of
 
 
 @pytest.fixture(scope="module")

@@ -30,7 +30,8 @@ from neuroimagery.errors import UserInputError
 from neuroimagery.files import writable_folder, write_text
 from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.config import TABLE_CONTACTS, WorldConfig
-from neuroimagery.robot.world import EVENTS, ToolWorld
+from neuroimagery.robot.events import EVENTS
+from neuroimagery.robot.world import ToolWorld
 from neuroimagery.thesis import EXP5_TABLE_7_1
 
 # Table 7.1 of the thesis (line 1439), events and skills, from neuroimagery.thesis

@@ -37,7 +37,7 @@ from neuroimagery.errors import UserInputError
 from neuroimagery.native import quiet_native_output
 from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.constraint_drive import simulate_constraint
-from neuroimagery.robot.events import EVENTS, Outcome, event_index, latch_events, watched_indices, toy_events, toy_fate, toy_yaw_of
+from neuroimagery.robot.events import Outcome, latch_events, watched_indices, toy_events, toy_fate, toy_yaw_of
 from neuroimagery.robot.eye import colour_masks
 from neuroimagery.robot.kinematics import ArmKinematics
 from neuroimagery.robot import arm_yield, rake_plan
@@ -356,8 +356,7 @@ class ToolWorld:
     # ---------------------------------------------------------------- kinematic drive (default)
     def _plan(self, q: np.ndarray) -> dict:
         """Joint trajectories ``q`` (N, T, 7) -> everything about them that does not depend on the
-        toy (:func:`rake_plan.plan`); under ``table_contact = "yield"`` the poses of the yielding
-        arm (:mod:`robot.arm_yield`)."""
+        toy (:func:`rake_plan.plan`; the yielding arm's poses under :mod:`robot.arm_yield`)."""
         q = np.asarray(q, dtype=np.float64)
         if self.cfg.table_contact != "yield":
             return rake_plan.plan(self.kin.rake_pose_np(q), self._geometry, self.cfg, self.substeps)
