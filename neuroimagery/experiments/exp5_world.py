@@ -1,8 +1,8 @@
 """Acceptance of the Exp 5 world at the level of skill libraries (docs/contracts.md, W2-W4).
 
-    python -m neuroimagery.experiments.exp5_world --libraries N --out DIR [--seed S] [--jobs J]
+    python -m neuroimagery.experiments.exp5_world --libraries N --out DIR [--seed S [S ...]] [--jobs J]
 
-Acquires ``N`` skill libraries as Fig. 7.5 does (all six IM detectors, the world and acquisition
+Acquires ``N`` skill libraries per seed as Fig. 7.5 does (all six IM detectors, the world and acquisition
 settings of ``conf/experiment/exp5.yaml``, no brain: an event counts as mastered from a posture when
 one of its skills achieved it there in its last competence check), then measures on the world
 alone, before any action sequencing:
@@ -16,8 +16,13 @@ alone, before any action sequencing:
 * W4: the share of libraries with a move-then-pull route from posture 4: a skill of another event
   (touch included) that does not retrieve by itself, followed by a pull that does.
 
+With several seeds the measures are pooled over all their libraries (W2-W4's sample: 16 libraries
+on each of the seeds 0-4, docs/contracts.md) and each seed's are listed beside them.
+
 The retrieve detector of the simulator is read here: this is analysis of the world, not a child's
-perception. Writes ``DIR/world_libraries.json`` and ``.md``.
+perception. Writes ``DIR/world_libraries.json`` and ``.md``; each library is kept as it is done in
+``DIR/libraries/`` and reused by a rerun with the same ``--out`` when the world's and acquisition's
+settings are the same, so an interrupted or killed run resumes.
 """
 from __future__ import annotations
 
@@ -34,6 +39,36 @@ from ..robot.babble import CURVE_THRESHOLDS, POSSIBLE_RATE, THESIS_SKILLS, OneLi
 
 SKILL_NAMES = ("P", "T", "S", "N", "W", "E")
 OUTPUTS = ("world_libraries.json", "world_libraries.md")
+LIBRARY_DIR = "libraries"
+
+
+def _settings(table_contact: str) -> dict:
+    """What a library depends on besides its seed: the world's and acquisition's settings."""
+    from dataclasses import asdict
+
+    from ..models.tool_use import AcquisitionParams
+    from .exp5_config import WorldParams
+
+    settings = dict(world=asdict(WorldParams(table_contact=table_contact)), acquisition=asdict(AcquisitionParams()))
+    return json.loads(json.dumps(settings))  # as a kept file reads back (tuples as lists)
+
+
+def _kept_library(out: Path, seed: int, i: int, table_contact: str) -> dict:
+    """Library ``i`` of ``seed``: the one kept in ``out/libraries/`` when its settings are the same,
+    else acquired (:func:`_one_library`) and kept there at once."""
+    path = out / LIBRARY_DIR / f"seed{seed}_{i:04d}.json"
+    settings = _settings(table_contact)
+    if path.is_file():
+        try:
+            kept = json.loads(path.read_text())
+        except (OSError, ValueError):
+            kept = None
+        if isinstance(kept, dict) and kept.get("settings") == settings:
+            return kept["library"]
+    lib = dict(_one_library(seed, i, table_contact), seed=seed)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_text(path, json.dumps(dict(settings=settings, library=lib)))
+    return lib
 
 
 def _one_library(seed: int, i: int, table_contact: str = "lift") -> dict:
@@ -108,31 +143,66 @@ def markdown(s: dict) -> str:
             f"first moves: {s['route_moves']}\n- events never found: {s['missing']}\n")
 
 
+def per_seed(libs: list[dict]) -> list[dict]:
+    """W2-W4 of each seed's libraries alone."""
+    rows = []
+    for seed in sorted({lib["seed"] for lib in libs}):
+        s = summarise([lib for lib in libs if lib["seed"] == seed])
+        rows.append(dict(seed=seed, libraries=s["libraries"], skill_cells=s["skill_agreement"][str(POSSIBLE_RATE)],
+                         with_pull=s["with_pull"], pull_alone_from_4=s["pull_alone_from_4"],
+                         move_then_pull=s["move_then_pull"]))
+    return rows
+
+
+def seed_table(rows: list[dict]) -> str:
+    return ("| seed | libraries | skill cells agreeing (W2) | a pull alone retrieves from posture 4 (W3) "
+            "| a move-then-pull route (W4) |\n|---|---|---|---|---|\n"
+            + "".join(f"| {r['seed']} | {r['libraries']} | {r['skill_cells']} | {r['pull_alone_from_4']} of "
+                      f"{r['with_pull']} | {r['move_then_pull']} |\n" for r in rows))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(prog="python -m neuroimagery.experiments.exp5_world", description=__doc__.split("\n")[0])
-    parser.add_argument("--libraries", type=count, default=16, help="skill libraries to acquire")
-    parser.add_argument("--seed", type=count, default=0)
+    parser.add_argument("--libraries", type=count, default=16, help="skill libraries to acquire per seed")
+    parser.add_argument("--seed", type=count, nargs="+", default=[0],
+                        help="one seed or several (their libraries pooled, each seed's measures listed)")
     parser.add_argument("--jobs", type=count, default=2, help="worker processes")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=Path, required=True,
+                        help="output folder (rerun with the same folder to resume)")
     parser.add_argument("--table-contact", choices=TABLE_CONTACTS, default="lift",
                         help="how the table meets the rake (experiment.world.table_contact; docs/robot.md)")
     try:
         args = parser.parse_args(argv)
         if args.libraries < 1 or args.jobs < 1:
             raise UserInputError(f"--libraries and --jobs must be >= 1, got {args.libraries}, {args.jobs}")
+        if len(set(args.seed)) != len(args.seed):
+            raise UserInputError(f"--seed: each seed once, got {' '.join(map(str, args.seed))}")
         writable_folder(args.out, OUTPUTS)
+        from tqdm.auto import tqdm
+
         t0 = time.perf_counter()
+        work = [(seed, i) for seed in args.seed for i in range(args.libraries)]
+        bar = tqdm(total=len(work), desc="libraries", unit=" library", file=sys.stderr, disable=None)
         if args.jobs == 1:
-            libs = [_one_library(args.seed, i, args.table_contact) for i in range(args.libraries)]
+            libs = []
+            for seed, i in work:
+                libs.append(_kept_library(args.out, seed, i, args.table_contact))
+                bar.update()
         else:
             from joblib import Parallel, delayed
 
-            libs = Parallel(n_jobs=args.jobs)(delayed(_one_library)(args.seed, i, args.table_contact)
-                                         for i in range(args.libraries))
+            libs = []
+            for lib in Parallel(n_jobs=args.jobs, return_as="generator")(
+                    delayed(_kept_library)(args.out, seed, i, args.table_contact) for seed, i in work):
+                libs.append(lib)
+                bar.update()
+        bar.close()
         s = summarise(libs)
-        write_text(args.out / OUTPUTS[0], json.dumps(dict(summary=s, libraries=libs), indent=1))
-        write_text(args.out / OUTPUTS[1], markdown(s))
-        print(markdown(s))
+        seeds = per_seed(libs)
+        text = markdown(s) + ("\n" + seed_table(seeds) if len(seeds) > 1 else "")
+        write_text(args.out / OUTPUTS[0], json.dumps(dict(summary=s, per_seed=seeds, libraries=libs), indent=1))
+        write_text(args.out / OUTPUTS[1], text)
+        print(text)
         print(f"wrote {args.out / 'world_libraries.json'} in {time.perf_counter() - t0:.0f} s")
     except UserInputError as err:
         print(f"error: {err}", file=sys.stderr)
