@@ -11,6 +11,9 @@ tool-far robots:
 - `two moves only`: robots with a two-move route and no one-move route, and their success;
 - `no route`: robots the world offers neither, and their success.
 The routes are the world's (`routes_1`, `routes_2`), not what the robot knows.
+
+A second table, over HP1's tool-behind robots that failed: how many have no one-move route, and of
+the others how many began with touch and how many tried the pull at all.
 """
 import argparse
 from pathlib import Path
@@ -38,6 +41,19 @@ def table(runs):
     return pd.DataFrame(rows)
 
 
+def behind_failures(runs):
+    d = pd.concat([pd.read_csv(Path(r) / "individuals.csv") for r in runs], ignore_index=True)
+    b = d[(d.hypothesis == "hp1") & (d.situation == "behind") & (d.success == 0)].copy()
+    acts = b.test_actions.fillna("")
+    b["first"], b["tried_pull"] = acts.str.split(">").str[0], acts.str.split(">").apply(lambda a: "retrieve" in a)
+    rows = []
+    for (strategy, level), x in b.groupby(["strategy", "n_detectors"]):
+        r = x[x.routes_1 > 0]
+        rows.append({"strategy": strategy, "detectors": level, "failed": len(x), "no one-move route": len(x) - len(r),
+                     "route, touch first": int((r["first"] == "touch").sum()), "route, pull tried": int(r.tried_pull.sum())})
+    return pd.DataFrame(rows)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("runs", nargs="+")
@@ -47,6 +63,8 @@ def main(argv=None):
             raise SystemExit(f"error: {r} has no individuals.csv (not an Exp 5 run directory)")
     pd.set_option("display.width", 200)
     print(table(a.runs).round(2).to_string(index=False))
+    print("\nHP1, tool behind, the robots that failed")
+    print(behind_failures(a.runs).to_string(index=False))
 
 
 if __name__ == "__main__":
