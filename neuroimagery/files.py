@@ -3,7 +3,8 @@ over the target, so a reader never sees half a file and two writers (a run and i
 workers) never share a temporary name. A process killed mid-write leaves only its temporary file
 (``<name>.<pid>.tmp``), which the next run into that directory removes
 (:func:`remove_stale_temporaries`). Used by the run directory (``neuroimagery.run.RunDir``), the
-figures, the reports, pooling, babbling and Experiment 5's task files."""
+figures, the reports, pooling, babbling and Experiment 5's task files; :func:`kept_json` keeps the
+pieces of the long world measurements (babbling, skill libraries) for a rerun to reuse."""
 from __future__ import annotations
 
 import io
@@ -51,6 +52,27 @@ def write_atomic(path: str | Path, write: Callable[[Path], object]) -> Path:
 def write_text(path: str | Path, text: str) -> Path:
     """``text`` into ``path``, atomically."""
     return write_atomic(path, lambda p: Path(p).write_text(text))
+
+
+def kept_json(path: str | Path, settings: dict, compute: Callable[[], object]) -> object:
+    """A piece of a long measurement that a rerun reuses: the result kept in ``path`` when it was
+    computed with the same ``settings`` (anything JSON can hold), else ``compute()``, kept there at
+    once (atomically) with its settings. A damaged or foreign file is computed again."""
+    import json
+
+    path = Path(path)
+    settings = json.loads(json.dumps(settings))  # as the kept file reads back (tuples as lists)
+    if path.is_file():
+        try:
+            kept = json.loads(path.read_text())
+        except (OSError, ValueError):
+            kept = None
+        if isinstance(kept, dict) and kept.get("settings") == settings and "result" in kept:
+            return kept["result"]
+    result = compute()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_text(path, json.dumps(dict(settings=settings, result=result)))
+    return result
 
 
 def save_figure(fig, path: str | Path, **kwargs) -> Path:

@@ -26,8 +26,8 @@ def _table(rollouts: int = 4) -> dict:
 def measured(monkeypatch):
     calls = []
 
-    def fake(n, seeds, table_contact="lift"):
-        assert table_contact == "lift"  # the default table rule
+    def fake(n, seeds, table_contact="lift", out=None, jobs=1):
+        assert table_contact == "lift" and jobs == 1  # the default table rule, one process
         calls.append((n, seeds))
         return _table(n * seeds)
 

@@ -318,6 +318,29 @@ def test_colour_masks_apply_the_thresholds_exactly():
     assert rake.tolist() == [[0, 0, 0, 0, 0], [1, 0, 0, 1, 0]]
 
 
+def test_babble_keeps_each_piece_and_gives_the_same_table_with_workers(tmp_path, monkeypatch):
+    """Each posture and seed's counts are kept in ``DIR/counts/`` and reused by a rerun; worker
+    processes (``--jobs 2``) give the same table as one process."""
+    from neuroimagery.robot import babble
+
+    one, two = tmp_path / "one", tmp_path / "two"
+    assert babble.main(["--rollouts", "10", "--seeds", "2", "--out", str(one)]) == 0
+    assert babble.main(["--rollouts", "10", "--seeds", "2", "--jobs", "2", "--out", str(two)]) == 0
+    first = (one / "table_7_1.json").read_text()
+    assert (two / "table_7_1.json").read_text() == first
+    assert len(list((one / "counts").glob("posture*_seed*.json"))) == 8
+
+    def no_rollouts(*a, **k):
+        raise AssertionError("a kept piece was computed again")
+
+    monkeypatch.setattr(babble, "babble_counts", no_rollouts)
+    (one / "table_7_1.json").unlink()
+    assert babble.main(["--rollouts", "10", "--seeds", "2", "--out", str(one)]) == 0
+    assert (one / "table_7_1.json").read_text() == first
+    with pytest.raises(AssertionError, match="computed again"):  # other settings: computed again
+        babble.main(["--rollouts", "11", "--seeds", "2", "--out", str(one)])
+
+
 def test_babble_writes_rates_intervals_and_the_agreement_curve(tmp_path):
     """``python -m neuroimagery.robot.babble``: table_7_1.json keeps ``events`` and ``rates`` and adds
     ``rates_ci95`` and the agreement at several thresholds; a bad count is one error line."""

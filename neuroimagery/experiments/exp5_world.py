@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 
 from ..errors import UserInputError
-from ..files import writable_folder, write_text
+from ..files import kept_json, writable_folder, write_text
 from ..models.tool_use import EVENTS
 from ..robot.config import TABLE_CONTACTS
 from ..robot.babble import CURVE_THRESHOLDS, POSSIBLE_RATE, THESIS_SKILLS, OneLineParser, agreement, count, wilson
@@ -49,26 +49,14 @@ def _settings(table_contact: str) -> dict:
     from ..models.tool_use import AcquisitionParams
     from .exp5_config import WorldParams
 
-    settings = dict(world=asdict(WorldParams(table_contact=table_contact)), acquisition=asdict(AcquisitionParams()))
-    return json.loads(json.dumps(settings))  # as a kept file reads back (tuples as lists)
+    return dict(world=asdict(WorldParams(table_contact=table_contact)), acquisition=asdict(AcquisitionParams()))
 
 
 def _kept_library(out: Path, seed: int, i: int, table_contact: str) -> dict:
     """Library ``i`` of ``seed``: the one kept in ``out/libraries/`` when its settings are the same,
     else acquired (:func:`_one_library`) and kept there at once."""
-    path = out / LIBRARY_DIR / f"seed{seed}_{i:04d}.json"
-    settings = _settings(table_contact)
-    if path.is_file():
-        try:
-            kept = json.loads(path.read_text())
-        except (OSError, ValueError):
-            kept = None
-        if isinstance(kept, dict) and kept.get("settings") == settings:
-            return kept["library"]
-    lib = dict(_one_library(seed, i, table_contact), seed=seed)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_text(path, json.dumps(dict(settings=settings, library=lib)))
-    return lib
+    return kept_json(out / LIBRARY_DIR / f"seed{seed}_{i:04d}.json", _settings(table_contact),
+                     lambda: dict(_one_library(seed, i, table_contact), seed=seed))
 
 
 def _one_library(seed: int, i: int, table_contact: str = "lift") -> dict:

@@ -1,6 +1,6 @@
 """Measure Table 7.1 (events part) as rates, by random motor babbling from each initial posture.
 
-    python -m neuroimagery.robot.babble --rollouts N --seeds K --out DIR
+    python -m neuroimagery.robot.babble --rollouts N --seeds K --out DIR [--jobs J]
 
 For each of ``K`` seeds (0 .. K-1) and each posture, ``N`` random DMPs are rolled out (the thesis's
 way of drawing them, ``robot.movements``: random goals and shape, noise added to the goals) with
@@ -11,7 +11,9 @@ the agreement with thesis Table 7.1 is also given at other thresholds (a curve),
 does not hinge on that one choice. Writes ``DIR/table_7_1.json``: per posture ``events`` (0/1 at
 ``POSSIBLE_RATE``), ``rates``, ``rates_ci95`` ([low, high] per event), ``rates_per_seed``,
 ``rollouts``; and ``agreement`` (cells agreeing with the thesis at each threshold). ``DIR/table_7_1.md``
-sets it beside the thesis's table.
+sets it beside the thesis's table. Each posture and seed's counts are kept in ``DIR/counts/`` as they
+are done and reused by a rerun with the same ``--out`` and the same settings, so an interrupted or
+killed run resumes; ``--jobs`` runs postures and seeds in parallel (the same counts).
 """
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ from pathlib import Path
 import torch
 
 from neuroimagery.errors import UserInputError
-from neuroimagery.files import writable_folder, write_text
+from neuroimagery.files import kept_json, writable_folder, write_text
 from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.config import TABLE_CONTACTS, WorldConfig
 from neuroimagery.robot.events import EVENTS
@@ -73,34 +75,83 @@ def babble_counts(world: ToolWorld, posture: int, n: int, seed: int, cfg: Moveme
     return counts
 
 
+COUNTS_DIR = "counts"
+
+
+def _piece(posture: int, n: int, seed: int, cfg: MovementConfig, config: WorldConfig, out: Path | None,
+           world: ToolWorld | None = None) -> list[int]:
+    """:func:`babble_counts` of one posture and seed, kept in ``out/counts/`` (when ``out``) and
+    reused from there when it was computed with the same settings. Without ``world``, one is made
+    with ``config`` for this piece alone (a worker process)."""
+    from dataclasses import asdict
+
+    def compute() -> list[int]:
+        w = world or ToolWorld(config)
+        try:
+            return babble_counts(w, posture, n, seed, cfg)
+        finally:
+            if world is None:
+                w.close()
+
+    if out is None:
+        return compute()
+    settings = dict(posture=posture, seed=seed, rollouts=n, movements=asdict(cfg), world=asdict(config))
+    return kept_json(out / COUNTS_DIR / f"posture{posture}_seed{seed}.json", settings, compute)
+
+
 def measure(n_rollouts: int, seeds: int = 3, cfg: MovementConfig | None = None, world: ToolWorld | None = None,
-            table_contact: str = "lift") -> dict:
+            table_contact: str = "lift", out: Path | None = None, jobs: int = 1) -> dict:
     """Babble ``n_rollouts`` times per seed from each posture; the table (see module docstring).
-    Without ``world``, one with the table rule ``table_contact`` (``WorldConfig``)."""
+    Without ``world``, one with the table rule ``table_contact`` (``WorldConfig``). With ``out``,
+    each posture and seed's counts are kept there and reused (:func:`_piece`); ``jobs`` > 1 runs
+    them in worker processes, each with its own world (not with ``world``)."""
     if n_rollouts < 1:
         raise UserInputError(f"--rollouts must be >= 1, got {n_rollouts}")
     if seeds < 1:
         raise UserInputError(f"--seeds must be >= 1, got {seeds}")
+    if jobs < 1:
+        raise UserInputError(f"--jobs must be >= 1, got {jobs}")
+    if jobs > 1 and world is not None:
+        raise ValueError("measure: jobs > 1 makes a world per worker; pass no world")
+    from tqdm.auto import tqdm
+
     cfg = cfg or MovementConfig()
-    own = world is None
-    world = world or ToolWorld(WorldConfig(table_contact=table_contact))
+    config = world.cfg if world is not None else WorldConfig(table_contact=table_contact)
+    pieces = [(k, s) for k in range(1, 5) for s in range(seeds)]
+    bar = tqdm(total=len(pieces), desc="postures x seeds", file=sys.stderr, disable=None)
+    counts: dict[tuple[int, int], list[int]] = {}
+    if jobs == 1:
+        own = world is None
+        world = world or ToolWorld(config)
+        try:
+            for k, s in pieces:
+                counts[(k, s)] = _piece(k, n_rollouts, s, cfg, config, out, world)
+                bar.update()
+        finally:
+            if own:
+                world.close()
+    else:
+        from joblib import Parallel, delayed
+
+        done = Parallel(n_jobs=jobs, return_as="generator")(
+            delayed(_piece)(k, n_rollouts, s, cfg, config, out) for k, s in pieces)
+        for (k, s), c in zip(pieces, done):
+            counts[(k, s)] = c
+            bar.update()
+    bar.close()
     table: dict = {}
-    try:
-        for k in range(1, 5):
-            per_seed = [babble_counts(world, k, n_rollouts, s, cfg) for s in range(seeds)]
-            total = [sum(c[i] for c in per_seed) for i in range(len(EVENTS))]
-            n = n_rollouts * seeds
-            rates = [c / n for c in total]
-            table[f"posture-{k}"] = {
-                "events": [int(r > POSSIBLE_RATE) for r in rates],
-                "rates": [round(r, 5) for r in rates],
-                "rates_ci95": [[round(v, 5) for v in wilson(c, n)] for c in total],
-                "rates_per_seed": [[round(c[i] / n_rollouts, 5) for i in range(len(EVENTS))] for c in per_seed],
-                "rollouts": n,
-            }
-    finally:
-        if own:
-            world.close()
+    for k in range(1, 5):
+        per_seed = [counts[(k, s)] for s in range(seeds)]
+        total = [sum(c[i] for c in per_seed) for i in range(len(EVENTS))]
+        n = n_rollouts * seeds
+        rates = [c / n for c in total]
+        table[f"posture-{k}"] = {
+            "events": [int(r > POSSIBLE_RATE) for r in rates],
+            "rates": [round(r, 5) for r in rates],
+            "rates_ci95": [[round(v, 5) for v in wilson(c, n)] for c in total],
+            "rates_per_seed": [[round(c[i] / n_rollouts, 5) for i in range(len(EVENTS))] for c in per_seed],
+            "rollouts": n,
+        }
     rates = {k: v["rates"] for k, v in table.items()}
     return {**table, "possible_rate": POSSIBLE_RATE, "seeds": seeds,
             "agreement": {str(t): agreement(rates, THESIS_EVENTS, t) for t in CURVE_THRESHOLDS}}
@@ -184,12 +235,16 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser = OneLineParser(prog="python -m neuroimagery.robot.babble", description=__doc__.split("\n")[0])
     parser.add_argument("--rollouts", type=count, default=1000, help="random DMPs per posture and seed")
     parser.add_argument("--seeds", type=count, default=3, help="seeds 0 .. K-1")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=Path, required=True,
+                        help="output folder (rerun with the same folder to resume)")
+    parser.add_argument("--jobs", type=count, default=1, help="worker processes (the same counts)")
     parser.add_argument("--allow-large", action="store_true",
                         help=f"allow more than {MAX_ROLLOUTS} rollouts per posture and seed or {MAX_SEEDS} seeds")
     parser.add_argument("--table-contact", choices=TABLE_CONTACTS, default="lift",
                         help="how the table meets the rake (WorldConfig.table_contact; docs/robot.md)")
     args = parser.parse_args(argv)
+    if args.jobs < 1:
+        raise UserInputError(f"--jobs must be >= 1, got {args.jobs}")
     for name, value, most in (("--rollouts", args.rollouts, MAX_ROLLOUTS), ("--seeds", args.seeds, MAX_SEEDS)):
         if value < 1:
             raise UserInputError(f"{name} must be >= 1, got {value}")
@@ -204,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parse(argv)
         t0 = time.perf_counter()
         check_out(args.out)
-        table = measure(args.rollouts, args.seeds, table_contact=args.table_contact)
+        table = measure(args.rollouts, args.seeds, table_contact=args.table_contact, out=args.out, jobs=args.jobs)
         write_outputs(args.out, table)
         print(markdown(table))
         print(f"wrote {args.out / 'table_7_1.json'} in {time.perf_counter() - t0:.1f} s")
