@@ -100,3 +100,16 @@ def test_a_failed_write_keeps_the_computed_table_in_a_named_file(tmp_path, capsy
     spare = Path(lines[0].rsplit(" kept in ", 1)[1])
     assert json.loads(spare.read_text()) == json.loads(json.dumps(_table(3)))
     spare.unlink()
+
+
+def test_an_interrupt_is_one_line_and_keeps_the_finished_pieces(tmp_path, capsys, monkeypatch):
+    def stop_at_posture_2(world, posture, n, seed, cfg):
+        if posture == 2:
+            raise KeyboardInterrupt
+        return [0] * len(EVENTS)
+
+    monkeypatch.setattr(babble, "babble_counts", stop_at_posture_2)
+    code, lines = _main(capsys, "--rollouts", 3, "--seeds", 2, "--out", tmp_path)
+    assert code == 130 and lines == [f"interrupted: the finished postures x seeds are kept in {tmp_path / 'counts'}; "
+                                     "the same command resumes"], lines
+    assert sorted(p.name for p in (tmp_path / "counts").glob("*.json")) == ["posture1_seed0.json", "posture1_seed1.json"]

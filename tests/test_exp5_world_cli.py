@@ -66,3 +66,17 @@ def test_a_seed_twice_is_refused(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["error: --seed: each seed once, got 3 3"]
 
+
+
+def test_an_interrupt_is_one_line_and_keeps_the_finished_libraries(tmp_path, monkeypatch, capsys):
+    def stop_at_the_third(seed, i, table_contact="lift"):
+        if (seed, i) == (1, 0):
+            raise KeyboardInterrupt
+        return fake_library(seed, i, table_contact)
+
+    monkeypatch.setattr(exp5_world, "_one_library", stop_at_the_third)
+    assert run(tmp_path) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"interrupted: the finished libraries are kept in {tmp_path / 'libraries'}; the same command resumes"]
+    assert sorted(p.name for p in (tmp_path / "libraries").glob("*.json")) == ["seed0_0000.json", "seed0_0001.json"]
+    assert not (tmp_path / "world_libraries.json").exists()

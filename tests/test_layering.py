@@ -32,6 +32,7 @@ LAYERS = {
     "moved_keys": BASE,  # the one table of settings that moved or went
     "resources": BASE,  # memory and cores this process may use
     "progress": BASE,  # progress bars
+    "workers": BASE,  # pieces of a long measurement in worker processes
     "memory": BASE,  # peak memory of a phase
     "native": BASE,  # silencing C-level output
     "logger": BASE,  # TensorBoard writer (a run connects it to nn.monitor)

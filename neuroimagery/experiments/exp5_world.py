@@ -33,6 +33,7 @@ from pathlib import Path
 
 from ..errors import UserInputError
 from ..files import kept_json, writable_folder, write_text
+from ..workers import run_pieces
 from ..models.tool_use import EVENTS
 from ..robot.config import TABLE_CONTACTS
 from ..robot.babble import CURVE_THRESHOLDS, POSSIBLE_RATE, THESIS_SKILLS, OneLineParser, agreement, count, wilson
@@ -166,25 +167,9 @@ def main(argv: list[str] | None = None) -> int:
         if len(set(args.seed)) != len(args.seed):
             raise UserInputError(f"--seed: each seed once, got {' '.join(map(str, args.seed))}")
         writable_folder(args.out, OUTPUTS)
-        from tqdm.auto import tqdm
-
         t0 = time.perf_counter()
-        work = [(seed, i) for seed in args.seed for i in range(args.libraries)]
-        bar = tqdm(total=len(work), desc="libraries", unit=" library", file=sys.stderr, disable=None)
-        if args.jobs == 1:
-            libs = []
-            for seed, i in work:
-                libs.append(_kept_library(args.out, seed, i, args.table_contact))
-                bar.update()
-        else:
-            from joblib import Parallel, delayed
-
-            libs = []
-            for lib in Parallel(n_jobs=args.jobs, return_as="generator")(
-                    delayed(_kept_library)(args.out, seed, i, args.table_contact) for seed, i in work):
-                libs.append(lib)
-                bar.update()
-        bar.close()
+        work = [(args.out, seed, i, args.table_contact) for seed in args.seed for i in range(args.libraries)]
+        libs = run_pieces(_kept_library, work, args.jobs, "libraries", " library")
         s = summarise(libs)
         seeds = per_seed(libs)
         text = markdown(s) + ("\n" + seed_table(seeds) if len(seeds) > 1 else "")
@@ -195,6 +180,10 @@ def main(argv: list[str] | None = None) -> int:
     except UserInputError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"interrupted: the finished libraries are kept in {args.out / LIBRARY_DIR}; "
+              "the same command resumes", file=sys.stderr)
+        return 130
     return 0
 
 

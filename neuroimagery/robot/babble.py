@@ -24,12 +24,14 @@ import os
 import sys
 import tempfile
 import time
+from functools import partial
 from pathlib import Path
 
 import torch
 
 from neuroimagery.errors import UserInputError
 from neuroimagery.files import kept_json, writable_folder, write_text
+from neuroimagery.workers import run_pieces
 from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.config import TABLE_CONTACTS, WorldConfig
 from neuroimagery.robot.events import EVENTS
@@ -113,32 +115,21 @@ def measure(n_rollouts: int, seeds: int = 3, cfg: MovementConfig | None = None, 
         raise UserInputError(f"--jobs must be >= 1, got {jobs}")
     if jobs > 1 and world is not None:
         raise ValueError("measure: jobs > 1 makes a world per worker; pass no world")
-    from tqdm.auto import tqdm
-
     cfg = cfg or MovementConfig()
     config = world.cfg if world is not None else WorldConfig(table_contact=table_contact)
-    pieces = [(k, s) for k in range(1, 5) for s in range(seeds)]
-    bar = tqdm(total=len(pieces), desc="postures x seeds", file=sys.stderr, disable=None)
-    counts: dict[tuple[int, int], list[int]] = {}
+    keys = [(k, s) for k in range(1, 5) for s in range(seeds)]
+    pieces = [(k, n_rollouts, s, cfg, config, out) for k, s in keys]
     if jobs == 1:
         own = world is None
         world = world or ToolWorld(config)
         try:
-            for k, s in pieces:
-                counts[(k, s)] = _piece(k, n_rollouts, s, cfg, config, out, world)
-                bar.update()
+            found = run_pieces(partial(_piece, world=world), pieces, 1, "postures x seeds")
         finally:
             if own:
                 world.close()
     else:
-        from joblib import Parallel, delayed
-
-        done = Parallel(n_jobs=jobs, return_as="generator")(
-            delayed(_piece)(k, n_rollouts, s, cfg, config, out) for k, s in pieces)
-        for (k, s), c in zip(pieces, done):
-            counts[(k, s)] = c
-            bar.update()
-    bar.close()
+        found = run_pieces(_piece, pieces, jobs, "postures x seeds")
+    counts = dict(zip(keys, found))
     table: dict = {}
     for k in range(1, 5):
         per_seed = [counts[(k, s)] for s in range(seeds)]
@@ -266,6 +257,10 @@ def main(argv: list[str] | None = None) -> int:
     except UserInputError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"interrupted: the finished postures x seeds are kept in {args.out / COUNTS_DIR}; "
+              "the same command resumes", file=sys.stderr)
+        return 130
     return 0
 
 
