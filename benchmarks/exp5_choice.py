@@ -21,8 +21,11 @@ from pathlib import Path
 import pandas as pd
 
 
-def table(runs):
-    d = pd.concat([pd.read_csv(Path(r) / "individuals.csv") for r in runs], ignore_index=True)
+def read(runs):
+    return pd.concat([pd.read_csv(Path(r) / "individuals.csv") for r in runs], ignore_index=True)
+
+
+def table(d):
     far = d[d.situation == "far"].copy()
     far["first"] = far.test_actions.fillna("").str.split(">").str[0]
     rows = []
@@ -41,8 +44,7 @@ def table(runs):
     return pd.DataFrame(rows)
 
 
-def behind_failures(runs):
-    d = pd.concat([pd.read_csv(Path(r) / "individuals.csv") for r in runs], ignore_index=True)
+def behind_failures(d):
     b = d[(d.hypothesis == "hp1") & (d.situation == "behind") & (d.success == 0)].copy()
     acts = b.test_actions.fillna("")
     b["first"], b["tried_pull"] = acts.str.split(">").str[0], acts.str.split(">").apply(lambda a: "retrieve" in a)
@@ -62,9 +64,10 @@ def main(argv=None):
         if not (Path(r) / "individuals.csv").is_file():
             raise SystemExit(f"error: {r} has no individuals.csv (not an Exp 5 run directory)")
     pd.set_option("display.width", 200)
-    print(table(a.runs).round(2).to_string(index=False))
+    d = read(a.runs)
+    print(table(d).round(2).to_string(index=False))
     print("\nHP1, tool behind, the robots that failed")
-    print(behind_failures(a.runs).to_string(index=False))
+    print(behind_failures(d).to_string(index=False))
 
 
 if __name__ == "__main__":
