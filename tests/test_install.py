@@ -90,3 +90,11 @@ def test_torch_is_a_range_in_the_package_and_pinned_in_the_constraints():
 
     # the torch the suite runs with lies inside the package's range
     assert Version(torch.__version__) in SpecifierSet(">=2.13,<3")
+
+
+def test_the_package_version_is_one_number_everywhere():
+    import neuroimagery
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
+    cited = re.search(r"^version:\s*(\S+)", (ROOT / "CITATION.cff").read_text(), re.M).group(1)
+    assert neuroimagery.__version__ == project == cited
