@@ -159,7 +159,7 @@ class RotationEmbodied(nn.Module):
         self.identical_evidence.copy_(ev)
         leak = torch.full((P,), float(p.lca.k))
         if p.lca.leak_rule != "fixed":
-            leak = leak_by_rule(self, x, objects, mirror, angles)
+            leak = leak_by_rule(self, x, objects, angles)  # rule R2: object and angle only
         self.leak.copy_(leak)
         self.input_gain.copy_(self.gain_for(leak))
 
@@ -192,6 +192,12 @@ class RotationEmbodied(nn.Module):
         d = self.pmcd((gain.view(P, 1, 1) * evidence).reshape(P * B, 2), steps * p.lca.cycles,
                       leak=leak.repeat_interleave(B))
         return Decision(*(v.reshape(P, B, *v.shape[1:]) for v in (d.winner, d.cycles, d.decided, d.state)))
+
+    def pmcm_input(self, ppcc: torch.Tensor) -> torch.Tensor:
+        """PMCm's input AM (eq. 6.10) as the share of PPCc's activity ``(..., units^2)`` that reaches
+        each of Ml, Ms, Mr (docs/choices.md, rule R3), so that eq. 6.11's input lies in [0, 1]."""
+        am = self.c20(ppcc)
+        return am / am.sum(-1, keepdim=True).clamp_min(1e-12)
 
     def overlap(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
         """PFCtm (PFCfm) summed: the target units covered by ``image`` read as a population code of
@@ -410,7 +416,7 @@ class RotationEmbodied(nn.Module):
                 jc = self.posture_winner(score[sel], None if draws_win is None else draws_win[qc])
                 ppcp = self.ppcp_code(jc, prop, torch.stack(draws_noise).reshape(Q, nu)[qc] if noisy else None)
                 ppcc = gain_field(ppct[qc], ppcp)  # rows PPCt, columns PPCp
-                am = self.c20(ppcc.reshape(-1, nu * nu))
+                am = self.pmcm_input(ppcc.reshape(-1, nu * nu))
                 move[sel] = softmax_select(am, p.selection.tau, uniforms=draws_sel[qc])
                 if rec:
                     self._note_ppc(histories[c], rec, qc, ppcp, ppcc)

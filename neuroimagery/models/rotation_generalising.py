@@ -201,6 +201,20 @@ class RotationGeneralising(nn.Module):
             sigma = self.p.m1_sigma
         return torch.exp(-(d2 - d2.min(-1, keepdim=True).values) / (2 * sigma ** 2))
 
+    def m1(self, pmc1: torch.Tensor, pp2: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """SS (C2 on PP_2, eq. 6.5), M1_1 (eq. 6.1) and M1_2 (eq. 6.2) for PMC_1 ``(P, B, nu)``."""
+        P, B, nu = pmc1.shape
+        ss = self.posture(self.c2, pp2)
+        m11 = gain_field(pmc1, ss).reshape(P, B, nu * nu)
+        return ss, m11, self.m1_2(m11)
+
+    def move_probabilities(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
+        """P(n1, n2, n3) ``(P, B, 3)`` of a step with PFC_1 = ``target`` and PP_2 = ``image`` (eq. 6.6,
+        6.5, 6.1-6.3), the model's own read-out."""
+        from ..nn.functional import softmax_probabilities
+
+        return softmax_probabilities(self.m1(self.posture(self.c3, target), image)[2], self.p.selection.tau)
+
     def m1_centre(self, m11: torch.Tensor) -> torch.Tensor:
         """Activity-weighted mean of (column - row) of M1_1 patterns ``(..., nu*nu)``: how far, in
         posture units, the posture of the current image (SS, columns) lies past the desired one
@@ -253,9 +267,7 @@ class RotationGeneralising(nn.Module):
             act = ~done
             if not bool(act.any()):
                 break
-            ss = self.posture(self.c2, pp2)
-            m11 = gain_field(pmc1, ss).reshape(P, B, nu * nu)  # eq. 6.1
-            m12 = self.m1_2(m11)  # eq. 6.2
+            ss, m11, m12 = self.m1(pmc1, pp2)  # eq. 6.5, 6.1, 6.2
             move = softmax_select(m12, p.selection.tau, generators)  # eq. 6.3
             stop = act & ((move == 1) | (rotations >= p.selection.max_steps))
             go = act & ~stop

@@ -56,3 +56,56 @@ def forward_model_shape(step_fn, maps: torch.Tensor, step_deg: float, size: int,
         if k == 1:
             out["ratio"] = float(img.sum((-2, -1)).mean() / truth[1].sum((-2, -1)).mean())
     return out
+
+
+def model_rule_rate(som, maps: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
+    """X3.1 / X4.1: one step of the configured map's own rule (a copy of ``som``, trained), on the
+    first training image with its posture as the winner: ``|w' - w|_1 / |x' - w|_1`` of the winner's
+    prototype per participant, ``x'`` the image as the rule sees it (scaled to sum 1 by default)."""
+    import copy
+
+    s = copy.deepcopy(som).train()
+    P = s.weight.shape[0]
+    x, win = maps[:1].expand(P, -1).contiguous(), labels[:1].expand(P).contiguous()
+    w0 = s.weight[:, int(win[0])].clone()
+    s.step(x, win)
+    xs = s.rule.scale_input(x)
+    return (s.weight[:, int(win[0])] - w0).abs().sum(-1) / (xs - w0).abs().sum(-1)
+
+
+def _blur(x: torch.Tensor, sigma: float, size: int) -> torch.Tensor:
+    """Gaussian blur of maps ``(..., size*size)`` (zero outside the map)."""
+    r = int(3 * sigma + 0.5)
+    k = torch.exp(-torch.arange(-r, r + 1, dtype=torch.float32) ** 2 / (2 * sigma ** 2))
+    k = k / k.sum()
+    shp = x.shape
+    img = x.reshape(-1, 1, size, size).float()
+    img = torch.nn.functional.conv2d(img, k.view(1, 1, 1, -1), padding=(0, r))
+    img = torch.nn.functional.conv2d(img, k.view(1, 1, -1, 1), padding=(r, 0))
+    return img.reshape(shp)
+
+
+def shape_and_detail(step_fn, maps: torch.Tensor, step_deg: float, size: int, steps: int = 3) -> dict:
+    """X3.9 / X3.10: after k = 1..steps imagined steps, the cosine similarity of the imagined map and the
+    true rotation both blurred by a Gaussian of 2 units (shape), and the imagined map's fine-scale share
+    of energy ``|x - G1 x|^2 / |x|^2`` divided by the true rotation's (detail); means over images and
+    participants."""
+    x = maps.reshape(-1, size, size)
+    cur = maps.unsqueeze(0)
+    out = {}
+    def detail(m):
+        m = m.float()
+        return ((m - _blur(m, 1.0, size)) ** 2).sum(-1) / (m ** 2).sum(-1).clamp_min(1e-12)
+    for k in range(1, steps + 1):
+        cur = step_fn(cur)
+        truth = rotate(x, k * step_deg).reshape(1, -1, size * size).float()
+        a, b = _blur(cur.float(), 2.0, size), _blur(truth, 2.0, size)
+        cos = (a * b).sum(-1) / (a.norm(dim=-1) * b.norm(dim=-1)).clamp_min(1e-12)
+        out[k] = {"shape": float(cos.mean()), "detail": float(detail(cur).mean() / detail(truth).mean())}
+    return out
+
+
+def entropy_bits(p: torch.Tensor) -> torch.Tensor:
+    """Entropy in bits of non-negative codes ``(..., units)`` scaled to sum 1."""
+    q = p / p.sum(-1, keepdim=True).clamp_min(1e-12)
+    return -(q * torch.log2(q.clamp_min(1e-12))).sum(-1)
