@@ -26,7 +26,7 @@ import torch
 from torch import nn
 
 from ..nn import AllToAll, Delta, SOM, population_cover
-from ..nn.functional import gain_field, softmax_select
+from ..nn.functional import gain_field, softmax_probabilities, softmax_select
 from ..nn.binary import binary_matmul
 from ..bounds import Rule, bounded, check_declared
 from .params import ForwardModelParams, PostureMapParams, SelectionParams
@@ -211,8 +211,6 @@ class RotationGeneralising(nn.Module):
     def move_probabilities(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
         """P(n1, n2, n3) ``(P, B, 3)`` of a step with PFC_1 = ``target`` and PP_2 = ``image`` (eq. 6.6,
         6.5, 6.1-6.3), the model's own read-out."""
-        from ..nn.functional import softmax_probabilities
-
         return softmax_probabilities(self.m1(self.posture(self.c3, target), image)[2], self.p.selection.tau)
 
     def m1_centre(self, m11: torch.Tensor) -> torch.Tensor:

@@ -67,13 +67,15 @@ def test_x3_9_the_imagined_image_keeps_the_overall_shape(trained3):
 
 
 @pytest.mark.xfail(strict=True, reason="X3.10 not met: C6 keeps the fine-scale share of the true rotation "
-                   "(ratio 1.00 / 0.99 / 1.01 after 1 / 2 / 3 steps, seed 0); the component does not yet remove "
-                   "detail step by step (docs/contracts.md)")
+                   "(ratio 0.95-1.03 at 1-3 steps, not falling step by step, seeds 0-4); the component does not "
+                   "remove detail (docs/contracts.md)")
 def test_x3_10_the_imagined_image_loses_detail_step_by_step(trained3):
-    for key, r in _shape_detail(trained3).items():
+    ok = []
+    for key, r in _shape_detail(trained3).items():  # measure every set and direction, then judge
         d = [r[k]["detail"] for k in (1, 2, 3)]
         print(f"X3.10 {key}: detail ratio imagined / true by step {[round(v, 3) for v in d]}")
-        assert d[0] > d[1] > d[2] and d[2] <= 0.9, key
+        ok.append(d[0] > d[1] > d[2] and d[2] <= 0.9)
+    assert all(ok), ok
 
 
 def test_x3_12_set_c_mirrors_differ_little_from_their_targets(trained3):
@@ -85,7 +87,7 @@ def test_x3_12_set_c_mirrors_differ_little_from_their_targets(trained3):
 
 @pytest.mark.xfail(strict=True, reason="X3.13 not met: the only published size found (a gaze error of one 12-bit "
                    "encoder step, rule R4) moves the object on the screen, and the edge pipeline centres each map on "
-                   "the object (6.1.1), so two looks give the same map (0 of 24 items differ, seed 0)")
+                   "the object (6.1.1), so two looks give the same map (0 of 24 items differ, seeds 0-4)")
 def test_x3_13_the_percept_varies_between_looks(trained3):
     e, m = trained3.e, trained3.model
     looks = trained3.looks(e.train_set)

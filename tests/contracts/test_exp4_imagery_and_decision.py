@@ -64,14 +64,15 @@ def test_x4_10_time_outs_are_rare(trained4):
 
 
 @pytest.mark.xfail(strict=True, reason="X4.12 (a) not met: with the gain of rule R1 (the identical pairs' mean decides "
-                   "in one step) a third of set A's identical pairs decide within one step (0.33, seed 0); (b) holds "
-                   "(0.083 of misaligned pairs decide within four steps)")
+                   "in one step) 0.33-0.47 of set A's and 0.75-0.94 of set B's identical pairs decide within one step "
+                   "(seeds 0-4); (b) holds (0.05-0.10 of misaligned pairs decide within four steps)")
 def test_x4_12_the_accumulator_decides_rapidly_only_at_a_large_overlap(trained4):
     """(a) each image of sets A and B against itself decides (either way) within one step in >= 90 %;
     (b) misaligned same-object pairs (both appearances, not read) decide within four steps in <= 10 %."""
     m = trained4.model
     print(f"X4.12 leak {m.leak.tolist()}, gain {m.input_gain.tolist()}")
-    for name in (trained4.e.train_set, trained4.e.gen1_set):
+    ok = []
+    for name in (trained4.e.train_set, trained4.e.gen1_set):  # measure both sets, then judge
         bank = trained4.bank(name)
         objects, _, angles = bank.structure()
         x = bank.maps.unsqueeze(0).expand(m.participants, -1, -1)
@@ -80,5 +81,5 @@ def test_x4_12_the_accumulator_decides_rapidly_only_at_a_large_overlap(trained4)
         small = m.hold(m.pair_evidence(x[:, t], x[:, c]), steps=4).decided.float().mean(1)
         print(f"X4.12 set {name}: identical decide within 1 step {large.tolist()} (>= 0.9); "
               f"misaligned decide within 4 steps {small.tolist()} (<= {QUIET_SHARE})")
-        assert bool((large >= 0.9).all()), name
-        assert bool((small <= QUIET_SHARE).all()), name
+        ok += [bool((large >= 0.9).all()), bool((small <= QUIET_SHARE).all())]
+    assert all(ok), ok
