@@ -92,7 +92,7 @@ def train_model(cfg, ids, eye=None):
     model.fit_forward_models(X, Y, moves, e.fm.batch, progress=pc.batches_bar("forward model"))
     bank = pc.training_bank(cfg, eye)
     pc.train_posture_maps(cfg, eye, model, e.ppc.angles, gens, bank=bank)
-    model.calibrate(bank.maps, *bank.structure())  # PMCd's gain and leak (contracts X4.9, X4.12)
+    model.calibrate(bank.maps, *bank.structure())  # PMCd's gain and leak (rules R1, R2 of docs/choices.md)
     return model.eval()
 
 

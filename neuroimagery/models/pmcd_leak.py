@@ -1,6 +1,6 @@
 """The leak of Experiment 4's accumulator PMCd, fixed per participant after training by rule R2 of
 docs/choices.md: the smallest leak with which the misaligned pairs the training set shows of each
-object stay quiet (contract X4.12). It reads how the set is built (object and angle of each image),
+object stay quiet (contract X4.12 (b)). It reads how the set is built (object and angle of each image),
 never an appearance or a YES/NO label."""
 from __future__ import annotations
 

@@ -106,7 +106,7 @@ class RotationEmbodied(nn.Module):
         # identical 0-deg training pairs it was fixed on
         self.register_buffer("input_gain", torch.full((P,), lca_gain(p)))
         self.register_buffer("identical_evidence", torch.zeros(P, 2))
-        # PMCd's leak per participant (set by calibrate() after training; contract X4.12)
+        # PMCd's leak per participant (set by calibrate() after training; rule R2 of docs/choices.md)
         self.register_buffer("leak", torch.full((P,), float(p.lca.k)))
         self._tables: list[torch.Tensor] | None = None
         self.fm_sequence: dict | None = None  # the forward models' training sequence (fit_forward_models)
@@ -143,14 +143,13 @@ class RotationEmbodied(nn.Module):
         set: edge ``maps`` ``(N, n)`` with the object index, mirror flag and angle of each (how the
         set is built).
 
-        Gain (``lca.gain_rule``, X4.9): pair every map with itself (target = rotated object, 0 deg),
-        run the still step, take the mean PFCtm and PFCfm evidence (overlap per target unit) and find
-        the smallest gain with which that mean decides YES within one step. Leak
-        (``lca.leak_rule``, X4.12; :func:`.pmcd_leak.leak_by_rule`): on a grid of 0.05 from w, the
-        smallest k that minimises the share of misaligned same-object pairs that decide, their still-step
-        evidence held for ``selection.max_steps`` steps, plus the share of pairs turned to alignment
-        by the forward models that do not give the right answer held as long (the gain set by the
-        gain rule at each k). An explicit ``lca.input_gain`` or the ``full`` rule gives the gain in closed
+        Gain (``lca.gain_rule``, rule R1 of docs/choices.md): pair every map with itself (target =
+        rotated object, 0 deg), run the still step, take the mean PFCtm and PFCfm evidence (overlap per
+        target unit) and find the smallest gain with which that mean decides within one step. Leak
+        (``lca.leak_rule``, rule R2; :func:`.pmcd_leak.leak_by_rule`): on a grid of 0.05 from w, the
+        smallest k with which at most 10 % of the misaligned same-object pairs (object and angle only)
+        decide, their still-step evidence held for ``selection.max_steps`` steps (the gain set by the
+        gain rule at each k); ``mirror`` is not read. An explicit ``lca.input_gain`` or the ``full`` rule gives the gain in closed
         form; ``fixed`` keeps ``lca.k``."""
         p, P = self.p, self.participants
         self.freeze()
