@@ -6,6 +6,38 @@ import torch
 from neuroimagery.nn import SOM
 from neuroimagery.vision.edges import iou, rotate
 
+# Where in the plain text of the thesis each Exp 3-4 contract's quoted sentence stands (line numbers of
+# the text the project was built from; docs/contracts.md quotes the sentence with its section, which any
+# copy of the thesis has).
+THESIS_LINES = {
+    "X3.1": ('1027-1030', '1033'),
+    "X3.2": ('1025',),
+    "X3.3": ('1017',),
+    "X3.4": ('984',),
+    "X3.5": ('964',),
+    "X3.6": ('1063-1065',),
+    "X3.7": ('1067', '1015'),
+    "X3.8": ('984',),
+    "X3.9": ('1067',),
+    "X3.10": ('1067', '1015'),
+    "X3.11": ('1061',),
+    "X3.12": ('1065',),
+    "X3.13": ('913-915',),
+    "X4.1": ('1226-1230', '1232'),
+    "X4.2": ('1225', '1232-1234'),
+    "X4.3": ('1234',),
+    "X4.4": ('1176',),
+    "X4.5": ('1166',),
+    "X4.6": ('1214', '1252'),
+    "X4.7": ('1187',),
+    "X4.8": ('1121', '1147'),
+    "X4.10": ('1199',),
+    "X4.11": ('1265', '1269'),
+    "X4.12": ('1199', '1291'),
+    "X4.13": ('1176-1181', '1291'),
+    "X4.14": ('913-915', '1160'),
+}
+
 
 def rule_rate(eta: float = 0.1, active: int = 75, n_in: int = 1024, seed: int = 0) -> float:
     """X3.1 / X4.1: one supervised step of a sum-1 map on a binary image of ``active`` units;
