@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import torch
 
-from neuroimagery.nn import SOM
 from neuroimagery.vision.edges import iou, rotate
 
 # Where in the plain text of the thesis each Exp 3-4 contract's quoted sentence stands (line numbers of
@@ -39,21 +38,6 @@ THESIS_LINES = {
 }
 
 
-def rule_rate(eta: float = 0.1, active: int = 75, n_in: int = 1024, seed: int = 0) -> float:
-    """X3.1 / X4.1: one supervised step of a sum-1 map on a binary image of ``active`` units;
-    ``|w' - w|_1 / |x' - w|_1`` with ``x'`` the image scaled to sum 1."""
-    g = torch.Generator().manual_seed(seed)
-    som = SOM((4,), n_in, seed=seed, init=(0.0, 0.01), eta=eta, eta_final=eta, sigma=1e-3, sigma_final=1e-3,
-              iterations=10, supervised=True)
-    som.weight.div_(som.weight.sum(-1, keepdim=True))
-    x = torch.zeros(1, n_in)
-    x[0, torch.randperm(n_in, generator=g)[:active]] = 1.0
-    w0 = som.weight[0, 1].clone()
-    som.step(x, torch.tensor([1]))
-    xs = x[0] / x[0].sum()
-    return float((som.weight[0, 1] - w0).abs().sum() / (xs - w0).abs().sum())
-
-
 def forward_fn(trained, move: int):
     """One forward-model step of ``trained.model`` with the same move for every row of a
     ``(P or 1, B, units)`` batch (the shape probes of X3.7 / X4.6)."""
@@ -63,10 +47,6 @@ def forward_fn(trained, move: int):
         x = x.expand(P, -1, -1) if x.shape[0] == 1 else x
         return m.forward_step(x, torch.full(x.shape[:2], move, dtype=torch.long))
     return fn
-
-
-def banks_maps(bank) -> torch.Tensor:
-    return bank.maps
 
 
 def item_rows(bank, appearance=None):
