@@ -44,7 +44,7 @@ class QuickParams:
 class PerceptParams:
     """How the percept varies between looks (``experiment.percept``; docs/choices.md, rule R4): each
     look at an object is off by a gaze error of ``gaze_error_deg`` (sd, pan and tilt each; one step of
-    the iCub's 12-bit joint encoders); each test builds ``looks`` looks per item from its own stream
+    the iCub's 12-bit joint encoders), the view sampled at the sub-pixel offset; each test builds ``looks`` looks per item from its own stream
     and each trial takes one look at each of its objects. 0 looks: every trial sees one fixed image."""
 
     looks: int = bounded(16, ge=0)  # looks per item built for each test (0 = one fixed image per item)

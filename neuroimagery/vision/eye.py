@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from typing import Optional, Sequence
 
+import cv2
 import numpy as np
 import torch
 
@@ -78,22 +79,21 @@ class Eye:
         """Edge maps ``(N, size, size)`` of single objects, each shown in the target's place.
 
         ``gaze_errors``: optional ``(N, 2)`` errors of the look at each item, (pan, tilt) in degrees:
-        the view moves by the screen distance they span (direct path: in whole pixels of the
-        ``CANVAS``-pixel view of one ``object_width``)."""
+        the view moves by the screen distance they span (direct path: ``CANVAS`` pixels per
+        ``object_width``), sampled at that offset (bilinear), not rounded to whole pixels: the eye's
+        pixels do not line up with the screen's (docs/choices.md, rule R4)."""
         size = self.cfg.size if size is None else size
         (h, w), xt, _ = stimulus_set.pair_layout()
+        x0 = int(round(xt + 0.5 - CANVAS / 2.0))
         screens = []
         for k, (obj, angle, app) in enumerate(items):
             screen = np.empty((h, w, 3), np.uint8)
             screen[:] = BACKGROUND_BGR
-            x0 = int(round(xt + 0.5 - CANVAS / 2.0))
+            image = stimulus_set.image(obj, angle, app)
             if gaze_errors is not None:  # the eye looks off by (pan, tilt): the object moves the other way
-                dx, dy = (np.round(np.tan(np.radians(gaze_errors[k])) * self.cfg.screen_distance
-                                   / self.cfg.object_width * CANVAS)).astype(int)
-                x0 = int(np.clip(x0 - dx, 0, w - CANVAS))
-                screen[:, x0:x0 + CANVAS] = np.roll(stimulus_set.image(obj, angle, app), -int(dy), axis=0)
-            else:
-                screen[:, x0:x0 + CANVAS] = stimulus_set.image(obj, angle, app)
+                dx, dy = np.tan(np.radians(gaze_errors[k])) * self.cfg.screen_distance / self.cfg.object_width * CANVAS
+                image = _shifted(image, -float(dx), -float(dy))
+            screen[:, x0:x0 + CANVAS] = image
             screens.append(screen)
         views, window = self._views(stimulus_set, screens, [xt] * len(screens))
         return edge_pipeline(views, size, window, self.cfg.red_threshold)
@@ -121,6 +121,13 @@ class Eye:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _shifted(image: np.ndarray, dx: float, dy: float) -> np.ndarray:
+    """``image`` moved by ``(dx, dy)`` pixels, sampled bilinearly, the uncovered border background."""
+    m = np.float32([[1, 0, dx], [0, 1, dy]])
+    return cv2.warpAffine(image, m, (image.shape[1], image.shape[0]), flags=cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=tuple(int(b) for b in BACKGROUND_BGR))
 
 
 class DirectEye(Eye):
