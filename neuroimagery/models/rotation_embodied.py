@@ -22,6 +22,7 @@ the diagonal (current angle larger than the target) drive Mr, a clockwise turn (
 """
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import torch
@@ -65,6 +66,20 @@ def lca_gain(p, k: float | None = None) -> float:
     if p.lca.input_gain is not None:
         return float(p.lca.input_gain)
     return full_match_gain(p.lca.threshold, p.lca.k if k is None else k, p.lca.dt, p.lca.cycles)
+
+
+IDENTICAL_SHARE = 0.9  # rule R1: the share of identical training pairs that decide within one step
+
+
+def identical_share_gain(pmcd, pairs: torch.Tensor, cycles: int, leak: torch.Tensor) -> torch.Tensor:
+    """Rule R1 (``lca.gain_rule=each_identical``): per participant, the smallest gain with which at
+    least ``IDENTICAL_SHARE`` of the identical pairs' evidence ``pairs`` ``(P, N, 2)`` decides (either
+    way, for the unit it favours) within ``cycles`` cycles from rest at the leak ``leak`` ``(P,)``."""
+    P, N = pairs.shape[:2]
+    flat, lk = pairs.reshape(P * N, 2), leak.repeat_interleave(N)
+    g = torch.minimum(*(smallest_deciding_gain(pmcd, flat, cycles, answer=a, leak=lk) for a in (0, 1)))
+    need = max(1, math.ceil(IDENTICAL_SHARE * N - 1e-9))
+    return g.view(P, N).sort(dim=1).values[:, need - 1]
 
 
 def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int) -> tuple[torch.Tensor, torch.Tensor]:
@@ -144,8 +159,9 @@ class RotationEmbodied(nn.Module):
         set is built).
 
         Gain (``lca.gain_rule``, rule R1 of docs/choices.md): pair every map with itself (target =
-        rotated object, 0 deg), run the still step, take the mean PFCtm and PFCfm evidence (overlap per
-        target unit) and find the smallest gain with which that mean decides within one step. Leak
+        rotated object, 0 deg), run the still step and find the smallest gain with which at least 90 %
+        of these pairs' (PFCtm, PFCfm) evidence (overlap per target unit) decides within one step
+        (``each_identical``), or with which their mean does (``identical``, the former rule). Leak
         (``lca.leak_rule``, rule R2; :func:`.pmcd_leak.leak_by_rule`): on a grid of 0.05 from w, the
         smallest k with which at most 10 % of the misaligned same-object pairs (object and angle only)
         decide, their still-step evidence held for ``selection.max_steps`` steps (the gain set by the
@@ -154,8 +170,9 @@ class RotationEmbodied(nn.Module):
         p, P = self.p, self.participants
         self.freeze()
         x = maps.unsqueeze(0).expand(P, -1, -1)
-        ev = self.pair_evidence(x, x).mean(1)
-        self.identical_evidence.copy_(ev)
+        pairs = self.pair_evidence(x, x)
+        self.identical_pairs = pairs  # (P, N, 2): each image against itself (rule R1)
+        self.identical_evidence.copy_(pairs.mean(1))
         leak = torch.full((P,), float(p.lca.k))
         if p.lca.leak_rule != "fixed":
             leak = leak_by_rule(self, x, objects, angles)  # rule R2: object and angle only
@@ -167,7 +184,9 @@ class RotationEmbodied(nn.Module):
         p = self.p
         if p.lca.input_gain is not None or p.lca.gain_rule == "full":
             return torch.tensor([lca_gain(p, float(k)) for k in leak])
-        return smallest_deciding_gain(self.pmcd, self.identical_evidence, p.lca.cycles, leak=leak)
+        if p.lca.gain_rule == "identical":
+            return smallest_deciding_gain(self.pmcd, self.identical_evidence, p.lca.cycles, leak=leak)
+        return identical_share_gain(self.pmcd, self.identical_pairs, p.lca.cycles, leak)
 
     @torch.no_grad()
     def pair_evidence(self, target: torch.Tensor, comparison: torch.Tensor) -> torch.Tensor:

@@ -118,8 +118,6 @@ def test_x4_13_the_move_is_a_stochastic_draw(trained4):
     assert bool((p_other >= 0.005).all())
 
 
-@pytest.mark.xfail(strict=True, reason="X4.14 not met: the gaze error of rule R4 leaves looks identical, the edge "
-                   "pipeline centring each map on the object (0 of 36 items differ, seeds 0-4)")
 def test_x4_14_the_percept_varies_between_looks(trained4):
     e, m = trained4.e, trained4.model
     looks = trained4.looks(e.train_set)
