@@ -63,9 +63,6 @@ def test_x4_10_time_outs_are_rare(trained4):
     assert (share < 0.10).all()
 
 
-@pytest.mark.xfail(strict=True, reason="X4.12 (a) not met: with the gain of rule R1 (the identical pairs' mean decides "
-                   "in one step) 0.33-0.47 of set A's and 0.75-0.94 of set B's identical pairs decide within one step "
-                   "(seeds 0-4); (b) holds (0.05-0.10 of misaligned pairs decide within four steps)")
 def test_x4_12_the_accumulator_decides_rapidly_only_at_a_large_overlap(trained4):
     """(a) each image of sets A and B against itself decides (either way) within one step in >= 90 %;
     (b) misaligned same-object pairs (both appearances, not read) decide within four steps in <= 10 %."""
