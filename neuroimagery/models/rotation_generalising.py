@@ -27,7 +27,7 @@ from torch import nn
 
 from ..nn import AllToAll, Delta, SOM, population_cover
 from ..nn.functional import gain_field, softmax_probabilities, softmax_select
-from ..nn.binary import binary_matmul
+from ..nn.binary import binary_matmul, sparse_matmul
 from ..bounds import Rule, bounded, check_declared
 from .params import ForwardModelParams, PostureMapParams, SelectionParams
 from .recording import sample_indices
@@ -40,7 +40,10 @@ MOVES = ("n1", "n2", "n3")
 class GeneralisingForwardModel(ForwardModelParams):
     """C6 (``experiment.fm``) and the threshold of its output."""
 
-    threshold: float = bounded(0.5, gt=0)  # a PP_2 unit is on when its C6 input exceeds this (not given)
+    # what PP_2 holds (docs/choices.md, rule R6): 'graded' (default) = C6's output, the delta rule's actual output
+    # (eq. 6.4) clipped to a unit's range [0, 1], fed back to PP_1 as it is | 'binary' = that output > threshold
+    pp2: str = bounded("graded", choices=("graded", "binary"))
+    threshold: float = bounded(0.5, gt=0)  # with pp2=binary: a PP_2 unit is on when its C6 input exceeds this (not given)
 
 
 @dataclass
@@ -232,7 +235,8 @@ class RotationGeneralising(nn.Module):
         return (pfc1 - population_cover(pp2, self.size, self.p.match_tolerance)).clamp_min(0.0)
 
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
-        """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; output > threshold."""
+        """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; PP_2 = the output
+        clipped to [0, 1] (``fm.pp2=graded``, rule R6) or the output > ``fm.threshold`` (``binary``)."""
         if self._table is None:
             self.freeze()
         P, B, n = x.shape
@@ -241,8 +245,11 @@ class RotationGeneralising(nn.Module):
         for m in range(3):
             s = ((move == m) & sel).unsqueeze(-1)
             full[..., m * n:(m + 1) * n] = x * s
-        pred = binary_matmul(self._table, full)
-        return torch.where(sel.unsqueeze(-1), (pred > self.p.fm.threshold).float(), x)
+        if self.p.fm.pp2 == "binary":
+            out = (binary_matmul(self._table, full) > self.p.fm.threshold).float()
+        else:
+            out = sparse_matmul(self._table, full).clamp(0.0, 1.0)
+        return torch.where(sel.unsqueeze(-1), out, x)
 
     @torch.no_grad()
     def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record=0, **_) -> dict:
