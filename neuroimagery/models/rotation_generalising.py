@@ -41,7 +41,7 @@ class GeneralisingForwardModel(ForwardModelParams):
     """C6 (``experiment.fm``) and the threshold of its output."""
 
     # what PP_2 holds (docs/choices.md, rule R6): 'graded' (default) = C6's output, the delta rule's actual output
-    # (eq. 6.4) clipped to a unit's range [0, 1], fed back to PP_1 as it is | 'binary' = that output > threshold
+    # (eq. 6.4, linear: no threshold, no clipping), fed back to PP_1 as it is | 'binary' = that output > threshold
     pp2: str = bounded("graded", choices=("graded", "binary"))
     threshold: float = bounded(0.5, gt=0)  # with pp2=binary: a PP_2 unit is on when its C6 input exceeds this (not given)
 
@@ -235,8 +235,8 @@ class RotationGeneralising(nn.Module):
         return (pfc1 - population_cover(pp2, self.size, self.p.match_tolerance)).clamp_min(0.0)
 
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
-        """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; PP_2 = the output
-        clipped to [0, 1] (``fm.pp2=graded``, rule R6) or the output > ``fm.threshold`` (``binary``)."""
+        """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; PP_2 = the linear
+        output (``fm.pp2=graded``, rule R6) or the output > ``fm.threshold`` (``binary``)."""
         if self._table is None:
             self.freeze()
         P, B, n = x.shape
@@ -248,12 +248,12 @@ class RotationGeneralising(nn.Module):
         if self.p.fm.pp2 == "binary":
             out = (binary_matmul(self._table, full) > self.p.fm.threshold).float()
         else:
-            out = sparse_matmul(self._table, full).clamp(0.0, 1.0)
+            out = sparse_matmul(self._table, full)
         return torch.where(sel.unsqueeze(-1), out, x)
 
     @torch.no_grad()
     def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record=0, **_) -> dict:
-        """Run a batch of trials (binary edge maps ``(P, B, n)``); see the module docstring.
+        """Run a batch of trials (binary edge maps ``(P, B, n)``; PP_2 graded after a step, rule R6); see the module docstring.
         ``record``: the trials of participant 0 whose maps are returned per step (a number of
         leading trials or a sequence of trial indices)."""
         p = self.p

@@ -51,7 +51,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators) ->
                 pp1 = torch.zeros(3 * n)
                 pp1[move * n:(move + 1) * n] = x  # the image in the PP_1 map of the move
                 a = w6[pi] @ pp1  # C6 (PP_2): graded (rule R6) or thresholded
-                pp2[pi][b] = a.clamp(0.0, 1.0) if p.fm.pp2 == "graded" else (a > p.fm.threshold).float()
+                pp2[pi][b] = a if p.fm.pp2 == "graded" else (a > p.fm.threshold).float()
                 out["rotation_deg"][pi, b] += model.step_angles[move]
                 out["rotation_steps"][pi, b] += 1
     for pi in range(P):

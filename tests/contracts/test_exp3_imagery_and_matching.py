@@ -66,9 +66,6 @@ def test_x3_9_the_imagined_image_keeps_the_overall_shape(trained3):
         assert all(r[k]["shape"] >= 0.8 for k in (1, 2, 3)), key
 
 
-@pytest.mark.xfail(strict=True, reason="X3.10 not met: C6 keeps the fine-scale share of the true rotation "
-                   "(ratio 0.95-1.03 at 1-3 steps, not falling step by step, seeds 0-4); the component does not "
-                   "remove detail (docs/contracts.md)")
 def test_x3_10_the_imagined_image_loses_detail_step_by_step(trained3):
     ok = []
     for key, r in _shape_detail(trained3).items():  # measure every set and direction, then judge
