@@ -3,7 +3,7 @@ Exp 4 trial loop uses to compute each forward-model prediction once."""
 import pytest
 import torch
 
-from neuroimagery.nn.binary import binary_matmul_rows, pack_bits, popcount, unique_rows, unpack_bits
+from neuroimagery.nn.binary import binary_matmul, binary_matmul_rows, pack_bits, popcount, sparse_matmul, unique_rows, unpack_bits
 
 
 @pytest.mark.parametrize("n", [1, 63, 64, 100, 1024])
@@ -59,3 +59,13 @@ def test_unique_rows_come_in_ascending_group_order():
     group = torch.randint(0, 5, (40,), generator=g)
     gu, wu, inv = unique_rows(group, pack_bits(x))
     assert torch.equal(gu, gu.sort().values) and torch.equal(gu[inv], group) and torch.equal(unpack_bits(wu[inv], 64), x)
+
+
+def test_sparse_matmul_equals_the_dense_product_on_graded_input():
+    g = torch.Generator().manual_seed(3)
+    w = torch.randn(2, 40, 7, generator=g)  # (P, in, out): W transposed
+    x = torch.randn(2, 5, 40, generator=g) * (torch.rand(2, 5, 40, generator=g) < 0.3)  # graded, mostly zero
+    x[1, 2] = 0.0  # an empty row
+    torch.testing.assert_close(sparse_matmul(w, x), torch.bmm(x, w), rtol=1e-5, atol=1e-5)
+    b = (x != 0).float()
+    torch.testing.assert_close(sparse_matmul(w, b), binary_matmul(w, b))

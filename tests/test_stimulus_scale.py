@@ -1,8 +1,6 @@
-"""The drawn size of the stimuli (docs/contracts.md, "Stimulus scale of Experiments 3 and 4").
-
-The objects of Experiments 3 and 4 are drawn at the largest scale, in steps of 0.005 of the image
-side, at which every unit of their edge maps, at every angle, is a unit that the forward models'
-three-dot training images activate. The other sets keep the fit to the 32x32 map.
+"""The drawn size of the stimuli (docs/choices.md, rule R5): the objects of Experiments 3 and 4 are
+drawn at the scale the other sets follow (the fit to the 32x32 map); a set keeps its size when
+redrawn, and a user's folder takes the size of the set it replaces.
 """
 from __future__ import annotations
 
@@ -47,7 +45,7 @@ def test_sets_know_their_scale(tmp_path):
     for name in DEFAULT_SETS + OTHER_CH6_SETS:
         assert get_stimulus_set(name).radius_fraction == CH6_RADIUS_FRACTION
     assert get_stimulus_set("L").radius_fraction == RADIUS_FRACTION
-    assert CH6_RADIUS_FRACTION < RADIUS_FRACTION
+    assert CH6_RADIUS_FRACTION == RADIUS_FRACTION
     # a set redrawn under another protocol keeps its size unless told otherwise
     s = get_stimulus_set("exp4-A")
     assert s.with_protocol(s.angles, s.appearances).radius_fraction == CH6_RADIUS_FRACTION
@@ -71,24 +69,15 @@ def test_a_user_folder_takes_the_size_of_the_set_it_replaces(tmp_path):
 
 def test_drawn_size_follows_the_scale():
     s = get_stimulus_set("exp4-A")
-    big = s.with_protocol(s.angles, s.appearances, radius_fraction=RADIUS_FRACTION)
-    a, b = float(s.coverage("A1", 0.0).sum()), float(big.coverage("A1", 0.0).sum())
-    assert a / b == pytest.approx((CH6_RADIUS_FRACTION / RADIUS_FRACTION) ** 2, rel=0.03)
+    small = s.with_protocol(s.angles, s.appearances, radius_fraction=0.375)
+    a, b = float(small.coverage("A1", 0.0).sum()), float(s.coverage("A1", 0.0).sum())
+    assert a / b == pytest.approx((0.375 / CH6_RADIUS_FRACTION) ** 2, rel=0.03)
 
 
-@pytest.mark.parametrize("name", DEFAULT_SETS)
-def test_every_rotation_stays_on_the_trained_units(name, eye, trained_units):
-    assert _off_share(eye, get_stimulus_set(name), trained_units, 5) == 0.0
-
-
-def test_the_scale_is_the_largest_that_does(eye, trained_units):
-    # the bars with a clear axis reach farthest; the square-like sets c and C stay inside longer
-    worst = max(_off_share(eye, get_stimulus_set(n), trained_units, 5, CH6_RADIUS_FRACTION + 0.005)
-                for n in ("exp3-a", "exp3-b", "exp4-A", "exp4-B"))
-    assert worst > 0.0
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("name", DEFAULT_SETS + OTHER_CH6_SETS)
-def test_every_rotation_in_1_degree_steps_stays_on_the_trained_units(name, eye, trained_units):
-    assert _off_share(eye, get_stimulus_set(name), trained_units, 1) == 0.0
+def test_how_far_the_objects_reach_past_the_trained_units(eye, trained_units):
+    """Reported, not required (rule R5 reads no model): the share of a map's units that the three-dot
+    images never activate, at 5-deg steps; none at 0.375, some at 0.40."""
+    at_rule = max(_off_share(eye, get_stimulus_set(n), trained_units, 5) for n in ("exp3-a", "exp4-A"))
+    at_old = max(_off_share(eye, get_stimulus_set(n), trained_units, 5, 0.375) for n in ("exp3-a", "exp4-A"))
+    print(f"largest share of a map's units off the trained units: {at_rule:.3f} at {CH6_RADIUS_FRACTION}, {at_old:.3f} at 0.375")
+    assert at_old == 0.0 and at_rule > 0.0

@@ -40,6 +40,7 @@ class Exp3Config(GeneralisingParams):
     gen1_set: str = "exp3-b"  # Gen-I
     gen2_set: str = "exp3-c"  # Gen-II
     quick: pc.QuickParams = field(default_factory=pc.QuickParams)  # what preset=quick shrinks
+    percept: pc.PerceptParams = field(default_factory=pc.PerceptParams)  # how the percept varies (rule R4)
 
 
 CONFIG = Exp3Config
@@ -48,13 +49,15 @@ CONFIG = Exp3Config
 INPUTS = ("vision", "stimuli")
 CHECKPOINTS = ("exp3",)
 # read only by the tests: a trained model (forward model C6, posture maps C2/C3) does not depend on them
-TEST_KEYS = ("fm.threshold", "recog_set", "gen1_set", "gen2_set", "m1_sigma", "m1_readout", "m1_centre_sigma",
-             "match_threshold", "match_tolerance", "selection.max_steps", "posture.code_sigma", "quick.objects", "selection.tau")
+TEST_KEYS = ("fm.threshold", "fm.pp2", "recog_set", "gen1_set", "gen2_set", "m1_sigma", "m1_readout", "m1_centre_sigma",
+             "match_threshold", "match_tolerance", "selection.max_steps", "posture.code_sigma", "quick.objects", "percept.looks", "selection.tau")
 
 
 def ineffective_keys(cfg) -> dict[str, str]:
     e, out = cfg.experiment, {}
     out["m1_centre_sigma" if e.m1_readout == "pattern" else "m1_sigma"] = f"not read with m1_readout={e.m1_readout}"
+    if e.fm.pp2 == "graded":
+        out["fm.threshold"] = "not read with fm.pp2=graded"
     if cfg.stimuli.kind == "folder":
         out.update({k: "stimuli=folder tests the user's folder only" for k in ("gen1_set", "gen2_set")})
     if cfg.preset == "quick":
@@ -100,7 +103,7 @@ def run_tests(cfg, model, eye=None, record: int = 0):
         sets = {t: pc.stimulus_set(cfg, getattr(e, f"{t}_set"), use_user_folder=False) for t in TESTS}
     frames, histories, banks, tables = [], {}, {}, {}
     for test, sset in sets.items():  # every test's trials first: the test bar's total
-        banks[test] = bank = pc.StimulusBank.build(eye, sset, e.map_size)
+        banks[test] = bank = pc.test_bank(cfg, eye, sset, len(banks))
         table = pc.trial_table(bank, test, "none")
         if cfg.preset == "quick":
             table = table[table["target_object"].isin(bank.set.objects[: e.quick.objects])].reset_index(drop=True)
@@ -108,8 +111,7 @@ def run_tests(cfg, model, eye=None, record: int = 0):
     progress.expect(sum(len(t) for t in tables.values()) * P)
     for k, (test, table) in enumerate(tables.items()):
         bank = banks[test]
-        tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
-        rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+        tgt, rot = pc.trial_looks(cfg, bank, table, ids, list(banks).index(test))
         gens = seeding.participant_generators(cfg.seed, ids, stream=100 + k)
         shown = pc.candidate_rows(table, record)  # the sample trials are chosen among these after the run
         out = model.run(tgt, rot, gens, record=shown)

@@ -45,6 +45,7 @@ class Exp4Config(EmbodiedParams):
     gen2_set: str = "exp4-C"  # Gen2 test set
     noise_tests: List[str] = bounded(factory=lambda: ["recog", "gen1"], choices=TESTS, each=True)  # tests repeated with noise
     quick: pc.QuickParams = field(default_factory=pc.QuickParams)  # objects per test set (full: all 3), images
+    percept: pc.PerceptParams = field(default_factory=pc.PerceptParams)  # how the percept varies (rule R4)
 
 
 CONFIG = Exp4Config
@@ -57,7 +58,7 @@ CHECKPOINTS = ("exp4",)
 # read only by the tests: a trained model (forward models, posture maps C16/C17) does not depend on them
 TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "posture.tau", "ppc.sigma", "selection.tau",
              "selection.max_steps", "ppc.proprio_gain",
-             "ppc.proprio_stage", "ppc.noise_amplitude", "noise_tests", "quick.objects")
+             "ppc.proprio_stage", "ppc.noise_amplitude", "noise_tests", "quick.objects", "percept.looks")
 
 
 def ineffective_keys(cfg) -> dict[str, str]:
@@ -91,7 +92,7 @@ def train_model(cfg, ids, eye=None):
     model.fit_forward_models(X, Y, moves, e.fm.batch, progress=pc.batches_bar("forward model"))
     bank = pc.training_bank(cfg, eye)
     pc.train_posture_maps(cfg, eye, model, e.ppc.angles, gens, bank=bank)
-    model.calibrate(bank.maps, *bank.structure())  # PMCd's gain and leak (contracts X4.9, X4.12)
+    model.calibrate(bank.maps, *bank.structure())  # PMCd's gain and leak (rules R1, R2 of docs/choices.md)
     return model.eval()
 
 
@@ -151,15 +152,14 @@ def run_tests(cfg, model, eye=None, record: int = 0):
     ids, P = model.participant_ids, model.participants
     frames, histories, banks, tables = [], {}, {}, {}
     for test, sset in _test_sets(cfg).items():  # every test's trials first: the test bar's total
-        banks[test] = bank = pc.StimulusBank.build(eye, sset, e.map_size)
+        banks[test] = bank = pc.test_bank(cfg, eye, sset, len(banks))
         noisy = [False] + ([True] if (test in e.noise_tests or test == "custom") else [])
         tables[test] = _subset(bank, pc.trial_table(bank, test, "none"), cfg), noisy
     progress.expect(sum(len(t) * len(noisy) * len(CONDITIONS) * P for t, noisy in tables.values()))
     k = 0
     for test, (table, noisy) in tables.items():
         bank = banks[test]
-        tgt = bank.maps[torch.as_tensor(table["target_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
-        rot = bank.maps[torch.as_tensor(table["rotated_row"].to_numpy().copy())].unsqueeze(0).expand(P, -1, -1)
+        tgt, rot = pc.trial_looks(cfg, bank, table, ids, list(banks).index(test))
         names, conds = [], []
         for noise in noisy:
             for cond in CONDITIONS:

@@ -40,6 +40,33 @@ class QuickParams:
 
 
 
+@dataclass
+class PerceptParams:
+    """How the percept varies between looks (``experiment.percept``; docs/choices.md, rule R4): each
+    look at an object is off by a gaze error of ``gaze_error_deg`` (sd, pan and tilt each; one step of
+    the iCub's 12-bit joint encoders), the view sampled at the sub-pixel offset; each test builds ``looks`` looks per item from its own stream
+    and each trial takes one look at each of its objects. 0 looks: every trial sees one fixed image."""
+
+    looks: int = bounded(16, ge=0)  # looks per item built for each test (0 = one fixed image per item)
+    gaze_error_deg: float = bounded(360.0 / 4096, ge=0, le=5)  # sd of the gaze error per look, deg
+
+    def __post_init__(self) -> None:
+        check_declared(self, "experiment.percept.")
+
+
+TRAIN_LOOK_STREAM = 7  # the stream of the training looks (one per training image)
+TEST_LOOK_STREAM = 200  # + test index: the looks a test builds
+TRIAL_LOOK_STREAM = 300  # + test index: which look each trial takes
+
+
+def gaze_errors(seed: int, stream: int, n: int, sd: float) -> np.ndarray | None:
+    """``(n, 2)`` gaze errors (pan, tilt) in degrees, N(0, sd^2), from the run's seed and a stream."""
+    if sd <= 0:
+        return None
+    g = seeding.participant_generators(seed, [0], stream=stream)[0]
+    return (sd * torch.randn(n, 2, generator=g, dtype=torch.float64)).numpy()
+
+
 # ---------------------------------------------------------------------------------- vision
 def _vision():
     import neuroimagery.vision as v
@@ -83,16 +110,31 @@ class StimulusBank:
     items: list
     maps: torch.Tensor
     index: dict
+    looks: torch.Tensor | None = None  # (L, N, size*size): L looks at every item (rule R4), or None
 
     @classmethod
-    def build(cls, eye, sset, size: int) -> "StimulusBank":
+    def build(cls, eye, sset, size: int, errors: np.ndarray | None = None, looks: int = 0) -> "StimulusBank":
+        """Edge maps of every item of ``sset``; with gaze ``errors`` ``(max(looks, 1) * N, 2)`` (deg),
+        ``maps`` is the first look and ``looks`` holds ``looks`` looks per item."""
         items = [tuple(it) for it in sset.items()]
-        maps = eye.edge_maps(sset, items=items, size=size)
-        if maps.shape[0] != len(items):
+        L = max(int(looks), 1)
+        maps = eye.edge_maps(sset, items=items * L, size=size, gaze_errors=errors) if errors is not None \
+            else eye.edge_maps(sset, items=items, size=size)
+        if maps.shape[0] != len(items) * (L if errors is not None else 1):
             raise UserInputError(f"stimulus set {sset.name!r}: the eye returned {maps.shape[0]} maps for {len(items)} items")
         if float(maps.sum()) == 0:
             raise UserInputError(f"stimulus set {sset.name!r}: no edges found in any image (are the shapes red or dark?)")
-        return cls(sset, items, maps.reshape(len(items), -1).float(), {it: i for i, it in enumerate(items)})
+        flat = maps.reshape(-1, len(items), size * size).float()
+        return cls(sset, items, flat[0], {it: i for i, it in enumerate(items)}, flat if looks > 0 and errors is not None else None)
+
+    def trial_maps(self, rows: torch.Tensor, generators) -> torch.Tensor:
+        """The maps ``(P, B, n)`` the trials ``rows`` ``(B,)`` see, one per participant (``generators``):
+        a look drawn for every trial and participant when the bank holds looks, else the fixed map."""
+        P = len(generators)
+        if self.looks is None:
+            return self.maps[rows].unsqueeze(0).expand(P, -1, -1)
+        pick = torch.stack([torch.randint(self.looks.shape[0], (len(rows),), generator=g) for g in generators])
+        return self.looks[pick, rows.unsqueeze(0).expand(P, -1)]
 
     def structure(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """How the set is built, per row: object index (long), mirror appearance (bool) and angle
@@ -306,9 +348,29 @@ def sample_panels(path, key: str, history: list, names: Sequence[str], units=Non
 
 
 def training_bank(cfg, eye) -> StimulusBank:
-    """The edge maps of the training set ``cfg.experiment.train_set`` (never the user's folder)."""
+    """The edge maps of the training set ``cfg.experiment.train_set`` (never the user's folder): one
+    look per image from the training stream (rule R4)."""
     e = cfg.experiment
-    return StimulusBank.build(eye, stimulus_set(cfg, e.train_set, use_user_folder=False), e.map_size)
+    sset = stimulus_set(cfg, e.train_set, use_user_folder=False)
+    errors = gaze_errors(cfg.seed, TRAIN_LOOK_STREAM, len(list(sset.items())), e.percept.gaze_error_deg)
+    return StimulusBank.build(eye, sset, e.map_size, errors)
+
+
+def test_bank(cfg, eye, sset, k: int) -> StimulusBank:
+    """The looks test ``k`` builds at the items of ``sset`` (rule R4), from the test's own stream."""
+    e = cfg.experiment
+    L = int(e.percept.looks)
+    errors = gaze_errors(cfg.seed, TEST_LOOK_STREAM + k, max(L, 1) * len(list(sset.items())), e.percept.gaze_error_deg)
+    return StimulusBank.build(eye, sset, e.map_size, errors, looks=L)
+
+
+def trial_looks(cfg, bank: StimulusBank, table: pd.DataFrame, ids, k: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """(target, rotated) maps ``(P, B, n)`` of the trials of ``table`` in test ``k``: each participant's
+    trial takes its own look at each object (rule R4)."""
+    gens = seeding.participant_generators(cfg.seed, list(ids), stream=TRIAL_LOOK_STREAM + k)
+    rows_t = torch.as_tensor(table["target_row"].to_numpy().copy())
+    rows_r = torch.as_tensor(table["rotated_row"].to_numpy().copy())
+    return bank.trial_maps(rows_t, gens), bank.trial_maps(rows_r, gens)
 
 
 def train_posture_maps(cfg, eye, model, angles: Sequence[float], generators, bank: StimulusBank | None = None):

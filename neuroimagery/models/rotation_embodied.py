@@ -22,6 +22,7 @@ the diagonal (current angle larger than the target) drive Mr, a clockwise turn (
 """
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import torch
@@ -67,6 +68,20 @@ def lca_gain(p, k: float | None = None) -> float:
     return full_match_gain(p.lca.threshold, p.lca.k if k is None else k, p.lca.dt, p.lca.cycles)
 
 
+IDENTICAL_SHARE = 0.9  # rule R1: the share of identical training pairs that decide within one step
+
+
+def identical_share_gain(pmcd, pairs: torch.Tensor, cycles: int, leak: torch.Tensor) -> torch.Tensor:
+    """Rule R1 (``lca.gain_rule=each_identical``): per participant, the smallest gain with which at
+    least ``IDENTICAL_SHARE`` of the identical pairs' evidence ``pairs`` ``(P, N, 2)`` decides (either
+    way, for the unit it favours) within ``cycles`` cycles from rest at the leak ``leak`` ``(P,)``."""
+    P, N = pairs.shape[:2]
+    flat, lk = pairs.reshape(P * N, 2), leak.repeat_interleave(N)
+    g = torch.minimum(*(smallest_deciding_gain(pmcd, flat, cycles, answer=a, leak=lk) for a in (0, 1)))
+    need = max(1, math.ceil(IDENTICAL_SHARE * N - 1e-9))
+    return g.view(P, N).sort(dim=1).values[:, need - 1]
+
+
 def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int) -> tuple[torch.Tensor, torch.Tensor]:
     """The training pairs whose randomly drawn movement is ``m``, in their order, per participant
     (padded at the end with empty images, which the delta rule leaves without effect), so each
@@ -106,7 +121,7 @@ class RotationEmbodied(nn.Module):
         # identical 0-deg training pairs it was fixed on
         self.register_buffer("input_gain", torch.full((P,), lca_gain(p)))
         self.register_buffer("identical_evidence", torch.zeros(P, 2))
-        # PMCd's leak per participant (set by calibrate() after training; contract X4.12)
+        # PMCd's leak per participant (set by calibrate() after training; rule R2 of docs/choices.md)
         self.register_buffer("leak", torch.full((P,), float(p.lca.k)))
         self._tables: list[torch.Tensor] | None = None
         self.fm_sequence: dict | None = None  # the forward models' training sequence (fit_forward_models)
@@ -143,23 +158,24 @@ class RotationEmbodied(nn.Module):
         set: edge ``maps`` ``(N, n)`` with the object index, mirror flag and angle of each (how the
         set is built).
 
-        Gain (``lca.gain_rule``, X4.9): pair every map with itself (target = rotated object, 0 deg),
-        run the still step, take the mean PFCtm and PFCfm evidence (overlap per target unit) and find
-        the smallest gain with which that mean decides YES within one step. Leak
-        (``lca.leak_rule``, X4.12; :func:`.pmcd_leak.leak_by_rule`): on a grid of 0.05 from w, the
-        smallest k that minimises the share of misaligned same-object pairs that decide, their still-step
-        evidence held for ``selection.max_steps`` steps, plus the share of pairs turned to alignment
-        by the forward models that do not give the right answer held as long (the gain set by the
-        gain rule at each k). An explicit ``lca.input_gain`` or the ``full`` rule gives the gain in closed
+        Gain (``lca.gain_rule``, rule R1 of docs/choices.md): pair every map with itself (target =
+        rotated object, 0 deg), run the still step and find the smallest gain with which at least 90 %
+        of these pairs' (PFCtm, PFCfm) evidence (overlap per target unit) decides within one step
+        (``each_identical``), or with which their mean does (``identical``, the former rule). Leak
+        (``lca.leak_rule``, rule R2; :func:`.pmcd_leak.leak_by_rule`): on a grid of 0.05 from w, the
+        smallest k with which at most 10 % of the misaligned same-object pairs (object and angle only)
+        decide, their still-step evidence held for ``selection.max_steps`` steps (the gain set by the
+        gain rule at each k); ``mirror`` is not read. An explicit ``lca.input_gain`` or the ``full`` rule gives the gain in closed
         form; ``fixed`` keeps ``lca.k``."""
         p, P = self.p, self.participants
         self.freeze()
         x = maps.unsqueeze(0).expand(P, -1, -1)
-        ev = self.pair_evidence(x, x).mean(1)
-        self.identical_evidence.copy_(ev)
+        pairs = self.pair_evidence(x, x)
+        self.identical_pairs = pairs  # (P, N, 2): each image against itself (rule R1)
+        self.identical_evidence.copy_(pairs.mean(1))
         leak = torch.full((P,), float(p.lca.k))
         if p.lca.leak_rule != "fixed":
-            leak = leak_by_rule(self, x, objects, mirror, angles)
+            leak = leak_by_rule(self, x, objects, angles)  # rule R2: object and angle only
         self.leak.copy_(leak)
         self.input_gain.copy_(self.gain_for(leak))
 
@@ -168,7 +184,9 @@ class RotationEmbodied(nn.Module):
         p = self.p
         if p.lca.input_gain is not None or p.lca.gain_rule == "full":
             return torch.tensor([lca_gain(p, float(k)) for k in leak])
-        return smallest_deciding_gain(self.pmcd, self.identical_evidence, p.lca.cycles, leak=leak)
+        if p.lca.gain_rule == "identical":
+            return smallest_deciding_gain(self.pmcd, self.identical_evidence, p.lca.cycles, leak=leak)
+        return identical_share_gain(self.pmcd, self.identical_pairs, p.lca.cycles, leak)
 
     @torch.no_grad()
     def pair_evidence(self, target: torch.Tensor, comparison: torch.Tensor) -> torch.Tensor:
@@ -192,6 +210,12 @@ class RotationEmbodied(nn.Module):
         d = self.pmcd((gain.view(P, 1, 1) * evidence).reshape(P * B, 2), steps * p.lca.cycles,
                       leak=leak.repeat_interleave(B))
         return Decision(*(v.reshape(P, B, *v.shape[1:]) for v in (d.winner, d.cycles, d.decided, d.state)))
+
+    def pmcm_input(self, ppcc: torch.Tensor) -> torch.Tensor:
+        """PMCm's input AM (eq. 6.10) as the share of PPCc's activity ``(..., units^2)`` that reaches
+        each of Ml, Ms, Mr (docs/choices.md, rule R3), so that eq. 6.11's input lies in [0, 1]."""
+        am = self.c20(ppcc)
+        return am / am.sum(-1, keepdim=True).clamp_min(1e-12)
 
     def overlap(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
         """PFCtm (PFCfm) summed: the target units covered by ``image`` read as a population code of
@@ -410,7 +434,7 @@ class RotationEmbodied(nn.Module):
                 jc = self.posture_winner(score[sel], None if draws_win is None else draws_win[qc])
                 ppcp = self.ppcp_code(jc, prop, torch.stack(draws_noise).reshape(Q, nu)[qc] if noisy else None)
                 ppcc = gain_field(ppct[qc], ppcp)  # rows PPCt, columns PPCp
-                am = self.c20(ppcc.reshape(-1, nu * nu))
+                am = self.pmcm_input(ppcc.reshape(-1, nu * nu))
                 move[sel] = softmax_select(am, p.selection.tau, uniforms=draws_sel[qc])
                 if rec:
                     self._note_ppc(histories[c], rec, qc, ppcp, ppcc)

@@ -28,17 +28,18 @@ class EmbodiedLcaParams(LcaParams):
     ``input_gain``: evidence = gain * |PFCxm| / |PFCt| (C13/C14 weights of 1.0 over the overlap, per
     target unit)."""
 
-    # the rule that sets the gain when input_gain is null: 'identical' (default; contract X4.9) = the
-    # smallest gain with which the mean evidence (target and flipped overlap) of identical 0-deg pairs of the
-    # training set decides YES within one step, per participant, fixed after training | 'full' = the smallest
+    # the rule that sets the gain when input_gain is null: 'each_identical' (default; rule R1 of docs/choices.md) =
+    # the smallest gain with which at least 90 % of the identical 0-deg pairs of the training set (each image
+    # against itself) decide (for the unit their evidence favours) within one step, per participant, fixed after
+    # training | 'identical' (the former R1) = the smallest gain with which their mean evidence (target and
+    # flipped overlap) decides YES within one step | 'full' = the smallest
     # gain with which a full overlap (1, with no flipped overlap) does (nn.decision.full_match_gain: 1.495
     # with k 0.5, dt 0.1, 10 cycles)
-    gain_rule: str = bounded("identical", choices=("identical", "full"))
-    # the rule that sets the leak k of PMCd: 'misaligned' (default; docs/contracts.md, X4.12) = per participant,
-    # after training, the smallest k on a grid of 0.05 from w to w + 2.5 that minimises, on the training set, the
-    # share of misaligned same-object pairs that decide held for selection.max_steps steps plus the share of pairs
-    # turned to alignment by the forward models that do not give the right answer (the gain by gain_rule at each k)
-    # | 'fixed' = k as given (0.5 = w, the balanced accumulator)
+    gain_rule: str = bounded("each_identical", choices=("each_identical", "identical", "full"))
+    # the rule that sets the leak k of PMCd: 'misaligned' (default; rule R2 of docs/choices.md) = per participant,
+    # after training, the smallest k on a grid of 0.05 from w to w + 2.5 with which at most 10 % of the misaligned
+    # same-object pairs of the training set (object and angle only, no appearance or answer label) decide when
+    # held for selection.max_steps steps (the gain by gain_rule at each k) | 'fixed' = k as given (0.5 = w)
     leak_rule: str = bounded("misaligned", choices=("misaligned", "fixed"))
 
 

@@ -65,7 +65,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
             ppcp = model.ppcp_code(j, proprioception, None if u_noise is None else u_noise[b:b + 1])
             ppct = model.ppc.encode(ppct_unit[pi, b:b + 1].float())
             ppcc = gain_field(ppct, ppcp)  # PPCc (eq. 6.9): rows PPCt, columns PPCp
-            am = model.c20(ppcc.reshape(1, nu * nu))  # PMCm input (eq. 6.10)
+            am = model.pmcm_input(ppcc.reshape(1, nu * nu))  # PMCm input (eq. 6.10, rule R3)
             move = int(softmax_select(am, p.selection.tau, uniforms=u_sel[b:b + 1])[0])  # eq. 6.11
             pocp = predict(move, pi, poci)
             d = decide(pi, b, pocp, y)

@@ -26,8 +26,8 @@ import torch
 from torch import nn
 
 from ..nn import AllToAll, Delta, SOM, population_cover
-from ..nn.functional import gain_field, softmax_select
-from ..nn.binary import binary_matmul
+from ..nn.functional import gain_field, softmax_probabilities, softmax_select
+from ..nn.binary import binary_matmul, sparse_matmul
 from ..bounds import Rule, bounded, check_declared
 from .params import ForwardModelParams, PostureMapParams, SelectionParams
 from .recording import sample_indices
@@ -40,7 +40,10 @@ MOVES = ("n1", "n2", "n3")
 class GeneralisingForwardModel(ForwardModelParams):
     """C6 (``experiment.fm``) and the threshold of its output."""
 
-    threshold: float = bounded(0.5, gt=0)  # a PP_2 unit is on when its C6 input exceeds this (not given)
+    # what PP_2 holds (docs/choices.md, rule R6): 'graded' (default) = C6's output, the delta rule's actual output
+    # (eq. 6.4, linear: no threshold, no clipping), fed back to PP_1 as it is | 'binary' = that output > threshold
+    pp2: str = bounded("graded", choices=("graded", "binary"))
+    threshold: float = bounded(0.5, gt=0)  # with pp2=binary: a PP_2 unit is on when its C6 input exceeds this (not given)
 
 
 @dataclass
@@ -201,6 +204,18 @@ class RotationGeneralising(nn.Module):
             sigma = self.p.m1_sigma
         return torch.exp(-(d2 - d2.min(-1, keepdim=True).values) / (2 * sigma ** 2))
 
+    def m1(self, pmc1: torch.Tensor, pp2: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """SS (C2 on PP_2, eq. 6.5), M1_1 (eq. 6.1) and M1_2 (eq. 6.2) for PMC_1 ``(P, B, nu)``."""
+        P, B, nu = pmc1.shape
+        ss = self.posture(self.c2, pp2)
+        m11 = gain_field(pmc1, ss).reshape(P, B, nu * nu)
+        return ss, m11, self.m1_2(m11)
+
+    def move_probabilities(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
+        """P(n1, n2, n3) ``(P, B, 3)`` of a step with PFC_1 = ``target`` and PP_2 = ``image`` (eq. 6.6,
+        6.5, 6.1-6.3), the model's own read-out."""
+        return softmax_probabilities(self.m1(self.posture(self.c3, target), image)[2], self.p.selection.tau)
+
     def m1_centre(self, m11: torch.Tensor) -> torch.Tensor:
         """Activity-weighted mean of (column - row) of M1_1 patterns ``(..., nu*nu)``: how far, in
         posture units, the posture of the current image (SS, columns) lies past the desired one
@@ -220,7 +235,8 @@ class RotationGeneralising(nn.Module):
         return (pfc1 - population_cover(pp2, self.size, self.p.match_tolerance)).clamp_min(0.0)
 
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
-        """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; output > threshold."""
+        """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; PP_2 = the linear
+        output (``fm.pp2=graded``, rule R6) or the output > ``fm.threshold`` (``binary``)."""
         if self._table is None:
             self.freeze()
         P, B, n = x.shape
@@ -229,12 +245,15 @@ class RotationGeneralising(nn.Module):
         for m in range(3):
             s = ((move == m) & sel).unsqueeze(-1)
             full[..., m * n:(m + 1) * n] = x * s
-        pred = binary_matmul(self._table, full)
-        return torch.where(sel.unsqueeze(-1), (pred > self.p.fm.threshold).float(), x)
+        if self.p.fm.pp2 == "binary":
+            out = (binary_matmul(self._table, full) > self.p.fm.threshold).float()
+        else:
+            out = sparse_matmul(self._table, full)
+        return torch.where(sel.unsqueeze(-1), out, x)
 
     @torch.no_grad()
     def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record=0, **_) -> dict:
-        """Run a batch of trials (binary edge maps ``(P, B, n)``); see the module docstring.
+        """Run a batch of trials (binary edge maps ``(P, B, n)``; PP_2 graded after a step, rule R6); see the module docstring.
         ``record``: the trials of participant 0 whose maps are returned per step (a number of
         leading trials or a sequence of trial indices)."""
         p = self.p
@@ -253,9 +272,7 @@ class RotationGeneralising(nn.Module):
             act = ~done
             if not bool(act.any()):
                 break
-            ss = self.posture(self.c2, pp2)
-            m11 = gain_field(pmc1, ss).reshape(P, B, nu * nu)  # eq. 6.1
-            m12 = self.m1_2(m11)  # eq. 6.2
+            ss, m11, m12 = self.m1(pmc1, pp2)  # eq. 6.5, 6.1, 6.2
             move = softmax_select(m12, p.selection.tau, generators)  # eq. 6.3
             stop = act & ((move == 1) | (rotations >= p.selection.max_steps))
             go = act & ~stop

@@ -50,7 +50,8 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators) ->
                     continue
                 pp1 = torch.zeros(3 * n)
                 pp1[move * n:(move + 1) * n] = x  # the image in the PP_1 map of the move
-                pp2[pi][b] = ((w6[pi] @ pp1) > p.fm.threshold).float()  # C6, thresholded (PP_2)
+                a = w6[pi] @ pp1  # C6 (PP_2): graded (rule R6) or thresholded
+                pp2[pi][b] = a if p.fm.pp2 == "graded" else (a > p.fm.threshold).float()
                 out["rotation_deg"][pi, b] += model.step_angles[move]
                 out["rotation_steps"][pi, b] += 1
     for pi in range(P):

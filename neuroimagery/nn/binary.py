@@ -26,6 +26,25 @@ def binary_matmul(weight_t: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     return out.reshape(P, B, O)
 
 
+
+def sparse_matmul(weight_t: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """``W x`` for graded, mostly-zero ``x`` ``(P, B, in)``, given ``weight_t = W.transpose(1, 2)``
+    ``(P, in, out)``: the weight rows of the non-zero input units summed, each weighted by its
+    activity (``embedding_bag`` with per-sample weights); :func:`binary_matmul` for 0/1 inputs."""
+    P, I, O = weight_t.shape
+    Pb, B, Ix = x.shape
+    if Ix != I or Pb != P:
+        raise ValueError(f"sparse_matmul: x {tuple(x.shape)} does not fit weights {tuple(weight_t.shape)}")
+    nz = (x != 0).nonzero(as_tuple=False)  # sorted by (p, b, i)
+    counts = torch.bincount(nz[:, 0] * B + nz[:, 1], minlength=P * B)
+    offsets = torch.zeros(P * B, dtype=torch.long)
+    offsets[1:] = counts.cumsum(0)[:-1]
+    flat_idx = nz[:, 0] * I + nz[:, 2]
+    vals = x[nz[:, 0], nz[:, 1], nz[:, 2]].to(weight_t.dtype)
+    out = torch.nn.functional.embedding_bag(flat_idx, weight_t.reshape(P * I, O), offsets, mode="sum",
+                                            per_sample_weights=vals)
+    return out.reshape(P, B, O)
+
 def binary_matmul_rows(table: torch.Tensor, group: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     """``W_g x`` for a flat batch of binary rows ``x`` ``(N, in)``, each with its own weight matrix.
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from typing import Optional, Sequence
 
+import cv2
 import numpy as np
 import torch
 
@@ -74,16 +75,25 @@ class Eye:
         return [stimulus_set.pair_image(pr) for pr in pairs]
 
     def edge_maps(self, stimulus_set: StimulusSet, items: Sequence[Item],
-                  size: Optional[int] = None) -> torch.Tensor:
-        """Edge maps ``(N, size, size)`` of single objects, each shown in the target's place."""
+                  size: Optional[int] = None, gaze_errors: Optional[np.ndarray] = None) -> torch.Tensor:
+        """Edge maps ``(N, size, size)`` of single objects, each shown in the target's place.
+
+        ``gaze_errors``: optional ``(N, 2)`` errors of the look at each item, (pan, tilt) in degrees:
+        the view moves by the screen distance they span (direct path: ``CANVAS`` pixels per
+        ``object_width``), sampled at that offset (bilinear), not rounded to whole pixels: the eye's
+        pixels do not line up with the screen's (docs/choices.md, rule R4)."""
         size = self.cfg.size if size is None else size
         (h, w), xt, _ = stimulus_set.pair_layout()
+        x0 = int(round(xt + 0.5 - CANVAS / 2.0))
         screens = []
-        for obj, angle, app in items:
+        for k, (obj, angle, app) in enumerate(items):
             screen = np.empty((h, w, 3), np.uint8)
             screen[:] = BACKGROUND_BGR
-            x0 = int(round(xt + 0.5 - CANVAS / 2.0))
-            screen[:, x0:x0 + CANVAS] = stimulus_set.image(obj, angle, app)
+            image = stimulus_set.image(obj, angle, app)
+            if gaze_errors is not None:  # the eye looks off by (pan, tilt): the object moves the other way
+                dx, dy = np.tan(np.radians(gaze_errors[k])) * self.cfg.screen_distance / self.cfg.object_width * CANVAS
+                image = _shifted(image, -float(dx), -float(dy))
+            screen[:, x0:x0 + CANVAS] = image
             screens.append(screen)
         views, window = self._views(stimulus_set, screens, [xt] * len(screens))
         return edge_pipeline(views, size, window, self.cfg.red_threshold)
@@ -111,6 +121,13 @@ class Eye:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _shifted(image: np.ndarray, dx: float, dy: float) -> np.ndarray:
+    """``image`` moved by ``(dx, dy)`` pixels, sampled bilinearly, the uncovered border background."""
+    m = np.float32([[1, 0, dx], [0, 1, dy]])
+    return cv2.warpAffine(image, m, (image.shape[1], image.shape[0]), flags=cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=tuple(int(b) for b in BACKGROUND_BGR))
 
 
 class DirectEye(Eye):
@@ -144,26 +161,29 @@ class CameraEye(Eye):
             self._layout = layout
         return self._scene
 
-    def _look(self, scene, x: float, gaze: dict) -> np.ndarray:
-        """Render the eye's image when gazing at slot ``x`` (hard-wired posture + motor error)."""
+    def _look(self, scene, x: float, gaze: dict, error=None) -> np.ndarray:
+        """Render the eye's image when gazing at slot ``x`` (hard-wired posture + motor error;
+        ``error``: a given (pan, tilt) error in degrees)."""
         if x not in gaze:
             gaze[x] = scene.gaze_angles(scene.screen_point(x))
         tilt, pan = gaze[x]
+        if error is not None:
+            pan, tilt = pan + np.radians(float(error[0])), tilt + np.radians(float(error[1]))
         jitter = np.radians(self.cfg.gaze_jitter_deg)
         if jitter > 0:
             tilt += jitter * self.rng.standard_normal()
             pan += jitter * self.rng.standard_normal()
         return scene.render(tilt, pan)
 
-    def edge_maps(self, stimulus_set, items, size=None):
+    def edge_maps(self, stimulus_set, items, size=None, gaze_errors=None):
         size = self.cfg.size if size is None else size
         scene = self.scene(stimulus_set)
         _, xt, _ = stimulus_set.pair_layout()
         gaze: dict = {}
         views = []
-        for item in items:
+        for k, item in enumerate(items):
             scene.show(stimulus_set, {xt: tuple(item)})
-            views.append(self._look(scene, xt, gaze))
+            views.append(self._look(scene, xt, gaze, None if gaze_errors is None else gaze_errors[k]))
         window = scene.window_px(scene.screen_point(xt))
         return edge_pipeline(self.photometric(np.stack(views)), size, window, self.cfg.red_threshold)
 

@@ -9,9 +9,8 @@ A :class:`Shape` holds a high-resolution binary mask.  It is drawn by one affine
 rotates it counter-clockwise about its centroid and scales it so that its farthest point from
 the centroid lies at ``radius_fraction`` of the canvas side (``RADIUS_FRACTION`` unless a set
 says otherwise): every shape fits its canvas (and the 32x32 map) at every angle.  The sets of
-Experiments 3 and 4 use ``CH6_RADIUS_FRACTION``, the largest scale at which every rotation of
-their edge maps stays on the units that the forward models' three-dot training images activate
-(docs/contracts.md, "Stimulus scale of Experiments 3 and 4").
+Experiments 3 and 4 use ``CH6_RADIUS_FRACTION``, by rule R5 of docs/choices.md the scale the other
+sets follow (0.375 before, a scale fixed after its effect had been seen).
 """
 from __future__ import annotations
 
@@ -31,9 +30,8 @@ __all__ = [
 
 CANVAS = 128  # default side in pixels of a one-object image
 RADIUS_FRACTION = 0.40  # farthest shape point from its centroid, as a fraction of the side
-# Exp. 3-4 sets: the largest scale (steps of 0.005) whose edge maps, at every angle (1 deg steps),
-# activate only units that the three-dot training images (23x23 square of dot centres) activate
-CH6_RADIUS_FRACTION = 0.375
+# Exp. 3-4 sets: the rule the other sets follow (docs/choices.md, R5)
+CH6_RADIUS_FRACTION = RADIUS_FRACTION
 RED_BGR = (40, 40, 210)  # shape colour (BGR)
 BACKGROUND_BGR = (225, 225, 225)  # light grey background (BGR)
 CELL = 48  # pixels per polyomino cell in the stored mask

@@ -42,9 +42,18 @@ class Trained:
         self._banks = {}
 
     def bank(self, name: str) -> pc.StimulusBank:
+        """The training set as the model was trained on it (its training looks); any other set as drawn."""
         if name not in self._banks:
-            self._banks[name] = pc.StimulusBank.build(self.eye, pc.stimulus_set(self.cfg, name, False), self.e.map_size)
+            self._banks[name] = (pc.training_bank(self.cfg, self.eye) if name == self.e.train_set else
+                                 pc.StimulusBank.build(self.eye, pc.stimulus_set(self.cfg, name, False), self.e.map_size))
         return self._banks[name]
+
+    def looks(self, name: str):
+        """``(L, N, n)`` looks at the items of ``name`` as the first test builds them (rule R4)."""
+        key = ("looks", name)
+        if key not in self._banks:
+            self._banks[key] = pc.test_bank(self.cfg, self.eye, pc.stimulus_set(self.cfg, name, False), 0).looks
+        return self._banks[key]
 
 
 @pytest.fixture(scope="session")

@@ -3,23 +3,39 @@ from __future__ import annotations
 
 import torch
 
-from neuroimagery.nn import SOM
 from neuroimagery.vision.edges import iou, rotate
 
-
-def rule_rate(eta: float = 0.1, active: int = 75, n_in: int = 1024, seed: int = 0) -> float:
-    """X3.1 / X4.1: one supervised step of a sum-1 map on a binary image of ``active`` units;
-    ``|w' - w|_1 / |x' - w|_1`` with ``x'`` the image scaled to sum 1."""
-    g = torch.Generator().manual_seed(seed)
-    som = SOM((4,), n_in, seed=seed, init=(0.0, 0.01), eta=eta, eta_final=eta, sigma=1e-3, sigma_final=1e-3,
-              iterations=10, supervised=True)
-    som.weight.div_(som.weight.sum(-1, keepdim=True))
-    x = torch.zeros(1, n_in)
-    x[0, torch.randperm(n_in, generator=g)[:active]] = 1.0
-    w0 = som.weight[0, 1].clone()
-    som.step(x, torch.tensor([1]))
-    xs = x[0] / x[0].sum()
-    return float((som.weight[0, 1] - w0).abs().sum() / (xs - w0).abs().sum())
+# Where in the plain text of the thesis each Exp 3-4 contract's quoted sentence stands (line numbers of
+# the text the project was built from; docs/contracts.md quotes the sentence with its section, which any
+# copy of the thesis has).
+THESIS_LINES = {
+    "X3.1": ('1027-1030', '1033'),
+    "X3.2": ('1025',),
+    "X3.3": ('1017',),
+    "X3.4": ('984',),
+    "X3.5": ('964',),
+    "X3.6": ('1063-1065',),
+    "X3.7": ('1067', '1015'),
+    "X3.8": ('984',),
+    "X3.9": ('1067',),
+    "X3.10": ('1067', '1015'),
+    "X3.11": ('1061',),
+    "X3.12": ('1065',),
+    "X3.13": ('913-915',),
+    "X4.1": ('1226-1230', '1232'),
+    "X4.2": ('1225', '1232-1234'),
+    "X4.3": ('1234',),
+    "X4.4": ('1176',),
+    "X4.5": ('1166',),
+    "X4.6": ('1214', '1252'),
+    "X4.7": ('1187',),
+    "X4.8": ('1121', '1147'),
+    "X4.10": ('1199',),
+    "X4.11": ('1265', '1269'),
+    "X4.12": ('1199', '1291'),
+    "X4.13": ('1176-1181', '1291'),
+    "X4.14": ('913-915', '1160'),
+}
 
 
 def forward_fn(trained, move: int):
@@ -31,10 +47,6 @@ def forward_fn(trained, move: int):
         x = x.expand(P, -1, -1) if x.shape[0] == 1 else x
         return m.forward_step(x, torch.full(x.shape[:2], move, dtype=torch.long))
     return fn
-
-
-def banks_maps(bank) -> torch.Tensor:
-    return bank.maps
 
 
 def item_rows(bank, appearance=None):
@@ -56,3 +68,56 @@ def forward_model_shape(step_fn, maps: torch.Tensor, step_deg: float, size: int,
         if k == 1:
             out["ratio"] = float(img.sum((-2, -1)).mean() / truth[1].sum((-2, -1)).mean())
     return out
+
+
+def model_rule_rate(som, maps: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
+    """X3.1 / X4.1: one step of the configured map's own rule (a copy of ``som``, trained), on the
+    first training image with its posture as the winner: ``|w' - w|_1 / |x' - w|_1`` of the winner's
+    prototype per participant, ``x'`` the image as the rule sees it (scaled to sum 1 by default)."""
+    import copy
+
+    s = copy.deepcopy(som).train()
+    P = s.weight.shape[0]
+    x, win = maps[:1].expand(P, -1).contiguous(), labels[:1].expand(P).contiguous()
+    w0 = s.weight[:, int(win[0])].clone()
+    s.step(x, win)
+    xs = s.rule.scale_input(x)
+    return (s.weight[:, int(win[0])] - w0).abs().sum(-1) / (xs - w0).abs().sum(-1)
+
+
+def _blur(x: torch.Tensor, sigma: float, size: int) -> torch.Tensor:
+    """Gaussian blur of maps ``(..., size*size)`` (zero outside the map)."""
+    r = int(3 * sigma + 0.5)
+    k = torch.exp(-torch.arange(-r, r + 1, dtype=torch.float32) ** 2 / (2 * sigma ** 2))
+    k = k / k.sum()
+    shp = x.shape
+    img = x.reshape(-1, 1, size, size).float()
+    img = torch.nn.functional.conv2d(img, k.view(1, 1, 1, -1), padding=(0, r))
+    img = torch.nn.functional.conv2d(img, k.view(1, 1, -1, 1), padding=(r, 0))
+    return img.reshape(shp)
+
+
+def shape_and_detail(step_fn, maps: torch.Tensor, step_deg: float, size: int, steps: int = 3) -> dict:
+    """X3.9 / X3.10: after k = 1..steps imagined steps, the cosine similarity of the imagined map and the
+    true rotation both blurred by a Gaussian of 2 units (shape), and the imagined map's fine-scale share
+    of energy ``|x - G1 x|^2 / |x|^2`` divided by the true rotation's (detail); means over images and
+    participants."""
+    x = maps.reshape(-1, size, size)
+    cur = maps.unsqueeze(0)
+    out = {}
+    def detail(m):
+        m = m.float()
+        return ((m - _blur(m, 1.0, size)) ** 2).sum(-1) / (m ** 2).sum(-1).clamp_min(1e-12)
+    for k in range(1, steps + 1):
+        cur = step_fn(cur)
+        truth = rotate(x, k * step_deg).reshape(1, -1, size * size).float()
+        a, b = _blur(cur.float(), 2.0, size), _blur(truth, 2.0, size)
+        cos = (a * b).sum(-1) / (a.norm(dim=-1) * b.norm(dim=-1)).clamp_min(1e-12)
+        out[k] = {"shape": float(cos.mean()), "detail": float(detail(cur).mean() / detail(truth).mean())}
+    return out
+
+
+def entropy_bits(p: torch.Tensor) -> torch.Tensor:
+    """Entropy in bits of non-negative codes ``(..., units)`` scaled to sum 1."""
+    q = p / p.sum(-1, keepdim=True).clamp_min(1e-12)
+    return -(q * torch.log2(q.clamp_min(1e-12))).sum(-1)

@@ -1,7 +1,9 @@
-"""Experiment 3 contracts X3.1-X3.6 (docs/contracts.md): the supervised Kohonen step, the posture
-maps C2/C3, and the choice of the move by M1_1 -> M1_2."""
+"""Experiment 3 contracts X3.1-X3.6 and X3.11 (docs/contracts.md): the supervised Kohonen step, the
+posture maps C2/C3, the choice of the move by M1_1 -> M1_2, and the less certain codes of unseen
+objects."""
+import pytest
 import torch
-from support_ch6 import item_rows, rule_rate
+from support_ch6 import entropy_bits, item_rows, model_rule_rate
 
 from neuroimagery.nn.functional import gain_field, softmax_probabilities
 
@@ -13,19 +15,18 @@ def _codes(t, maps):
 
 
 def _move_probs(t, target, rotated):
-    """P(n1, n2, n3) of the first step, ``(P, B, 3)``."""
-    m, P = t.model, t.model.participants
-    pmc1 = m.posture(m.c3, target.unsqueeze(0).expand(P, -1, -1))
-    ss = m.posture(m.c2, rotated.unsqueeze(0).expand(P, -1, -1))
-    nu = ss.shape[-1]
-    m11 = gain_field(pmc1, ss).reshape(P, -1, nu * nu)
-    return softmax_probabilities(m.m1_2(m11), t.e.selection.tau)
+    """P(n1, n2, n3) of a step, the model's own read-out, ``(P, B, 3)``."""
+    P = t.model.participants
+    return t.model.move_probabilities(target.unsqueeze(0).expand(P, -1, -1), rotated.unsqueeze(0).expand(P, -1, -1))
 
 
-def test_x3_1_supervised_step_moves_at_the_stated_rate():
-    r = rule_rate(0.1)
-    print(f"X3.1 relative change per step {r:.3f} (eta 0.1)")
-    assert 0.05 <= r <= 0.2
+def test_x3_1_supervised_step_moves_at_the_stated_rate(trained3):
+    bank = trained3.bank(trained3.e.train_set)
+    labels = bank.angle_labels(trained3.e.posture.angles)
+    for som in (trained3.model.c2, trained3.model.c3):
+        r = model_rule_rate(som, bank.maps, labels)
+        print(f"X3.1 {som.name} relative change per step {[round(float(v), 4) for v in r]} (eta {trained3.e.posture.eta})")
+        assert bool(((r >= 0.05) & (r <= 0.2)).all())
 
 
 def test_x3_2_x3_3_posture_maps_read_the_trained_posture(trained3):
@@ -41,9 +42,16 @@ def test_x3_2_x3_3_posture_maps_read_the_trained_posture(trained3):
 
 
 def test_x3_4_coinciding_codes_stop_the_rotation(trained3):
-    maps = trained3.bank(trained3.e.train_set).maps
-    p_n2 = _move_probs(trained3, maps, maps)[..., 1].mean()
-    print(f"X3.4 P(n2) on identical pairs {float(p_n2):.3f}")
+    """Target: the training look; rotated object: a fresh look at the same item (X3.13); pairs whose
+    SS and PMC_1 codes have the same strongest unit."""
+    m, train = trained3.model, trained3.bank(trained3.e.train_set)
+    fresh = trained3.looks(trained3.e.train_set)[1]
+    P = m.participants
+    pmc1 = m.posture(m.c3, train.maps.unsqueeze(0).expand(P, -1, -1))
+    ss = m.posture(m.c2, fresh.unsqueeze(0).expand(P, -1, -1))
+    coincide = pmc1.argmax(-1) == ss.argmax(-1)
+    p_n2 = _move_probs(trained3, train.maps, fresh)[..., 1][coincide].mean()
+    print(f"X3.4 P(n2) where SS and PMC_1 coincide {float(p_n2):.3f} ({int(coincide.sum())} of {coincide.numel()} pairs)")
     assert p_n2 >= 0.8
 
 
@@ -71,3 +79,22 @@ def test_x3_6_flat_codes_select_no_rotation(trained3):
         pr = softmax_probabilities(m.m1_2(gain_field(flat, flat).reshape(1, 1, nu * nu)), trained3.e.selection.tau)[0, 0]
         print(f"X3.6 level {level}: P(n1, n2, n3) = {[round(float(v), 3) for v in pr]}")
         assert int(pr.argmax()) == 1 and pr[1] >= 0.5
+
+
+@pytest.mark.xfail(strict=True, reason="X3.11 part not met: SS and PMC_1 codes are less certain on set b than a "
+                   "and on c than b, but M1_2's move entropy on set b's same pairs is not above set a's "
+                   "(0.481-0.492 against 0.505 bits, seeds 0-4)")
+def test_x3_11_unseen_objects_give_less_certain_codes(trained3):
+    e = trained3.e
+    ent = {}
+    for name in (e.train_set, e.gen1_set, e.gen2_set):
+        bank = trained3.bank(name)
+        ss, pmc1 = _codes(trained3, bank.maps)
+        rows = item_rows(bank)
+        tg, rt = zip(*[(i, j) for i, o, a, ap in rows for j, o2, b, ap2 in rows if o2 == o and ap2 == ap])
+        move = _move_probs(trained3, bank.maps[list(tg)], bank.maps[list(rt)])
+        ent[name] = [float(entropy_bits(v).mean()) for v in (ss, pmc1, move)]
+    print("X3.11 entropy (bits) SS / PMC_1 / M1_2: " + "; ".join(f"{k} {[round(v, 3) for v in x]}" for k, x in ent.items()))
+    a, b, c = ent[e.train_set], ent[e.gen1_set], ent[e.gen2_set]
+    assert a[0] < b[0] < c[0] and a[1] < b[1] < c[1]
+    assert a[2] < b[2]

@@ -1,16 +1,21 @@
-"""Experiment 4 contracts X4.1-X4.5 and X4.11 (docs/contracts.md): the supervised Kohonen step,
-the posture maps C16/C17, the gain field and PMCm, and the wrist signal in PPCp."""
+"""Experiment 4 contracts X4.1-X4.5, X4.11, X4.13 and X4.14 (docs/contracts.md): the supervised
+Kohonen step, the posture maps C16/C17, the gain field and PMCm, the wrist signal in PPCp, the
+stochastic draw of the move and the percept that varies between looks."""
+import pytest
 import torch
-from support_ch6 import item_rows, rule_rate
+from support_ch6 import item_rows, model_rule_rate
 
 from neuroimagery.experiments import exp4
-from neuroimagery.nn.functional import gain_field, softmax_probabilities
+from neuroimagery.nn.functional import gain_field, softmax_probabilities, softmax_select
 
 
-def test_x4_1_supervised_step_moves_at_the_stated_rate():
-    r = rule_rate(0.1, active=60, seed=1)
-    print(f"X4.1 relative change per step {r:.3f} (eta 0.1)")
-    assert 0.05 <= r <= 0.2
+def test_x4_1_supervised_step_moves_at_the_stated_rate(trained4):
+    bank = trained4.bank(trained4.e.train_set)
+    labels = bank.angle_labels(trained4.e.ppc.angles)
+    for som in (trained4.model.c16, trained4.model.c17):
+        r = model_rule_rate(som, bank.maps, labels)
+        print(f"X4.1 {som.name} relative change per step {[round(float(v), 4) for v in r]} (eta {trained4.e.posture.eta})")
+        assert bool(((r >= 0.05) & (r <= 0.2)).all())
 
 
 def test_x4_2_posture_maps_read_the_trained_posture(trained4):
@@ -42,7 +47,7 @@ def test_x4_3_hard_shapes_give_flatter_potentials(trained4):
 def _probs(m, tau, ppct_unit, ppcp_unit):
     nu = len(m.p.ppc.angles)
     pt, pp = m.ppc.encode(ppct_unit.float()), m.ppc.encode(ppcp_unit.float())
-    return softmax_probabilities(m.c20(gain_field(pt, pp).reshape(-1, nu * nu)), tau)
+    return softmax_probabilities(m.pmcm_input(gain_field(pt, pp).reshape(-1, nu * nu)), tau)
 
 
 def test_x4_4_gain_field_stays_at_a_match_and_turns_toward_the_target(trained4):
@@ -55,8 +60,10 @@ def test_x4_4_gain_field_stays_at_a_match_and_turns_toward_the_target(trained4):
     pr = _probs(m, tau, t[off], c[off])
     # PPC units increase with angle; target above the current posture -> turn counter-clockwise (Ml)
     toward = torch.where(t[off] > c[off], pr[:, 0], pr[:, 2])
-    print(f"X4.4 P(Ms) at a match min {float(p_same.min()):.3f}; P(toward) min {float(toward.min()):.3f}")
-    assert (p_same >= 0.9).all() and (toward >= 0.9).all()
+    print(f"X4.4 P(Ms) at a match min {float(p_same.min()):.4f}; P(toward) min {float(toward.min()):.4f}")
+    same = _probs(m, tau, units, units)
+    assert bool((same.argmax(-1) == 1).all())
+    assert bool((torch.where(t[off] > c[off], pr[:, 0], pr[:, 2]) >= pr.max(-1).values).all())
 
 
 def test_x4_5_first_move_turns_toward_the_target(trained4):
@@ -90,3 +97,33 @@ def test_x4_11_wrist_signal_in_ppcp(trained4):
     for prop in ("none", "match", "mismatch"):
         noisy = m.ppcp_code(j.repeat(100), prop, torch.rand(100 * nu, nu, generator=g))
         assert noisy.min() >= 0.0 and noisy.max() <= 1.0
+
+
+@pytest.mark.xfail(strict=True, reason="X4.13 (b) not met at the end units: P(a move other than Ms) at a match is "
+                   "0.0021 at units 0 and 5 (0.019 at the inner units), seeds 0-4; (a) holds (gap 0.0004)")
+def test_x4_13_the_move_is_a_stochastic_draw(trained4):
+    m, tau = trained4.model, trained4.e.selection.tau
+    nu = len(trained4.e.ppc.angles)
+    units = torch.arange(nu)
+    pt, pp = m.ppc.encode(units.float()), m.ppc.encode(units.roll(1).float())
+    am = m.pmcm_input(gain_field(pt, pp).reshape(-1, nu * nu))[:2]  # two fixed PMCm inputs
+    n = 20000
+    g = torch.Generator().manual_seed(0)
+    draws = softmax_select(am.repeat_interleave(n, 0), tau, uniforms=torch.rand(2 * n, generator=g)).reshape(2, n)
+    freq = torch.stack([(draws == k).float().mean(1) for k in range(3)], -1)
+    gap = float((freq - softmax_probabilities(am, tau)).abs().max())
+    p_other = 1 - _probs(m, tau, units, units)[:, 1]
+    print(f"X4.13 (a) largest gap between draw frequency and eq. 6.11 {gap:.4f}; (b) P(not Ms) at a match {p_other.tolist()}")
+    assert gap <= 0.01
+    assert bool((p_other >= 0.005).all())
+
+
+def test_x4_14_the_percept_varies_between_looks(trained4):
+    e, m = trained4.e, trained4.model
+    looks = trained4.looks(e.train_set)
+    differ = float((looks[0] != looks[1]).any(-1).float().mean())
+    labels = trained4.bank(e.train_set).angle_labels(e.ppc.angles)
+    x = looks[1].unsqueeze(0).expand(m.participants, -1, -1)
+    acc = [float((m.posture(som, x) == labels).float().mean()) for som in (m.c16, m.c17)]
+    print(f"X4.14 items whose two looks differ {differ:.3f}; C16 / C17 right on fresh looks {acc}")
+    assert differ >= 0.5 and min(acc) >= 0.95
