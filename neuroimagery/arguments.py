@@ -102,6 +102,11 @@ def run_tool(fn: Callable[[Sequence[str] | None], int | None], argv: Sequence[st
         print(f"error: {err}", file=sys.stderr)
         return 2
     except OSError as err:
-        where = f"{err.filename}: " if getattr(err, "filename", None) else ""
-        print(f"error: {where}{err.strerror or err}", file=sys.stderr)
+        print(f"error: {os_error_message(err)}", file=sys.stderr)
         return 2
+
+
+def os_error_message(err: OSError) -> str:
+    """An ``OSError`` in one line: the file, then why."""
+    where = f"{err.filename}: " if getattr(err, "filename", None) else ""
+    return f"{where}{err.strerror or err}"

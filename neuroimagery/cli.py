@@ -15,6 +15,7 @@ import threading
 from pathlib import Path
 
 from . import console
+from .arguments import os_error_message
 from .errors import UserInputError
 
 
@@ -26,11 +27,6 @@ def _fail(message: str, log: bool = True) -> None:
     else:
         print(f"error: {message}", file=sys.stderr)
     sys.exit(2)
-
-
-def os_error_message(err: OSError) -> str:
-    where = f"{err.filename}: " if getattr(err, "filename", None) else ""
-    return f"{where}{err.strerror or err}"
 
 
 # run directories that Hydra made for this process's jobs (absolute path -> made by this job)

@@ -23,26 +23,37 @@ PARENT_POLL_S = 0.5  # how often a worker looks whether its parent is still ther
 _WATCHED: list[int] = []  # the parent PID this process watches (once per process)
 
 
-def _watch(parent: int, period: float) -> None:
+def _exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process: it exists
+        pass
+    return True
+
+
+def _watch(parent: int, ppid: int, period: float) -> None:
     import time
 
     while True:
-        if os.getppid() != parent:  # re-parented: the parent is gone
+        if os.getppid() != ppid or not _exists(parent):  # re-parented, or the parent is gone
             os._exit(1)
         time.sleep(period)
 
 
 def watch_parent(parent: int | None = None, period: float = PARENT_POLL_S) -> None:
     """End this process within ``period`` seconds of the death of process ``parent`` (default: the
-    current parent), from a daemon thread that polls the parent's PID; at most one per process. A
-    parent already gone ends this process now."""
-    parent = os.getppid() if parent is None else parent
-    if _WATCHED:
+    current parent), or of its own parent (a fork server between them), from a daemon thread that
+    polls both PIDs; at most one per process. A parent already gone ends this process now."""
+    ppid = os.getppid()
+    parent = ppid if parent is None else parent
+    if _WATCHED or parent == os.getpid():  # watched already; or run in the parent itself (no worker)
         return
-    if os.getppid() != parent:
+    if not _exists(parent):
         os._exit(1)
     _WATCHED.append(parent)
-    threading.Thread(target=_watch, args=(parent, period), name="watch-parent", daemon=True).start()
+    threading.Thread(target=_watch, args=(parent, ppid, period), name="watch-parent", daemon=True).start()
 
 
 def guard() -> None:
