@@ -11,13 +11,15 @@ machine was idle: on shared cores the times depend on the other jobs.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from neuroimagery.arguments import ToolParser, check, count, run_tool
+from neuroimagery.config import EXPERIMENTS
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,11 +42,12 @@ def run_once(exp: str, overrides: list[str]) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("experiment")
+    ap = ToolParser(description=__doc__.split("\n")[0])
+    ap.add_argument("experiment", choices=EXPERIMENTS)
     ap.add_argument("overrides", nargs="*", help="more Hydra overrides, e.g. threads=1")
-    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--repeat", type=count, default=1)
     args = ap.parse_args(argv)
+    check("--repeat", args.repeat, ge=1, le=100)
     for i in range(args.repeat):
         r = run_once(args.experiment, args.overrides)
         parts = ", ".join(f"{k} {v:.1f} s" for k, v in r["split"].items())
@@ -55,4 +58,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_tool(main))

@@ -12,22 +12,26 @@ Peak memory: the process's peak resident set while the tasks ran (neuroimagery/m
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
+
+from neuroimagery.arguments import ToolParser, check, check_size, count, run_tool, seed
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--repetitions", type=int, default=1)
+    ap = ToolParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repetitions", type=count, default=1)
+    ap.add_argument("--allow-large", action="store_true", help="allow more than 100 repetitions")
     ap.add_argument("--situation", default="far", choices=["behind", "far"])
     ap.add_argument("--standin", action="store_true", help="use the tests' 2-D stand-in world (not the robot)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=seed, default=0)
     args = ap.parse_args(argv)
+    check("--repetitions", args.repetitions, ge=1)
+    check_size("--repetitions", args.repetitions, 100, args.allow_large)
 
     from neuroimagery import memory
     from neuroimagery.experiments import exp5, exp5_config
@@ -82,4 +86,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_tool(main))

@@ -8,12 +8,13 @@ against pydmps one rollout at a time (pydmps is imported lazily; `pip install py
 """
 from __future__ import annotations
 
-import argparse
 import json
 import time
 
 import numpy as np
 import torch
+
+from neuroimagery.arguments import ToolParser, run_tool
 
 
 def bench_world(reps: int = 3) -> dict:
@@ -105,11 +106,11 @@ def bench_fk() -> dict:
     return {"fk_configs_per_s": len(q) / (time.perf_counter() - t0)}
 
 
-def main() -> None:
-    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args()
+def main(argv=None) -> None:
+    ToolParser(description=__doc__.split("\n")[0]).parse_args(argv)
     res = {"fk": bench_fk(), "dmp": bench_dmp(), "world": bench_world()}
     print(json.dumps(res, indent=2), flush=True)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_tool(main))

@@ -9,13 +9,15 @@ Runs one thing at a time; the machine should be otherwise idle.
 """
 from __future__ import annotations
 
-import argparse
 import filecmp
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from neuroimagery.arguments import ToolParser, run_tool
+from neuroimagery.config import EXPERIMENTS
 
 ROOT = Path(__file__).resolve().parents[1]
 LOAD = ("import torch, time\ntorch.set_num_threads(2)\na = torch.rand(400, 400)\nt0 = time.time()\n"
@@ -30,11 +32,11 @@ def run(experiment: str, preset: str, threads: int, out: Path) -> float:
     return time.perf_counter() - t0
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--experiment", default="exp4")
+def main(argv=None) -> None:
+    ap = ToolParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--experiment", default="exp4", choices=EXPERIMENTS)
     ap.add_argument("--preset", default="quick", choices=("quick", "full"))
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     tmp = Path(tempfile.mkdtemp(prefix="bench_threads-"))
     rows = []
     for case in ("idle", "busy"):
@@ -56,4 +58,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_tool(main))

@@ -15,10 +15,12 @@ The routes are the world's (`routes_1`, `routes_2`), not what the robot knows.
 A second table, over HP1's tool-behind robots that failed: how many have no one-move route, and of
 the others how many began with touch and how many tried the pull at all.
 """
-import argparse
 from pathlib import Path
 
 import pandas as pd
+
+from neuroimagery.arguments import ToolParser, path, run_tool
+from neuroimagery.errors import UserInputError
 
 
 def read(runs):
@@ -57,12 +59,12 @@ def behind_failures(d):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("runs", nargs="+")
+    p = ToolParser(description=__doc__.splitlines()[0])
+    p.add_argument("runs", nargs="+", type=path)
     a = p.parse_args(argv)
     for r in a.runs:
         if not (Path(r) / "individuals.csv").is_file():
-            raise SystemExit(f"error: {r} has no individuals.csv (not an Exp 5 run directory)")
+            raise UserInputError(f"{r} has no individuals.csv (not an Exp 5 run directory)")
     pd.set_option("display.width", 200)
     d = read(a.runs)
     print(table(d).round(2).to_string(index=False))
@@ -71,4 +73,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_tool(main))

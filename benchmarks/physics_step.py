@@ -12,13 +12,13 @@ the largest value at which halving it changes the events of at most 1 % of the r
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
 import torch
 
-from neuroimagery.robot.babble import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
+from neuroimagery.arguments import ToolParser, check, check_size, count, run_tool
+from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.events import EVENTS
 from neuroimagery.robot.world import ToolWorld
@@ -51,11 +51,12 @@ def outcomes(travel: float | None, per_posture: int) -> tuple[np.ndarray, np.nda
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--rollouts-per-posture", type=int, default=400)
+    ap = ToolParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rollouts-per-posture", type=count, default=400)
+    ap.add_argument("--allow-large", action="store_true", help="allow more than 100000 rollouts per posture")
     args = ap.parse_args(argv)
-    if args.rollouts_per_posture < 1:
-        raise SystemExit(f"error: --rollouts-per-posture must be >= 1, got {args.rollouts_per_posture}")
+    check("--rollouts-per-posture", args.rollouts_per_posture, ge=1)
+    check_size("--rollouts-per-posture", args.rollouts_per_posture, 100_000, args.allow_large)
     runs = {v: outcomes(v, args.rollouts_per_posture) for v in (None, *LADDER)}
     print(f"events fired, in order {', '.join(EVENTS)}")
     print("| max_substep_travel | rollouts whose events change at half the value | median displacement change (cm) | events fired | off the table | blow-ups | rollout time (s) |")
@@ -82,4 +83,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_tool(main))

@@ -116,12 +116,13 @@ def verify_run(checkpoint: str | Path, names, manifest: dict) -> None:
     ck = Path(checkpoint)
     if not ck.is_dir():
         raise UserInputError(f"checkpoint: {ck} is not a directory")
-    legacy = None
+    legacy, stored = None, None
     if (ck / "manifest.json").is_file():
-        legacy = mf.require_complete(ck, read_json(ck / "manifest.json", "checkpoint: run manifest"),
-                                     "checkpoint", trained_enough=True)
+        stored, legacy = mf.usable_run(ck, "checkpoint", need="trained", files=None)
     for name in names:
         verify_checkpoint(ck, name, manifest)
+    if stored is not None and legacy is None:  # the checkpoints as the run wrote them (the hashes in manifest.json)
+        mf.verify_files(ck, stored, "checkpoint", only=("checkpoints/",))
     if legacy:
         console.note(legacy.replace("its files agree with its manifest", "its checkpoints match their stored hashes"))
 

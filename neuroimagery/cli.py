@@ -15,6 +15,7 @@ import threading
 from pathlib import Path
 
 from . import console
+from .arguments import os_error_message
 from .errors import UserInputError
 
 
@@ -26,11 +27,6 @@ def _fail(message: str, log: bool = True) -> None:
     else:
         print(f"error: {message}", file=sys.stderr)
     sys.exit(2)
-
-
-def os_error_message(err: OSError) -> str:
-    where = f"{err.filename}: " if getattr(err, "filename", None) else ""
-    return f"{where}{err.strerror or err}"
 
 
 # run directories that Hydra made for this process's jobs (absolute path -> made by this job)
@@ -90,6 +86,9 @@ def friendly_errors(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
+        from .workers import guard
+
+        guard()  # a job of Hydra's joblib launcher ends with the process that launched it
         main = threading.current_thread() is threading.main_thread()
         previous = signal.signal(signal.SIGTERM, _terminate_as_interrupt) if main else None
         try:
@@ -190,6 +189,42 @@ def plain_hydra_errors() -> None:
 
     hydra_utils.run_and_report = run_and_report
     _note_made_dirs()
+    _refuse_empty_and_deleted()
+
+
+def empty_or_deleted(override) -> str | None:
+    """The refusal of a Hydra override that empties a setting (``key=''``, what an unset shell
+    variable gives) or deletes it (``~key``), naming the key; None for any other override. Either
+    would otherwise pass silently: a deleted setting takes its schema default again, an empty path
+    reads as "not set"."""
+    key = override.key_or_group
+    if override.is_delete():
+        return (f"~{key}: a setting cannot be deleted (it would silently take its default): give it a value "
+                f"({key}=...) or leave it out")
+    value = override.value() if not override.is_sweep_override() else None
+    if isinstance(value, str) and not value.strip():
+        return f"{key}={value!r} is empty (an unset shell variable?): give it a value, or leave it out for its default"
+    return None
+
+
+def _refuse_empty_and_deleted() -> None:
+    """Refuse, as Hydra reads them (settings and groups, a single run or a sweep), the overrides
+    :func:`empty_or_deleted` names."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    original = OverridesParser.parse_overrides
+    original = getattr(original, "__wrapped__", original)
+
+    @functools.wraps(original)
+    def parse_overrides(self, overrides):
+        parsed = original(self, overrides)
+        for o in parsed:
+            why = empty_or_deleted(o)
+            if why:
+                raise UserInputError(why)
+        return parsed
+
+    OverridesParser.parse_overrides = parse_overrides
 
 
 def _note_made_dirs() -> None:

@@ -5,10 +5,16 @@ also passed to the ``neuroimagery`` logger (``logging.getLogger("neuroimagery")`
 that Hydra keeps in the run directory (``<run dir>/<job>.log``, see ``conf/hydra/job_logging``)
 holds the same lines with a time stamp. The printed line never carries a logging prefix: an
 ``error:`` line on stderr stays exactly one line.
+
+The job log's handler is a :class:`RunLogHandler`: it opens no file until the run has claimed its
+directory (:func:`claimed`, called by the run once the directory's lock is taken and the directory
+checked), keeping the lines until then; a run refused before that (the directory holds another
+run, another run holds its lock, the directory cannot be written) writes nothing into it.
 """
 from __future__ import annotations
 
 import logging
+import os
 import sys
 
 LOG = logging.getLogger("neuroimagery")
@@ -41,3 +47,41 @@ def interrupted(message: str) -> None:
     """A line on stderr after an interruption (Ctrl-C, SIGTERM)."""
     print(message, file=sys.stderr)
     LOG.warning(message)
+
+
+class RunLogHandler(logging.FileHandler):
+    """A job log that is written only once the run has claimed the directory the log lies in
+    (:func:`claimed`); the records before are kept and written then, or dropped if it never is."""
+
+    def __init__(self, filename, mode: str = "a", encoding: str | None = None, delay: bool = True, **kw) -> None:
+        super().__init__(filename, mode, encoding, delay=True, **kw)
+        self.pending: list[logging.LogRecord] | None = []
+        _HANDLERS.append(self)
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if self.pending is not None:
+            self.pending.append(record)
+        else:
+            super().emit(record)
+
+    def claim(self, root) -> None:
+        """The run owns ``root``: if this log lies there, write the kept records and go on writing."""
+        if self.pending is None or os.path.dirname(self.baseFilename) != os.path.abspath(root):
+            return
+        kept, self.pending = self.pending, None
+        for record in kept:
+            super().emit(record)
+
+    def close(self) -> None:
+        if self in _HANDLERS:
+            _HANDLERS.remove(self)
+        super().close()
+
+
+_HANDLERS: list[RunLogHandler] = []
+
+
+def claimed(root) -> None:
+    """The run has claimed directory ``root``: a job log kept for it starts writing there."""
+    for h in list(_HANDLERS):
+        h.claim(root)

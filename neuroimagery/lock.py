@@ -81,7 +81,25 @@ class RunLock:
         self.path = self.root / NAME
         self.held = False
 
+    def check(self) -> None:
+        """Refuse, writing nothing, a directory whose lock a live run holds (or a run on another
+        host); a lock left by a killed run passes (:meth:`acquire` takes it over)."""
+        holder = read(self.root)
+        if holder:
+            self._refuse_if_held(holder)
+
+    def _refuse_if_held(self, holder: dict) -> None:
+        alive = holder_alive(holder)
+        host, pid = holder.get("host", "?"), holder.get("pid", "?")
+        if alive:
+            raise UserInputError(f"{self.root} is being written by another run (host {host}, PID {pid}; lock "
+                                 f"{self.path}): wait for it to end, or choose another directory")
+        if alive is None:
+            raise UserInputError(f"{self.root} is locked by a run on host {host}, PID {pid} ({self.path}); if that "
+                                 "run is gone, remove the lock file, or choose another directory")
+
     def acquire(self) -> "RunLock":
+        self.check()
         mine = me()
         tmp = tmp_path(self.path)
         tmp.write_text(json.dumps(mine) + "\n")
@@ -116,14 +134,8 @@ class RunLock:
             console.note(f"{self.root}: its lock {self.path} is unreadable (left by a killed run?); taking it over")
             unlink_quietly(self.path)
             return
-        alive = holder_alive(holder)
-        host, pid = holder.get("host", "?"), holder.get("pid", "?")
-        if alive:
-            raise UserInputError(f"{self.root} is being written by another run (host {host}, PID {pid}; lock "
-                                 f"{self.path}): wait for it to end, or choose another directory")
-        if alive is None:
-            raise UserInputError(f"{self.root} is locked by a run on host {host}, PID {pid} ({self.path}); if that "
-                                 "run is gone, remove the lock file, or choose another directory")
+        self._refuse_if_held(holder)
+        pid = holder.get("pid", "?")
         console.note(f"{self.root}: its lock was held by PID {pid} on this host, which is gone (killed?); taking it over")
         unlink_quietly(self.path)
 

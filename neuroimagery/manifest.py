@@ -139,12 +139,13 @@ def _changed(root, files: Mapping[str, str], only: tuple[str, ...] | None = None
     return None
 
 
-def verify_files(root, manifest: Mapping[str, Any], use: str) -> None:
-    """Refuse a complete run whose files are not those it finished with (``files`` hashes)."""
+def verify_files(root, manifest: Mapping[str, Any], use: str, only: tuple[str, ...] | None = None) -> None:
+    """Refuse a run whose files (those under the path prefixes ``only``, or all) are not those it
+    finished with: each hash in ``manifest.json``'s ``files`` against the file itself."""
     from .errors import UserInputError
 
     files = manifest.get("files") if isinstance(manifest.get("files"), dict) else {}
-    bad = _changed(root, files)
+    bad = _changed(root, files, only)
     if bad:
         raise UserInputError(f"{use}: {bad}")
 
@@ -179,3 +180,45 @@ def require_complete(root, manifest: Mapping[str, Any], use: str, trained_enough
     else:
         why = f"in an unknown state {state!r}"
     raise UserInputError(f"{use}: {root} is not a complete run: {why}; its files may mix runs (run it again)")
+
+
+REQUIRED = ("experiment", "seed", "settings", "participants")  # what every manifest.json this package wrote holds
+
+
+def usable_run(root, use: str, experiment: str | None = None, need: str = "complete",
+               files: tuple[str, ...] | None = ()) -> tuple[dict, str | None]:
+    """The one judgement of whether a stored run may be used (``use``: by ``pool``, ``checkpoint``,
+    ``experiment.engine.reuse_libraries=...``, named in each refusal): its ``manifest.json`` is a
+    manifest this package wrote (:data:`REQUIRED` keys, ``settings`` a mapping), of ``experiment``
+    (if given), in the state ``need`` asks (``complete``; ``trained``: its training finished;
+    ``any``), and the files it lists under ``files`` (path prefixes; ``()``: all, None: none) are
+    those it finished with: the hash in ``manifest.json`` is checked against the file itself, so a
+    file or a hash edited by hand is refused (a caller that first reads the files for a more precise
+    message gives ``files=None`` and calls :func:`verify_files` after). Returns the manifest and a note for a run written
+    before runs recorded their state (else None); raises :class:`UserInputError` otherwise."""
+    import json
+    from pathlib import Path
+
+    from .errors import UserInputError
+
+    path = Path(root) / "manifest.json"
+    try:
+        manifest = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise UserInputError(f"{use}: {root}: no manifest.json (not a run directory; runs of version 0.1.0 have "
+                             "none)") from None
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        raise UserInputError(f"{use}: run manifest {path}: cannot be read ({getattr(err, 'strerror', None) or err})") from None
+    if not isinstance(manifest, dict):
+        raise UserInputError(f"{use}: {path}: not a JSON object")
+    if experiment is not None and "experiment" in manifest and manifest["experiment"] != experiment:
+        raise UserInputError(f"{use}: {root} is a run of {manifest['experiment']}, not of {experiment}")
+    for key in REQUIRED:
+        if key not in manifest:
+            raise UserInputError(f"{use}: {path}: no {key!r} (not a manifest this package wrote, or edited by hand)")
+    if not isinstance(manifest["settings"], dict):
+        raise UserInputError(f"{use}: {path}: 'settings' is not a mapping (not a manifest this package wrote)")
+    note = None if need == "any" else require_complete(root, manifest, use, trained_enough=need == "trained")
+    if note is None and files is not None:
+        verify_files(root, manifest, use, files or None)
+    return manifest, note

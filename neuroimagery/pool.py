@@ -23,7 +23,6 @@ seed). Experiment 5 does (rates, routes and claims on all robots, in ``individua
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import statistics
@@ -35,6 +34,7 @@ import pandas as pd
 
 from . import console, manifest as mf
 from .analysis.report import Report
+from .arguments import ToolParser, path
 from .analysis.summary import TRIAL_COLUMNS, summarise_test
 from .analysis.tables import read_whole_csv
 from .config import EXPERIMENTS, experiment_module
@@ -99,14 +99,10 @@ def _json(path: Path, what: str) -> dict:
 
 def read_run(d: Path) -> Run:
     """The manifest and summary of one run directory; refused unless the run is finished."""
-    manifest = _json(d / "manifest.json", f"not a run directory; {OLD}")
-    for key in ("experiment", "seed", "settings", "participants"):
-        if key not in manifest:
-            raise UserInputError(f"{d / 'manifest.json'}: no {key!r} (not a manifest this package wrote)")
-    if not isinstance(manifest["settings"], dict):
-        raise UserInputError(f"{d / 'manifest.json'}: 'settings' is not a mapping (not a manifest this package wrote)")
+    # the files' hashes are checked after the rows (read_trials, pool_trials): a changed table is
+    # then named with what changed in it
+    manifest, legacy = mf.usable_run(d, "pool", files=None)
     summary = _json(d / "summary.json", "not a finished run: it stopped, or is still running")
-    legacy = mf.require_complete(d, manifest, "pool")
     return Run(d, manifest, summary, legacy)
 
 
@@ -344,16 +340,16 @@ def write(out: str | Path, summary: dict, df: pd.DataFrame, rep: Report) -> Path
 
 
 def main(argv: list[str] | None = None, prog: str = "python -m neuroimagery.pool") -> None:
-    ap = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
-    ap.add_argument("runs", nargs="+", help="finished run directories of one experiment and settings (distinct seeds), "
+    ap = ToolParser(prog=prog, description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", nargs="+", type=path, help="finished run directories of one experiment and settings (distinct seeds), "
                     "or a Hydra sweep directory holding them")
-    ap.add_argument("--out", help="write the pooled table, summary.json and report.md here")
+    ap.add_argument("--out", type=path, help="write the pooled table, summary.json and report.md here")
     args = ap.parse_args(argv)
-    if args.out:
+    if args.out is not None:
         check_out(args.out)
     summary, df, rep = pool(args.runs)
     sys.stdout.write(rep.text())
-    if args.out:
+    if args.out is not None:
         console.info(f"pooled report: {write(args.out, summary, df, rep)}")
 
 

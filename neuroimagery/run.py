@@ -75,19 +75,7 @@ class RunDir:
         except OSError as err:
             raise UserInputError(f"cannot create the run directory {self.root}: {err.strerror or err}") from None
         if manifest is not None:
-            self.lock = RunLock(self.root)
-            try:
-                self.lock.acquire()
-                gone = remove_stale_temporaries(self.root)
-                if gone:
-                    console.note(f"removed {len(gone)} temporary file(s) that a killed run left in {self.root} "
-                                 f"({', '.join(p.name for p in gone[:3])}{', ...' if len(gone) > 3 else ''})")
-                self._check_claim(manifest, getattr(cfg, "overwrite", False))
-            except BaseException:
-                self.lock.release()
-                if created:
-                    _remove_empty_tree(self.root)
-                raise
+            self._claim(manifest, getattr(cfg, "overwrite", False), created)
         try:
             for d in (self.checkpoints, self.figures):
                 d.mkdir(parents=True, exist_ok=True)
@@ -95,6 +83,7 @@ class RunDir:
             if self.lock is not None:
                 self.lock.release()
             raise UserInputError(f"cannot create the run directory {self.root}: {err.strerror or err}") from None
+        console.claimed(self.root)  # the job log may now be written here
         if manifest is not None:
             self._write_state("running")
         try:
@@ -110,8 +99,32 @@ class RunDir:
             self.close(ok=False, stopped=stopped_by(err, "starting"))
             raise
 
-    def _check_claim(self, manifest: dict, overwrite: bool) -> None:
-        """Refuse a directory that holds another run (unless ``overwrite``)."""
+    def _claim(self, manifest: dict, overwrite: bool, created: bool) -> None:
+        """Take the directory's lock and check that it holds no other run (first without writing
+        anything, so that a refused run leaves another run's directory as it was)."""
+        self.lock = RunLock(self.root)
+        try:
+            self.lock.check()
+            self._check_claim(manifest, overwrite, notes=False)
+            try:
+                self.lock.acquire()
+            except OSError as err:  # a directory that exists but cannot be written
+                raise UserInputError(f"cannot write into the run directory {self.root}: "
+                                     f"{err.strerror or err}") from None
+            gone = remove_stale_temporaries(self.root)
+            if gone:
+                console.note(f"removed {len(gone)} temporary file(s) that a killed run left in {self.root} "
+                             f"({', '.join(p.name for p in gone[:3])}{', ...' if len(gone) > 3 else ''})")
+            self._check_claim(manifest, overwrite)
+        except BaseException:
+            self.lock.release()
+            if created:
+                _remove_empty_tree(self.root)
+            raise
+
+    def _check_claim(self, manifest: dict, overwrite: bool, notes: bool = True) -> None:
+        """Refuse a directory that holds another run (unless ``overwrite``); ``notes``: say what
+        is kept or replaced."""
         path = self.root / "manifest.json"
         held = [n for n in RUN_FILES if (self.root / n).exists()] + sorted(p.name for p in self.checkpoints.glob("*.pt"))
         if held and not overwrite:
@@ -121,8 +134,9 @@ class RunDir:
                                      "directory or set overwrite=true")
             old = read_json(path, "run manifest")
             if held == ["manifest.json"] and old.get("state") in ("running", "interrupted"):
-                console.note(f"{self.root} holds a run that stopped before it wrote any result "
-                             f"({old.get('stopped') or 'killed'}): replacing it")
+                if notes:
+                    console.note(f"{self.root} holds a run that stopped before it wrote any result "
+                                 f"({old.get('stopped') or 'killed'}): replacing it")
                 return
             diff = mf.differences(manifest["settings"], old.get("settings", {}))
             if old.get("experiment") != manifest["experiment"]:
@@ -130,6 +144,8 @@ class RunDir:
             if diff:
                 raise UserInputError(f"{self.root} holds another run ({'; '.join(diff[:4])}"
                                      f"{'; ...' if len(diff) > 4 else ''}): choose another directory or set overwrite=true")
+            if not notes:
+                return
             if old.get("package") != manifest["package"]:
                 console.note(f"{self.root} holds a run of version {old.get('package')} (this is {manifest['package']})")
             console.note(f"{self.root} holds a run with the same settings: "

@@ -10,7 +10,6 @@ status 2.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from pathlib import Path
@@ -19,6 +18,7 @@ from typing import Optional, Sequence
 import cv2
 import numpy as np
 
+from neuroimagery.arguments import ToolParser, check, check_size, count, path as nonempty_path, run_tool
 from neuroimagery.errors import UserInputError
 
 __all__ = ["contact_sheet", "main"]
@@ -58,16 +58,20 @@ def contact_sheet(stimulus_set, size: int = 32) -> np.ndarray:
     return sheet
 
 
-def _parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+MAX_SIZE = 1024  # the side of an edge map without --allow-large (the sheet grows with its square)
+
+
+def _parser() -> ToolParser:
+    ap = ToolParser(
         prog="python -m neuroimagery.stimuli",
         description="Write a contact sheet (PNG) of a stimulus set: every object, angle and "
                     "appearance beside its edge map.")
-    ap.add_argument("set", nargs="*", help="a builtin set name (see --list) or a folder of images; "
+    ap.add_argument("set", nargs="*", type=nonempty_path, help="a builtin set name (see --list) or a folder of images; "
                                            "with --measure, any number (default: every builtin set)")
-    ap.add_argument("--out", default=".", help="folder for <set>.png (default: current folder)")
+    ap.add_argument("--out", type=nonempty_path, default=".", help="folder for <set>.png (default: current folder)")
     ap.add_argument("--list", action="store_true", help="print the builtin set names and exit")
-    ap.add_argument("--size", type=int, default=32, help="side of the edge map (default 32)")
+    ap.add_argument("--size", type=count, default=32, help="side of the edge map (default 32)")
+    ap.add_argument("--allow-large", action="store_true", help=f"allow --size above {MAX_SIZE}")
     ap.add_argument("--measure", action="store_true",
                     help="print each object's measured properties and whether each design rule holds")
     ap.add_argument("--like", metavar="SET", help="with --measure: check folders against the rules "
@@ -93,39 +97,39 @@ def _measure(args) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
+    return run_tool(_main, argv)
+
+
+def _main(argv: Optional[Sequence[str]]) -> int:
     args = _parser().parse_args(argv)
     from neuroimagery.vision import get_stimulus_set, list_stimulus_sets
+
+    check("--size", args.size, ge=8)
+    check_size("--size", args.size, MAX_SIZE, args.allow_large)
+    if args.like is not None and not args.measure:
+        raise UserInputError("--like has no effect without --measure")
+    if args.markdown and not args.measure:
+        raise UserInputError("--markdown has no effect without --measure")
 
     if args.list:
         print("\n".join(list_stimulus_sets()))
         return 0
     if args.measure:
-        try:
-            return _measure(args)
-        except UserInputError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
+        return _measure(args)
     if len(args.set) != 1:
-        print("error: name one stimulus set or folder (see --list)", file=sys.stderr)
-        return 2
+        raise UserInputError("name one stimulus set or folder (see --list)")
     args.set = args.set[0]
+    stim = get_stimulus_set(args.set)
+    sheet = contact_sheet(stim, args.size)
+    out = Path(args.out)
     try:
-        if args.size < 8:
-            raise UserInputError(f"--size must be >= 8, got {args.size}")
-        stim = get_stimulus_set(args.set)
-        sheet = contact_sheet(stim, args.size)
-        out = Path(args.out)
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise UserInputError(f"cannot create output folder {out}: {exc.strerror}") from None
-        name = stim.name if not os.path.isdir(args.set) else Path(args.set).resolve().name
-        path = out / f"{name}.png"
-        if not cv2.imwrite(str(path), sheet):
-            raise UserInputError(f"cannot write {path}")
-    except UserInputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserInputError(f"cannot create output folder {out}: {exc.strerror}") from None
+    name = stim.name if not os.path.isdir(args.set) else Path(args.set).resolve().name
+    path = out / f"{name}.png"
+    if not cv2.imwrite(str(path), sheet):
+        raise UserInputError(f"cannot write {path}")
     print(path)
     return 0
 

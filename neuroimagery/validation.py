@@ -3,6 +3,7 @@
 :func:`check_run` refuses, with one :class:`~neuroimagery.errors.UserInputError` naming the key or
 the file,
 
+- a setting given as an empty string where its default is not (``checkpoint=''``);
 - a number that is not finite (``nan`` slips through every range check written as a
   comparison, ``inf`` through every lower bound);
 - a value outside the bounds its field declares (:mod:`neuroimagery.bounds`), the whole
@@ -45,6 +46,23 @@ def user_set(conf) -> dict[str, Any]:
     return {k: v for k, v in values.items() if k in defaults and _differs(v, defaults[k])}
 
 
+def settings_named(conf, keys) -> str:
+    """``key=value`` of every setting in ``keys`` (full paths) that a check derived from them
+    depends on, those the user set first: ``experiment.fov_deg=170 (set here), with
+    experiment.object_distance=0.5, ...`` (a refusal names all it depends on, the one changed first)."""
+    values, changed = flatten(conf), user_set(conf)
+
+    def show(k):
+        v = values.get(k)
+        return f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
+
+    first = [show(k) for k in keys if k in changed]
+    rest = [show(k) for k in keys if k not in changed]
+    if not first:
+        return ", ".join(rest)
+    return ", ".join(first) + " (set here)" + (", with " + ", ".join(rest) if rest else "")
+
+
 def _differs(a: Any, b: Any) -> bool:
     if isinstance(a, (list, tuple)) or isinstance(b, (list, tuple)):
         return list(a) != list(b)
@@ -84,6 +102,15 @@ def ineffective(conf, module) -> dict[str, str]:
     return out
 
 
+def check_empty(conf) -> None:
+    """Refuse a setting given as an empty string where its default is not (a path left empty by an
+    unset shell variable must not read as "not set")."""
+    for k, v in user_set(conf).items():
+        if isinstance(v, str) and not v.strip():
+            raise UserInputError(f"{k}={v!r} is empty (an unset shell variable?): give it a value, or leave it out "
+                                 "for its default")
+
+
 def check_ineffective(conf, module) -> None:
     """Refuse every key set away from its default that has no effect in this run."""
     bad = ineffective(conf, module)
@@ -115,6 +142,7 @@ def check_run(conf, module) -> None:
     from .resources import check_resources
 
     check_finite(conf)
+    check_empty(conf)
     check_declared(conf)
     check_ineffective(conf, module)
     check_resources(conf, module)

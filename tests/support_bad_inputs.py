@@ -64,8 +64,11 @@ def composing(*over):
 
 @pytest.fixture
 def hydra_reporter(monkeypatch):
-    """The command line's reporter of Hydra's refusals, put back as it was afterwards."""
+    """The command line's reporter of Hydra's refusals (and its refusal of empty and deleted
+    overrides), put back as it was afterwards."""
     from hydra._internal import utils as hydra_utils
+    from hydra.core.override_parser.overrides_parser import OverridesParser
 
     monkeypatch.setattr(hydra_utils, "run_and_report", hydra_utils.run_and_report)
+    monkeypatch.setattr(OverridesParser, "parse_overrides", OverridesParser.parse_overrides)
     cli.plain_hydra_errors()

@@ -43,8 +43,8 @@ def test_counts_may_be_written_as_powers_of_ten():
 
 WORLD_CASES = [
     (["--libraries", "abc"], "--libraries", "not a whole number: 'abc'"),
-    (["--libraries", "0"], "--libraries and --jobs must be >= 1", None),
-    (["--jobs", "0"], "--libraries and --jobs must be >= 1", None),
+    (["--libraries", "0"], "--libraries must be >= 1", None),
+    (["--jobs", "0"], "--jobs must be >= 1", None),
     (["--bogus", "1"], "unrecognized arguments: --bogus 1", None),
 ]
 

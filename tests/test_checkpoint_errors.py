@@ -11,6 +11,7 @@ from conftest import make_cfg
 
 from neuroimagery import cli
 from neuroimagery import manifest as mf
+from support_runs import rehash
 from neuroimagery.run import evaluate, train
 
 
@@ -32,13 +33,14 @@ def _copy(trained, tmp_path) -> Path:
 
 
 def _resave(d: Path, change) -> Path:
-    """Alter the checkpoint's state with ``change`` and store it again with its hash recomputed (as
-    a careful forger, or another version, would)."""
+    """Alter the checkpoint's state with ``change`` and store it again with its hashes recomputed,
+    inside the file and in the run's manifest.json (as a careful forger, or another version, would)."""
     ck = d / "checkpoints" / "model.pt"
     state = torch.load(ck, weights_only=True)
     man = state.pop("manifest")
     change(state, man)
     torch.save({**state, "manifest": {**man, "tensor_hash": mf.tensor_hash(state)}}, ck)
+    rehash(d)
     return ck
 
 

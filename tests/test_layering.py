@@ -37,6 +37,7 @@ LAYERS = {
     "native": BASE,  # silencing C-level output
     "logger": BASE,  # TensorBoard writer (a run connects it to nn.monitor)
     "checkpoints": BASE,  # reading a trained run's checkpoints
+    "arguments": BASE,  # the command line of every tool: one parser, bounds, one error line
     # blocks: maps, connections, rules, motor primitives, eyes, the robot world
     "nn": BLOCKS, "motor": BLOCKS, "vision": BLOCKS, "robot": BLOCKS,
     "models": MODELS,  # the thesis's models, built from blocks

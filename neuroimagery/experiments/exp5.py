@@ -359,8 +359,10 @@ def _library_of(d: dict | None, e: Exp5Config, seed: int) -> dict | None:
 
 def train(cfg, run) -> dict:
     """Run every task (skipping those already finished in this run directory); return the results."""
-    from joblib import Parallel, delayed
+    from joblib import delayed
     from tqdm.auto import tqdm
+
+    from ..workers import parallel
 
     e = _exp(cfg)
     task_files.remove_stale(run.checkpoints)  # left by workers stopped while writing
@@ -379,7 +381,7 @@ def train(cfg, run) -> dict:
     bar = tqdm(total=len(todo) + len(done), initial=len(done), desc="exp5 tasks", disable=not cfg.progress)
     if todo:
         jobs = (delayed(run_task)(e, cfg.seed, t, str(_task_path(run, t["key"])), libraries[t["key"]]) for t in todo)
-        results = Parallel(n_jobs=min(e.engine.n_jobs, len(todo)), return_as="generator_unordered")(jobs)
+        results = parallel(min(e.engine.n_jobs, len(todo)), return_as="generator_unordered")(jobs)
         try:
             for res in results:
                 done.append(res)

@@ -9,10 +9,10 @@
 from __future__ import annotations
 
 import importlib
-import json
 from pathlib import Path
 
 from ..errors import UserInputError
+from ..manifest import usable_run
 
 
 def check_environment(spec: str) -> None:
@@ -37,14 +37,8 @@ def check_reuse(path: str) -> None:
         return
     root = Path(path)
     key = f"experiment.engine.reuse_libraries={path!r}"
-    manifest = root / "manifest.json"
-    if manifest.is_file():
-        try:
-            experiment = json.loads(manifest.read_text()).get("experiment")
-        except (OSError, ValueError, AttributeError) as err:
-            raise UserInputError(f"{key}: its manifest.json cannot be read ({err})") from None
-        if experiment != "exp5":
-            raise UserInputError(f"{key} is a run of {experiment}, not of exp5: it holds no skill libraries")
+    if (root / "manifest.json").is_file():  # each task file is checked again when its library is read
+        usable_run(root, key, experiment="exp5", need="any", files=None)
         return
     if not any((root / "checkpoints").glob("exp5_*.pt")):
         raise UserInputError(f"{key} holds no task files of exp5 (checkpoints/exp5_*.pt): not a run of exp5")

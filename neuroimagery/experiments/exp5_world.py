@@ -31,12 +31,14 @@ import sys
 import time
 from pathlib import Path
 
+from ..arguments import ToolParser, check, check_jobs, check_size, count, path, seed
 from ..errors import UserInputError
 from ..files import kept_json, writable_folder, write_text
 from ..workers import run_pieces
 from ..models.tool_use import EVENTS
+from ..resources import core_limit
 from ..robot.config import TABLE_CONTACTS
-from ..robot.babble import CURVE_THRESHOLDS, POSSIBLE_RATE, THESIS_SKILLS, OneLineParser, agreement, count, wilson
+from ..robot.babble import CURVE_THRESHOLDS, MAX_SEEDS, POSSIBLE_RATE, THESIS_SKILLS, agreement, wilson
 
 SKILL_NAMES = ("P", "T", "S", "N", "W", "E")
 OUTPUTS = ("world_libraries.json", "world_libraries.md")
@@ -150,20 +152,30 @@ def seed_table(rows: list[dict]) -> str:
                       f"{r['with_pull']} | {r['move_then_pull']} |\n" for r in rows))
 
 
+MAX_LIBRARIES = 1000  # per seed without --allow-large
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = OneLineParser(prog="python -m neuroimagery.experiments.exp5_world", description=__doc__.split("\n")[0])
+    parser = ToolParser(prog="python -m neuroimagery.experiments.exp5_world", description=__doc__.split("\n")[0])
     parser.add_argument("--libraries", type=count, default=16, help="skill libraries to acquire per seed")
-    parser.add_argument("--seed", type=count, nargs="+", default=[0],
+    parser.add_argument("--seed", type=seed, nargs="+", default=[0],
                         help="one seed or several (their libraries pooled, each seed's measures listed)")
-    parser.add_argument("--jobs", type=count, default=2, help="worker processes")
-    parser.add_argument("--out", type=Path, required=True,
+    parser.add_argument("--jobs", type=count, default=None, help="worker processes (default: 2, or 1 on one core)")
+    parser.add_argument("--out", type=lambda t: Path(path(t)), required=True,
                         help="output folder (rerun with the same folder to resume)")
+    parser.add_argument("--allow-large", action="store_true",
+                        help=f"allow more than {MAX_LIBRARIES} libraries per seed, {MAX_SEEDS} seeds or more "
+                        "workers than cores")
     parser.add_argument("--table-contact", choices=TABLE_CONTACTS, default="lift",
                         help="how the table meets the rake (experiment.world.table_contact; docs/robot.md)")
     try:
         args = parser.parse_args(argv)
-        if args.libraries < 1 or args.jobs < 1:
-            raise UserInputError(f"--libraries and --jobs must be >= 1, got {args.libraries}, {args.jobs}")
+        check("--libraries", args.libraries, ge=1)
+        check_size("--libraries", args.libraries, MAX_LIBRARIES, args.allow_large, "libraries acquired per seed")
+        check_size("--seed: the number of seeds", len(args.seed), MAX_SEEDS, args.allow_large)
+        if args.jobs is None:
+            args.jobs = min(2, core_limit()[0])
+        check_jobs("--jobs", args.jobs, args.allow_large)
         if len(set(args.seed)) != len(args.seed):
             raise UserInputError(f"--seed: each seed once, got {' '.join(map(str, args.seed))}")
         writable_folder(args.out, OUTPUTS)

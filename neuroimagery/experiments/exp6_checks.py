@@ -24,6 +24,7 @@ import numpy as np
 
 from ..errors import UserInputError
 from ..resources import Need, culprit
+from ..validation import settings_named
 
 FLOAT = 4
 NEAR, FAR = 0.05, 3.0  # the eye camera's clipping planes (vision.shepard_metzler.SMScene)
@@ -102,21 +103,23 @@ def check_inputs(cfg) -> None:
     rho = max(float(np.linalg.norm(sm.centred(c), axis=1).max()) for c in shown) + math.sqrt(3) / 2
     radius = rho * e.cube_edge  # metres
     d = float(e.object_distance)
+    depth = ("experiment.object_distance", "experiment.cube_edge")
+    view = ("experiment.fov_deg", "experiment.image_width", "experiment.image_height") + depth
     if not NEAR < d - radius or not d + radius < FAR:
-        raise UserInputError(f"experiment.object_distance={d:g} m puts the object (radius {radius:.3f} m) outside "
+        raise UserInputError(f"{settings_named(cfg, depth)}: the object (radius {radius:.3f} m) lies outside "
                              f"the eye's depth range ({NEAR} to {FAR} m): place it within "
                              f"[{NEAR + radius:.2f}, {FAR - radius:.2f}] m")
     half_h = math.radians(e.fov_deg) / 2
     half_w = math.atan(math.tan(half_h) * e.image_width / e.image_height)
     seen = math.atan(radius / d)
     if seen > min(half_h, half_w):
-        raise UserInputError(f"experiment.object_distance={d:g} m: the object (radius {radius:.3f} m, "
-                             f"experiment.cube_edge={e.cube_edge:g}) does not fit the eye's field of view "
-                             f"(experiment.fov_deg={e.fov_deg:g}); move it farther or make it smaller")
+        raise UserInputError(f"{settings_named(cfg, view)}: the object (radius {radius:.3f} m) does not fit the "
+                             "eye's field of view; widen the view, move the object farther or make it smaller")
     focal = 0.5 * e.image_height / math.tan(half_h)
     if e.cube_edge * focal / d < 1.0:
-        raise UserInputError(f"experiment.object_distance={d:g} m: one cube (experiment.cube_edge={e.cube_edge:g} m) "
-                             f"covers {e.cube_edge * focal / d:.2f} pixel of the eye's image; at least 1 is needed")
+        raise UserInputError(f"{settings_named(cfg, view[:1] + view[2:])}: one cube covers "
+                             f"{e.cube_edge * focal / d:.2f} pixel of the eye's image; at least 1 is needed "
+                             "(a narrower view, a larger image, a nearer or larger object)")
     if e.cube_voxels is not None:
         most = (G / 2.0 - 1.5) / rho
         if float(e.cube_voxels) > most:

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import torch
 
+from neuroimagery.arguments import ToolParser, check, check_jobs, check_size, count, path as nonempty_path
 from neuroimagery.errors import UserInputError
 from neuroimagery.files import kept_json, writable_folder, write_text
 from neuroimagery.workers import run_pieces
@@ -203,45 +204,25 @@ MAX_ROLLOUTS = 100_000
 MAX_SEEDS = 100
 
 
-class OneLineParser(argparse.ArgumentParser):
-    """argparse whose refusals are the one ``error:`` line of every tool (no usage text)."""
-
-    def error(self, message: str):
-        raise UserInputError(message)
-
-
-def count(text: str) -> int:
-    """A whole number given as ``1000``, ``1e6`` or ``1_000``; anything else is refused."""
-    try:
-        value = float(text.replace("_", ""))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if not math.isfinite(value) or value != int(value):
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}")
-    return int(value)
-
-
 def parse(argv: list[str] | None = None) -> argparse.Namespace:
     """The command line, every value checked (a :class:`UserInputError` naming the option)."""
-    parser = OneLineParser(prog="python -m neuroimagery.robot.babble", description=__doc__.split("\n")[0])
+    parser = ToolParser(prog="python -m neuroimagery.robot.babble", description=__doc__.split("\n")[0])
     parser.add_argument("--rollouts", type=count, default=1000, help="random DMPs per posture and seed")
     parser.add_argument("--seeds", type=count, default=3, help="seeds 0 .. K-1")
-    parser.add_argument("--out", type=Path, required=True,
+    parser.add_argument("--out", type=lambda t: Path(nonempty_path(t)), required=True,
                         help="output folder (rerun with the same folder to resume)")
     parser.add_argument("--jobs", type=count, default=1, help="worker processes (the same counts)")
     parser.add_argument("--allow-large", action="store_true",
-                        help=f"allow more than {MAX_ROLLOUTS} rollouts per posture and seed or {MAX_SEEDS} seeds")
+                        help=f"allow more than {MAX_ROLLOUTS} rollouts per posture and seed, {MAX_SEEDS} seeds or "
+                        "more workers than cores")
     parser.add_argument("--table-contact", choices=TABLE_CONTACTS, default="lift",
                         help="how the table meets the rake (WorldConfig.table_contact; docs/robot.md)")
     args = parser.parse_args(argv)
-    if args.jobs < 1:
-        raise UserInputError(f"--jobs must be >= 1, got {args.jobs}")
+    check_jobs("--jobs", args.jobs, args.allow_large)
     for name, value, most in (("--rollouts", args.rollouts, MAX_ROLLOUTS), ("--seeds", args.seeds, MAX_SEEDS)):
-        if value < 1:
-            raise UserInputError(f"{name} must be >= 1, got {value}")
-        if value > most and not args.allow_large:
-            raise UserInputError(f"{name} {value}: at most {most} without --allow-large (it would run "
-                                 f"{args.rollouts * args.seeds * len(THESIS_EVENTS):.3g} physics rollouts)")
+        check(name, value, ge=1)
+        check_size(name, value, most, args.allow_large,
+                   f"it would run {args.rollouts * args.seeds * len(THESIS_EVENTS):.3g} physics rollouts")
     return args
 
 

@@ -15,6 +15,7 @@ import math
 import numpy as np
 import torch
 
+from ..arguments import ToolParser, run_tool
 from .config import WorldConfig
 
 
@@ -84,10 +85,15 @@ HEADING_STARTS = ((-1.446, 1.055, 0.789, 0.559, -0.796, 0.216, 0.342),
                   (-0.213, 0.617, -0.401, 1.659, -0.259, -0.22, 0.312))
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    return run_tool(_main, argv)
+
+
+def _main(argv: list[str] | None) -> int:
     from .config import DEFAULT_POSTURES
     from .scene_check import check_scene, scene_geometry
 
+    ToolParser(prog="python -m neuroimagery.robot.posture_fit", description=__doc__.split("\n")[0]).parse_args(argv)
     cfg = WorldConfig()
     fitted = tuple(tuple(round(float(v), 3) for v in (
         fit_posture(cfg, t, q) if yaw is None else fit_posture_heading(cfg, t, yaw, HEADING_STARTS + (q,))))

@@ -12,11 +12,10 @@ its band and push it farther). The result is stored in :data:`neuroimagery.robot
 """
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 import torch
 
+from ..arguments import ToolParser, check, check_size, count, run_tool, seed
 from .kinematics import ICUB_MODEL, icub_urdf_text, world_T_root
 
 LEFT_CHAIN = ("torso_pitch", "torso_roll", "torso_yaw", "l_shoulder_pitch", "l_shoulder_roll", "l_shoulder_yaw",
@@ -78,13 +77,23 @@ def compute_frontier(root_height: float, height: float, ys: np.ndarray, band_y: 
     return best_x.numpy()
 
 
+MAX_SAMPLES = 10_000_000  # random joint vectors without --allow-large (memory grows with them)
+
+
 def main(argv: list[str] | None = None) -> int:
+    return run_tool(_main, argv)
+
+
+def _main(argv: list[str] | None) -> int:
     from .config import REACH_YS, WorldConfig
 
-    parser = argparse.ArgumentParser(prog="python -m neuroimagery.robot.reach", description=__doc__.split("\n")[0])
-    parser.add_argument("--samples", type=int, default=400_000)
-    parser.add_argument("--seed", type=int, default=0)
+    parser = ToolParser(prog="python -m neuroimagery.robot.reach", description=__doc__.split("\n")[0])
+    parser.add_argument("--samples", type=count, default=400_000, help="random joint vectors")
+    parser.add_argument("--seed", type=seed, default=0)
+    parser.add_argument("--allow-large", action="store_true", help=f"allow more than {MAX_SAMPLES} samples")
     args = parser.parse_args(argv)
+    check("--samples", args.samples, ge=1)
+    check_size("--samples", args.samples, MAX_SAMPLES, args.allow_large)
     cfg = WorldConfig()
     xs = compute_frontier(cfg.root_height, cfg.table_top + cfg.toy_size / 2, np.array(REACH_YS), samples=args.samples,
                           seed=args.seed)

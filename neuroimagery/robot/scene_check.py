@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from ..arguments import ToolParser, run_tool
 from .config import WorldConfig
 
 PLATE_PITCH = -0.4363323  # the plate's pitch about the rake's y axis (urdf/rake.urdf)
@@ -115,7 +116,17 @@ def check_scene(cfg: WorldConfig | None = None) -> list[str]:
     return bad
 
 
-if __name__ == "__main__":
+def main(argv: list[str] | None = None) -> int:
+    return run_tool(_main, argv)
+
+
+def _main(argv: list[str] | None) -> int:
+    ToolParser(prog="python -m neuroimagery.robot.scene_check", description=__doc__.split("\n")[0]).parse_args(argv)
     for row in scene_geometry():
         print(row)
     print("\n".join(check_scene()) or "all scene criteria met")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
