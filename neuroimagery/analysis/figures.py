@@ -142,6 +142,7 @@ def rate_bars(df: pd.DataFrame, path: str | Path, title: str = "", by: str = "te
 
 CELL = 48  # pixels of one map's cell in a panel grid
 GAP = 4  # pixels between cells
+BAR_MIN = 130  # pixels: the shortest colour bar of a panel grid (its two-line label fits beside it)
 
 
 def _cell(a: np.ndarray) -> np.ndarray:
@@ -183,12 +184,14 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
     rgba = plt.get_cmap("viridis")(np.nan_to_num(mosaic))
     rgba[np.isnan(mosaic)] = 1.0
     dpi, left, right = 100, 170, 120
-    bottom = 40 if units else 10
     H, W = mosaic.shape
+    bar_h = max(min(H, 240), BAR_MIN)  # the colour bar, tall enough for its label
+    bottom = (40 if units else 10) + max(0, bar_h - H)
     fw = W + left + right
     width = max(20, int(fw / 6.5))  # characters of a 9-pt line that fit the figure's width
     title = "\n".join(textwrap.fill(line, width) for line in title.split("\n"))
-    top = 56 + 14 * (title.count("\n") + 1)
+    names_h = int(0.71 * 6.5 * max(map(len, names))) + 16  # the map names, 7 pt at 45 deg (6.5 px a character at most)
+    top = max(56, names_h + 16) + 16 * (title.count("\n") + 1)
     fh = H + top + bottom
     fig = plt.figure(figsize=(fw / dpi, fh / dpi), dpi=dpi)
     fig.figimage(rgba, xo=left, yo=bottom, origin="upper")
@@ -205,7 +208,7 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
             for k, lab in enumerate(labs):
                 fig.text((left + c * pitch + (k + 0.5) * CELL / w) / fw, (bottom - 4) / fh, lab, ha="center",
                          va="top", fontsize=6, rotation=90 if w > 3 or max(map(len, labs)) > 3 else 0)
-    cax = fig.add_axes([(left + W + 14) / fw, (bottom + H - min(H, 240)) / fh, 12 / fw, min(H, 240) / fh])
+    cax = fig.add_axes([(left + W + 14) / fw, (bottom + H - bar_h) / fh, 12 / fw, bar_h / fh])
     bar = fig.colorbar(plt.cm.ScalarMappable(cmap="viridis", norm=matplotlib.colors.Normalize(0, 1)), cax=cax)
     bar.set_ticks([0, 0.5, 1], labels=["min", "", "max"])
     bar.ax.tick_params(labelsize=6)

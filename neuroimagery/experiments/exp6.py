@@ -208,6 +208,17 @@ def test_names(cfg):
     return test, names
 
 
+def sample_trials(table: pd.DataFrame, count: int) -> list[int]:
+    """The ``count`` trials of participant 0 recorded step by step (the report's and TensorBoard's
+    sample trials): the first object's pairs at the largest angle, the same pair first, then the
+    mirror pair, then the next angle down, so that a sample trial shows a long mental rotation.
+    Only what is recorded depends on the choice, not any answer."""
+    first = table[table["target_object"] == table["target_object"].iloc[0]]
+    order = first.assign(mirror=~first["same"].astype(bool)).sort_values(["rotated_angle", "mirror"],
+                                                                         ascending=[False, True], kind="stable")
+    return [int(i) for i in order.index[:max(0, int(count))]]
+
+
 def run_tests(cfg, model, scene=None, record: int = 0):
     """Every test -> (trials DataFrame, sample histories, bank images)."""
     from ..analysis.summary import TRIAL_COLUMNS
@@ -231,9 +242,11 @@ def run_tests(cfg, model, scene=None, record: int = 0):
             tgt = images[:, torch.as_tensor(table["target_row"].to_numpy().copy())]
             rot = images[:, torch.as_tensor(table["rotated_row"].to_numpy().copy())]
             stream = 100 + TESTS.index(t) + 10 * CONDITIONS.index(cond)  # none keeps the stream of a run without the others
-            out = model.run(tgt, rot, seeding.participant_generators(cfg.seed, ids, stream=stream), record=record,
+            shown = sample_trials(table, record)
+            out = model.run(tgt, rot, seeding.participant_generators(cfg.seed, ids, stream=stream), record=shown,
                             proprioception=cond)
-            histories[f"{t}/{cond}"] = out.pop("history")
+            histories[f"{t}/{cond}"] = {"steps": out.pop("history"), "trials": [
+                {k: table.iloc[i][k] for k in ("target_object", "rotated_angle", "same")} for i in shown]}
             for j, pid in enumerate(ids):
                 df = table.drop(columns=["target_row", "rotated_row"]).copy()
                 df.insert(0, "participant", int(pid))

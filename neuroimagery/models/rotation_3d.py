@@ -351,7 +351,7 @@ class Rotation3D(nn.Module):
         return am.argmax(-1)  # the first of equals: "still" unless a move brings the remaining rotation closer
 
     @torch.no_grad()
-    def align(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int = 0,
+    def align(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int | Sequence[int] = 0,
               proprioception: str = "none") -> dict:
         """Search and transform for images ``(P, B, n)`` (already coded, completed and centred):
         the turned comparison images, steps, the net turn (``net``, composed from the steps'
@@ -372,7 +372,8 @@ class Rotation3D(nn.Module):
         sums = torch.zeros(Q, 3, dtype=torch.float64)  # per-axis sums of the steps (move_rule 'axis_sums')
         steps = torch.zeros(Q, dtype=torch.long)
         live = torch.ones(Q, dtype=torch.bool) if p.strategy == "rotate" else torch.zeros(Q, dtype=torch.bool)
-        hist: list[list[dict]] = [[] for _ in range(min(record, B))]
+        rec = recorded(record, B)
+        hist: list[list[dict]] = [[] for _ in rec]
         img = poci.clone()
         step_rot = [None] + [(AXES.index(a), d) for a, d in self.moves[1:]]
         turn = self.move_turns
@@ -395,9 +396,9 @@ class Rotation3D(nn.Module):
             moving = move > 0
             steps[q] += moving.long()
             live[q] = moving
-            for k in range(len(hist)):
+            for h, k in zip(hist, rec):
                 if bool(live[k]) or bool((q == k).any()):
-                    hist[k].append({"PFCt": pfct[k].clone(), "POCp": img[k].clone(),
+                    h.append({"PFCt": pfct[k].clone(), "POCp": img[k].clone(),
                                     "PMCm": torch.nn.functional.one_hot(move[(q == k).nonzero()[0, 0]] if (q == k).any()
                                                                         else torch.tensor(0), len(MOVES)).float()})
         done = vc.rotation_vector(net) if composed else sums
@@ -405,7 +406,7 @@ class Rotation3D(nn.Module):
                 "timeout": live, "history": hist, "part": part, "target": pfct}
 
     @torch.no_grad()
-    def run(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int = 0,
+    def run(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int | Sequence[int] = 0,
             proprioception: str = "none") -> dict:
         """Trials ``(P, B, n)`` of images (coded, completed, centred). Randomness from ``generators``
         (one ``(B,)`` draw per step and one for a tie, in a fixed order, so a result does not depend
@@ -427,7 +428,7 @@ class Rotation3D(nn.Module):
         coin = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(P * B)
         answer = torch.where(dec.decided, dec.winner, (coin < 0.5).long())
         rt = p.lca.cycles * (1 + out["steps"]) + dec.cycles
-        for k, h in enumerate(out["history"]):
+        for k, h in zip(recorded(record, B), out["history"]):
             if h:
                 h[-1].update({"PMCd": dec.state[k].clone(), "match": match[k].float(), "cubes": cubes[k].float()})
         sh = (P, B)
@@ -435,6 +436,17 @@ class Rotation3D(nn.Module):
                 "decided": dec.decided.reshape(sh), "turned": out["done"].reshape(P, B, 3).float(),
                 "required": out["required"].reshape(P, B, 3, 3), "match": match.reshape(sh).float(),
                 "cubes": cubes.reshape(sh).float(), "history": out["history"]}
+
+
+def recorded(record: int | Sequence[int], B: int) -> list[int]:
+    """The trials of participant 0 whose every step a run records: the first ``record`` of the
+    ``B`` (an int) or those listed."""
+    if isinstance(record, int):
+        return list(range(min(record, B)))
+    out = [int(k) for k in record]
+    if any(not 0 <= k < B for k in out):
+        raise ValueError(f"record: trials {out} outside the {B} of a participant")
+    return out
 
 
 def lca_gain(g) -> float:
