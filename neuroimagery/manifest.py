@@ -179,3 +179,36 @@ def require_complete(root, manifest: Mapping[str, Any], use: str, trained_enough
     else:
         why = f"in an unknown state {state!r}"
     raise UserInputError(f"{use}: {root} is not a complete run: {why}; its files may mix runs (run it again)")
+
+
+def _smaller(key: str, limit):
+    return lambda s: min(s[key], limit(s) if callable(limit) else limit)
+
+
+# what preset=quick does to each experiment's settings: the key it changes and the value it uses
+# (the experiments' own code: exp1/exp2 `_e`, exp3/exp4/exp6 `quick.*` counts, exp5 `quick.repetitions`)
+QUICK_VALUES = {
+    "exp1": {"experiment.som.iterations": _smaller("experiment.som.iterations", 300)},
+    "exp2": {"experiment.som.iterations": _smaller("experiment.som.iterations", lambda s: s["experiment.quick.som_iterations"])},
+    "exp3": {"experiment.fm.images": lambda s: s["experiment.quick.fm_images"]},
+    "exp4": {"experiment.fm.images": lambda s: s["experiment.quick.fm_images"]},
+    "exp5": {"experiment.repetitions": lambda s: s["experiment.quick.repetitions"]},
+    "exp6": {"experiment.fm.images": lambda s: s["experiment.quick.fm_images"],
+             "experiment.image.chains": lambda s: s["experiment.quick.chains"],
+             "experiment.test_objects": lambda s: (min(s["experiment.test_objects"], s["experiment.quick.objects"])
+                                                   if s.get("experiment.test_cubes") is None else s["experiment.test_objects"])},
+}
+
+
+def as_used(settings: dict, experiment: str) -> dict:
+    """``settings`` (dotted keys) with the values a run used: under ``preset=quick`` each key the
+    preset shrinks holds the quick value (TensorBoard's HParams view shows these)."""
+    if settings.get("preset") != "quick":
+        return dict(settings)
+    out = dict(settings)
+    for key, value in QUICK_VALUES.get(experiment, {}).items():
+        try:
+            out[key] = value(settings)
+        except KeyError:  # a key the run does not have (an older schema): left as given
+            pass
+    return out

@@ -263,7 +263,7 @@ def test_sample_trials_show_every_step_of_a_rotation(tmp_path, monkeypatch):
         evaluate(cfg, out_dir=tmp_path)
     assert not {k: v for k, v in found.items() if k.startswith("exp6_maps")}  # nothing clipped or overlapping
     df = pd.read_csv(tmp_path / "trials.csv")
-    ea = EventAccumulator(str(tmp_path / "tb"), size_guidance={"images": 0}).Reload()
+    ea = EventAccumulator(str(tmp_path / "tb"), size_guidance={"images": 0, "scalars": 0}).Reload()
     for test in ("picture", "depth"):
         d = df[(df["test"] == test) & (df["participant"] == 0)]
         shown = d[(d["rotated_angle"] == d["rotated_angle"].max()) & d["same"]].iloc[0]
@@ -275,6 +275,12 @@ def test_sample_trials_show_every_step_of_a_rotation(tmp_path, monkeypatch):
             events = ea.Images(f"{test}/none/trial{k}/POCp_front")
             assert [e.step for e in events] == list(range(1, len(events) + 1))
         assert len(ea.Images(f"{test}/none/trial0/POCp_front")) == steps
+    curves = [t for t in ea.Tags()["scalars"] if t.startswith("train/") and len(ea.Scalars(t)) > 1]
+    assert len(curves) == 6, curves  # each forward model's training curve
+    from tensorboard.plugins.hparams import plugin_data_pb2
+    info = plugin_data_pb2.HParamsPluginData.FromString(
+        ea.PluginTagToContent("hparams")["_hparams_/session_start_info"]).session_start_info
+    assert info.hparams["experiment.fm.images"].number_value == 16  # as the quick run used it
     report = (tmp_path / "report.md").read_text()
     assert "{" not in report.split("## All tests")[0]  # no Python dict in a table cell
     assert "*exp6 maps picture*" not in report and "every step" in report

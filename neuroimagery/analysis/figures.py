@@ -19,6 +19,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from ..files import save_figure  # noqa: E402
+from ..logger import own_range  # noqa: E402
 
 
 THESIS_STYLE = dict(color="black", linestyle="--", linewidth=1.2)
@@ -149,13 +150,9 @@ def _cell(a: np.ndarray) -> np.ndarray:
     """A map scaled to [0, 1] by its own range and resampled by nearest neighbour onto a
     ``CELL x CELL`` square (a 1-D map onto a strip a third as tall, across the middle); NaN
     around it (drawn blank)."""
-    a = np.asarray(a, dtype=float)
+    a = own_range(a)  # the colour scale of the TensorBoard images
     if a.ndim == 1:
         a = a[None, :]
-    if a.size:
-        a = a - a.min()
-        m = a.max()
-        a = a / m if m > 0 else a
     h, w = a.shape
     rows = CELL // 3 if h == 1 else CELL
     img = a[np.arange(rows) * h // rows][:, np.arange(CELL) * w // CELL]

@@ -45,6 +45,7 @@ from ..nn.local import LocalConnection
 from . import voxel_code as vc
 from .layout_3d import (AXES, MOVES, SIGNS, WRIST_AXIS, c20_weights, fill_offsets, fm_bytes,  # noqa: F401 (re-exported)
                         grid_for_budget, matched_axes, move_angles, receptive_radius)
+from .recording import sample_indices
 from .rotation_embodied import check_proprioception
 from .search_starts import multi_start
 
@@ -122,6 +123,15 @@ class Rotation3D(nn.Module):
             if sel.numel():
                 out[sel] = conn.net_rows(x[sel], part[sel]).clamp(0.0, 1.0)
         return out
+
+    @torch.no_grad()
+    def forward_error(self, move: int, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        """Squared error of forward model ``move`` on a batch, summed over voxels, mean over images."""
+        return (self.fm[move - 1].net(x) - y).pow(2).sum(-1).mean()
+
+    def forward_curve(self, move: int) -> str:
+        """The tag of forward model ``move``'s training curve (:mod:`neuroimagery.nn.monitor`)."""
+        return f"train/{self.fm[move - 1].name}/squared_error"
 
     @torch.no_grad()
     def fit_forward_models(self, move: int, x: torch.Tensor, y: torch.Tensor) -> None:
@@ -372,7 +382,7 @@ class Rotation3D(nn.Module):
         sums = torch.zeros(Q, 3, dtype=torch.float64)  # per-axis sums of the steps (move_rule 'axis_sums')
         steps = torch.zeros(Q, dtype=torch.long)
         live = torch.ones(Q, dtype=torch.bool) if p.strategy == "rotate" else torch.zeros(Q, dtype=torch.bool)
-        rec = recorded(record, B)
+        rec = sample_indices(record, B)
         hist: list[list[dict]] = [[] for _ in rec]
         img = poci.clone()
         step_rot = [None] + [(AXES.index(a), d) for a, d in self.moves[1:]]
@@ -428,7 +438,7 @@ class Rotation3D(nn.Module):
         coin = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(P * B)
         answer = torch.where(dec.decided, dec.winner, (coin < 0.5).long())
         rt = p.lca.cycles * (1 + out["steps"]) + dec.cycles
-        for k, h in zip(recorded(record, B), out["history"]):
+        for k, h in zip(sample_indices(record, B), out["history"]):
             if h:
                 h[-1].update({"PMCd": dec.state[k].clone(), "match": match[k].float(), "cubes": cubes[k].float()})
         sh = (P, B)
@@ -436,17 +446,6 @@ class Rotation3D(nn.Module):
                 "decided": dec.decided.reshape(sh), "turned": out["done"].reshape(P, B, 3).float(),
                 "required": out["required"].reshape(P, B, 3, 3), "match": match.reshape(sh).float(),
                 "cubes": cubes.reshape(sh).float(), "history": out["history"]}
-
-
-def recorded(record: int | Sequence[int], B: int) -> list[int]:
-    """The trials of participant 0 whose every step a run records: the first ``record`` of the
-    ``B`` (an int) or those listed."""
-    if isinstance(record, int):
-        return list(range(min(record, B)))
-    out = [int(k) for k in record]
-    if any(not 0 <= k < B for k in out):
-        raise ValueError(f"record: trials {out} outside the {B} of a participant")
-    return out
 
 
 def lca_gain(g) -> float:
