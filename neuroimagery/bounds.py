@@ -29,6 +29,11 @@ from typing import Any, Callable, Optional, Sequence
 from .errors import UserInputError
 
 
+def _num(x) -> str:
+    """A bound as written: an integer in full (``2 ** 63`` is 9223372036854775808), else ``%g``."""
+    return str(x) if isinstance(x, int) and not isinstance(x, bool) else f"{x:g}"
+
+
 @dataclass(frozen=True)
 class Bounds:
     """What a field's value may be. ``None`` bounds are not checked; ``each``: the value is a list
@@ -48,8 +53,8 @@ class Bounds:
         """The bound in words: ``>= 1``, ``in (0, 255]``, ``one of 'a', 'b'``."""
         if self.choices is not None:
             return "one of " + ", ".join(map(repr, self.choices))
-        lo = f"[{self.ge:g}" if self.ge is not None else (f"({self.gt:g}" if self.gt is not None else None)
-        hi = f"{self.le:g}]" if self.le is not None else (f"{self.lt:g})" if self.lt is not None else None)
+        lo = f"[{_num(self.ge)}" if self.ge is not None else (f"({_num(self.gt)}" if self.gt is not None else None)
+        hi = f"{_num(self.le)}]" if self.le is not None else (f"{_num(self.lt)})" if self.lt is not None else None)
         if lo and hi:
             return f"in {lo}, {hi}"
         if lo:
