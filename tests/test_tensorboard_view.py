@@ -71,3 +71,22 @@ def test_images_and_figures_share_one_colour_scale(a):
     fig = _cell(x)
     fig = fig[~np.isnan(fig).any(1)][0, np.arange(len(a)) * fig.shape[1] // len(a)]
     np.testing.assert_allclose(tb, fig, atol=1e-6)
+
+
+@pytest.mark.parametrize("exp", ["exp1", "exp2"])
+def test_a_report_names_its_preset_in_its_first_lines(tmp_path, exp):
+    evaluate(make_cfg(f"experiment={exp}", "participants=1", "progress=false", "logger=none", "preset=quick"),
+             out_dir=tmp_path)
+    head = "\n".join((tmp_path / "report.md").read_text().splitlines()[:4])
+    assert "Preset `quick`" in head, head
+
+
+def test_a_pooled_report_names_the_preset(tmp_path):
+    from neuroimagery.pool import pool
+
+    for seed in (0, 1):
+        evaluate(make_cfg("experiment=demo", "participants=2", "progress=false", "logger=none", f"seed={seed}"),
+                 out_dir=tmp_path / str(seed))
+    summary, _, rep = pool([tmp_path / "0", tmp_path / "1"])
+    head = "\n".join(rep.text().splitlines()[:4])
+    assert summary["preset"] == "full" and "Preset `full`" in head, head

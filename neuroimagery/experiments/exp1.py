@@ -211,7 +211,7 @@ def report(cfg, run, summary) -> None:
     T = summary["tests"]
     r = Report("Experiment 1: mental rotation by affordances and a forward model (thesis 5.1)")
     r.chance_warning(summary)
-    r.p(f"{summary['participants']} simulated robots (the thesis runs one; here each has its own U[0, 0.1] "
+    r.p(f"Preset `{cfg.preset}`. {summary['participants']} simulated robots (the thesis runs one; here each has its own U[0, 0.1] "
         "initial weights and SOM sample order). RT = competition cycles in PMC_1 (one competition per rotation "
         "cycle) plus the answer competition in PMC_2; 1 cycle = 1 ms.")
     rec, gen = T["recognition/none"], T["generalisation/none"]
