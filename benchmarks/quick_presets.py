@@ -65,6 +65,8 @@ def main() -> None:
     ap.add_argument("--count", action="append", required=True, help="KEY=FULL: a count the preset shrinks")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     ap.add_argument("--extra", nargs="*", default=[], help="settings of every run")
+    ap.add_argument("--candidate-preset", default="quick",
+                    help="the preset of the candidate runs ('full' where the counts are full-protocol keys)")
     a = ap.parse_args()
     counts = {k: int(v) for k, v in (c.split("=") for c in a.count)}
     tmp = Path(tempfile.mkdtemp(prefix="quick_presets_"))
@@ -77,7 +79,7 @@ def main() -> None:
     factor = 2
     while True:
         sizes = {k: max(1, v // factor) for k, v in counts.items()}
-        over = ["preset=quick"] + [f"{k}={v}" for k, v in sizes.items()]
+        over = [f"preset={a.candidate_preset}"] + [f"{k}={v}" for k, v in sizes.items()]
         bad = []
         for seed in a.seeds:
             s = run(a.experiment, seed, tmp / f"q{factor}_{seed}", a.extra + over)
