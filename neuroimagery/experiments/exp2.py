@@ -32,7 +32,7 @@ from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report,
 class Exp2Quick:
     """What ``preset=quick`` shrinks (``experiment.quick``)."""
 
-    som_iterations: int = bounded(300, ge=1)  # SOM steps
+    som_iterations: int = bounded(5000, ge=1)  # SOM steps: half the full protocol's, by the rule of docs/choices.md ("Quick presets")
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.quick.")
