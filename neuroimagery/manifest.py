@@ -188,7 +188,7 @@ def _smaller(key: str, limit):
 # what preset=quick does to each experiment's settings: the key it changes and the value it uses
 # (the experiments' own code: exp1/exp2 `_e`, exp3/exp4/exp6 `quick.*` counts, exp5 `quick.repetitions`)
 QUICK_VALUES = {
-    "exp1": {"experiment.som.iterations": _smaller("experiment.som.iterations", 300)},
+    "exp1": {"experiment.som.iterations": _smaller("experiment.som.iterations", lambda s: s["experiment.quick.som_iterations"])},
     "exp2": {"experiment.som.iterations": _smaller("experiment.som.iterations", lambda s: s["experiment.quick.som_iterations"])},
     "exp3": {"experiment.fm.images": lambda s: s["experiment.quick.fm_images"]},
     "exp4": {"experiment.fm.images": lambda s: s["experiment.quick.fm_images"]},
