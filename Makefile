@@ -50,10 +50,13 @@ bench: $(BENCH_STAMP)
 	$(PY) benchmarks/bench_blocks.py
 
 # TensorBoard on every run under outputs/ (LOGDIR=... for another folder), keeping every image of a
-# tag (its default keeps 10 at random, so a sample trial of 20 rotation steps would lose some)
+# tag (its default keeps 10 at random, so a sample trial of 20 rotation steps would lose some);
+# HOST and PORT: where it listens (HOST=0.0.0.0 to open it from another machine)
 LOGDIR ?= outputs/
+HOST ?= localhost
+PORT ?= 6006
 tb: $(STAMP)
-	$(VENV)/bin/tensorboard --logdir $(LOGDIR) --samples_per_plugin images=1000
+	$(VENV)/bin/tensorboard --logdir $(LOGDIR) --host $(HOST) --port $(PORT) --samples_per_plugin images=1000
 
 clean:
 	rm -rf $(VENV) outputs multirun .pytest_cache

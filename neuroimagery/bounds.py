@@ -30,8 +30,8 @@ from .errors import UserInputError
 
 
 def _num(x) -> str:
-    """A bound as written: a whole number exactly (``9223372036854775808``, not ``9.22337e+18``)."""
-    return str(x) if isinstance(x, int) else f"{x:g}"
+    """A bound as written: an integer in full (``2 ** 63`` is 9223372036854775808), else ``%g``."""
+    return str(x) if isinstance(x, int) and not isinstance(x, bool) else f"{x:g}"
 
 
 @dataclass(frozen=True)

@@ -124,6 +124,23 @@ def _one_line(ex: BaseException) -> str:
     return "; ".join(parts) or type(ex).__name__
 
 
+def missing_option_message(text: str) -> str | None:
+    """Hydra's refusal of a group option that does not exist (``Could not find 'experiment/exp7'``,
+    with its list of options and its search path) as one line: the option and the options there
+    are, the schemas the options build on left out; None for other errors."""
+    m = re.search(r"Could not find '([\w-]+)/([^']+)'", text)
+    if m is None:
+        return None
+    group, option = m.groups()  # experiment, exp5/foo
+    listed = re.search(r"Available options in '([^']+)':\n((?:\t.*\n?)*)", text)
+    options = [o.strip() for o in (listed.group(2).splitlines() if listed else []) if o.strip()]
+    options = [o for o in options if not o.endswith("_schema")]
+    where = listed.group(1) if listed else group
+    prefix = where[len(group) + 1:] + "/" if where.startswith(group + "/") else ""
+    choose = f": choose one of {', '.join(prefix + o for o in options)}" if options else ""
+    return f"{group}={option} is not an option of {group}{choose}"
+
+
 _CLUSTER_HINT = ' (the submitit launchers need hydra-submitit-launcher: pip install -e ".[cluster]")'
 
 
@@ -167,7 +184,7 @@ def plain_hydra_errors() -> None:
             moved = moved_message(full) if " not in " in full else None
             if moved:
                 _fail(moved, log=False)
-            unknown = unknown_key_message(full)
+            unknown = unknown_key_message(full) or missing_option_message(full)
             if unknown:
                 _fail(unknown, log=False)
             _fail(_one_line(ex) + (_CLUSTER_HINT if "hydra_submitit_launcher" in str(ex) else ""), log=False)

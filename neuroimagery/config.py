@@ -135,7 +135,10 @@ def did_you_mean(key: str, experiment: str | None = None) -> str:
     schema (difflib), or ``""`` when none is close."""
     import difflib
 
-    close = difflib.get_close_matches(key, schema_keys(experiment), n=1, cutoff=0.75)
+    keys = schema_keys(experiment)
+    if "." not in key:  # a top-level name: the top level's keys and groups (experiment, vision, ...)
+        keys = list(dict.fromkeys(["experiment"] + [k.split(".")[0] for k in keys]))
+    close = difflib.get_close_matches(key, keys, n=1, cutoff=0.75)
     return f" (did you mean {close[0]}?)" if close else ""
 
 

@@ -3,8 +3,9 @@
 The Scalars tab holds curves only: a tag's first point is held back until a second one comes, and
 the tags that never get a second (a block's final state, a test's figure) go into one text
 summary, ``summary/single_values``, when the run closes. The headline figures of a run are
-HParams metrics (the scalars TensorBoard's HParams view needs, under ``hparams/``) and the text
-summary ``summary/headline``."""
+HParams metrics (the scalars TensorBoard's HParams view needs, under ``values/``, a group that
+sorts after the curves' ``train/`` and ``success/``, so the Scalars tab opens on a curve) and the
+text summary ``summary/headline``."""
 from __future__ import annotations
 
 import functools
@@ -13,23 +14,36 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import torch
 
 
 MIN_SIDE = 96  # pixels: small maps are enlarged (nearest neighbour) to at least this on their longer side
+METRICS = "values"  # the group of the HParams metrics' one-point scalars (after every curve's group)
 STRIP = 12  # pixels: the height of a 1-D map's strip, and each unit's width at least
 
 
+def own_range(activity) -> np.ndarray:
+    """A map scaled to [0, 1] by its own range, in float64: the one colour scale of the TensorBoard
+    images and the figures' map panels. A map whose range is below a millionth of its largest
+    magnitude is constant: all 0 when it is zero, else all 1 (every unit equally active), so a
+    saturated map (PMCd at its threshold) looks the same in both."""
+    a = np.asarray(activity.detach().cpu().double() if isinstance(activity, torch.Tensor) else activity, dtype=float)
+    if a.size == 0:
+        return a
+    lo, hi, top = a.min(), a.max(), np.abs(a).max()
+    if hi - lo <= 1e-6 * top or top == 0:
+        return np.full_like(a, 1.0 if top > 0 else 0.0)
+    return (a - lo) / (hi - lo)
+
+
 def _to_image(activity: torch.Tensor) -> torch.Tensor:
-    """A 1-D or 2-D map -> ``(1, H, W)`` image in [0, 1] (each map scaled by its own range). A 1-D
-    map becomes a strip of ``STRIP``-pixel cells, one per unit; a small 2-D map is enlarged by an
-    integer factor, so every unit stays a visible square."""
-    a = activity.detach().float().cpu()
+    """A 1-D or 2-D map -> ``(1, H, W)`` image in [0, 1] (each map scaled by its own range,
+    :func:`own_range`). A 1-D map becomes a strip of ``STRIP``-pixel cells, one per unit; a small
+    2-D map is enlarged by an integer factor, so every unit stays a visible square."""
+    a = torch.as_tensor(own_range(activity), dtype=torch.float32)
     if a.dim() == 1:
         a = a.unsqueeze(0)
-    a = a - a.min()
-    m = a.max()
-    a = a / m if m > 0 else a
     h, w = a.shape
     k = max(1, math.ceil(MIN_SIDE / max(h, w)))
     if activity.dim() == 1:
@@ -190,7 +204,7 @@ class TensorBoardLogger(NullLogger):
         run's event file (``SummaryWriter.add_hparams`` would open a second one)."""
         from torch.utils.tensorboard.summary import hparams
 
-        metrics = {f"hparams/{k}": float(v) for k, v in metrics.items() if isinstance(v, (int, float))}
+        metrics = {f"{METRICS}/{k}": float(v) for k, v in metrics.items() if isinstance(v, (int, float))}
         exp, ssi, sei = hparams({k: _hparam_value(v) for k, v in settings.items()}, metrics)
         fw = self.writer._get_file_writer()
         for summary in (exp, ssi, sei):
@@ -199,7 +213,7 @@ class TensorBoardLogger(NullLogger):
             self.writer.add_scalar(k, v, 0)
         if metrics:
             self.writer.add_text("summary/headline", _markdown_table(
-                ["figure", "value"], [[k.removeprefix("hparams/"), f"{v:.4g}"] for k, v in metrics.items()]), 0)
+                ["figure", "value"], [[k.removeprefix(f"{METRICS}/"), f"{v:.4g}"] for k, v in metrics.items()]), 0)
 
     @_naming
     def flush(self) -> None:

@@ -222,3 +222,36 @@ def usable_run(root, use: str, experiment: str | None = None, need: str = "compl
     if note is None and files is not None:
         verify_files(root, manifest, use, files or None)
     return manifest, note
+
+
+def _smaller(key: str, limit):
+    return lambda s: min(s[key], limit(s) if callable(limit) else limit)
+
+
+# what preset=quick does to each experiment's settings: the key it changes and the value it uses
+# (the experiments' own code: exp1/exp2 `_e`, exp3/exp4/exp6 `quick.*` counts, exp5 `quick.repetitions`)
+QUICK_VALUES = {
+    "exp1": {"experiment.som.iterations": _smaller("experiment.som.iterations", lambda s: s["experiment.quick.som_iterations"])},
+    "exp2": {"experiment.som.iterations": _smaller("experiment.som.iterations", lambda s: s["experiment.quick.som_iterations"])},
+    "exp3": {"experiment.fm.images": lambda s: s["experiment.quick.fm_images"]},
+    "exp4": {"experiment.fm.images": lambda s: s["experiment.quick.fm_images"]},
+    "exp5": {"experiment.repetitions": lambda s: s["experiment.quick.repetitions"]},
+    "exp6": {"experiment.fm.images": lambda s: s["experiment.quick.fm_images"],
+             "experiment.image.chains": lambda s: s["experiment.quick.chains"],
+             "experiment.test_objects": lambda s: (min(s["experiment.test_objects"], s["experiment.quick.objects"])
+                                                   if s.get("experiment.test_cubes") is None else s["experiment.test_objects"])},
+}
+
+
+def as_used(settings: dict, experiment: str) -> dict:
+    """``settings`` (dotted keys) with the values a run used: under ``preset=quick`` each key the
+    preset shrinks holds the quick value (TensorBoard's HParams view shows these)."""
+    if settings.get("preset") != "quick":
+        return dict(settings)
+    out = dict(settings)
+    for key, value in QUICK_VALUES.get(experiment, {}).items():
+        try:
+            out[key] = value(settings)
+        except KeyError:  # a key the run does not have (an older schema): left as given
+            pass
+    return out

@@ -221,6 +221,7 @@ def pool_trials(runs: list[Run]) -> tuple[dict, pd.DataFrame]:
         else:
             mf.verify_files(r.dir, r.manifest, "pool")
     summary = {"experiment": runs[0].experiment, "pooled": True, "seeds": [r.seed for r in runs],
+               "preset": runs[0].manifest["settings"].get("preset", "full"),
                "participants": sum(counts), "tests": tests, "targets": targets,
                "effects": pooled_effects(runs[0].experiment, rows),
                "runs": [{"run": str(r.dir), "seed": r.seed, "participants": n, "package": r.manifest.get("package")}
@@ -252,8 +253,8 @@ def report_trials(summary: dict) -> Report:
     runs, targets = summary["runs"], summary["targets"]
     seeds = [str(r["seed"]) for r in runs]
     rep = Report(f"{TITLES.get(summary['experiment'], summary['experiment'])} pooled over {len(runs)} runs")
-    rep.p(f"{len(runs)} runs of the same settings (seeds {', '.join(seeds)}), {summary['participants']} participants "
-          "in all. Per test: each seed's value, their mean and standard deviation across seeds (SD: none with one "
+    rep.p(f"Preset `{summary.get('preset', 'full')}`. {len(runs)} runs of the same settings (seeds {', '.join(seeds)}), "
+          f"{summary['participants']} participants in all. Per test: each seed's value, their mean and standard deviation across seeds (SD: none with one "
           "seed), the value on all trials of all runs, and the thesis's figure where the summary of a run states "
           "one. RT in the experiment's own unit.")
     shown = set()

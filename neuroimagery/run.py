@@ -389,7 +389,8 @@ def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dic
             run.write_json("summary.json", summary)
             from .analysis.summary import headline
 
-            run.logger.hparams(run.manifest["settings"] if run.manifest else mf.flatten(conf), headline(summary))
+            settings = run.manifest["settings"] if run.manifest else mf.flatten(conf)
+            run.logger.hparams(mf.as_used(settings, conf.experiment.name), headline(summary))
             if hasattr(module, "report"):
                 module.report(conf, run, summary)
         return summary

@@ -240,6 +240,52 @@ def test_end_to_end_quick_run_writes_results(tmp_path):
     assert set(s["headline"]["goals"]) and "Shepard" in (tmp_path / "report.md").read_text()
 
 
+def test_sample_trials_show_every_step_of_a_rotation(tmp_path, monkeypatch):
+    """The sample trials are the first object's pairs at the largest angle; the figure and
+    TensorBoard show every step of the recorded trial, as many as the trial made (trials.csv)."""
+    import pandas as pd
+    from support_figures import checking_overlaps
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    from neuroimagery.analysis import figures
+
+    drawn = {}
+    real = figures.map_panels
+
+    def spy(steps, path, title="", row_labels=None, units=None):
+        drawn[str(path).rsplit("/", 1)[-1]] = (len(steps), list(row_labels), title)
+        return real(steps, path, title=title, row_labels=row_labels, units=units)
+
+    monkeypatch.setattr(figures, "map_panels", spy)
+    cfg = validate(make_cfg("experiment=exp6", "participants=1", "logger.sample_trials=2", *TINY))
+    cfg.preset = "quick"
+    with checking_overlaps() as found:
+        evaluate(cfg, out_dir=tmp_path)
+    assert not {k: v for k, v in found.items() if k.startswith("exp6_maps")}  # nothing clipped or overlapping
+    df = pd.read_csv(tmp_path / "trials.csv")
+    ea = EventAccumulator(str(tmp_path / "tb"), size_guidance={"images": 0, "scalars": 0}).Reload()
+    for test in ("picture", "depth"):
+        d = df[(df["test"] == test) & (df["participant"] == 0)]
+        shown = d[(d["rotated_angle"] == d["rotated_angle"].max()) & d["same"]].iloc[0]
+        steps = min(int(shown["rotation_steps"]) + 1, cfg.experiment.selection.max_steps)
+        assert steps >= 3, "the sample trial shows a rotation"
+        n, labels, title = drawn[f"exp6_maps_{test}.png"]
+        assert n == len(labels) == steps and labels[-1].endswith("still") and "180 deg" in title
+        for k in (0, 1):  # both sample trials, every step, in TensorBoard
+            events = ea.Images(f"{test}/none/trial{k}/POCp_front")
+            assert [e.step for e in events] == list(range(1, len(events) + 1))
+        assert len(ea.Images(f"{test}/none/trial0/POCp_front")) == steps
+    curves = [t for t in ea.Tags()["scalars"] if t.startswith("train/") and len(ea.Scalars(t)) > 1]
+    assert len(curves) == 6, curves  # each forward model's training curve
+    from tensorboard.plugins.hparams import plugin_data_pb2
+    info = plugin_data_pb2.HParamsPluginData.FromString(
+        ea.PluginTagToContent("hparams")["_hparams_/session_start_info"]).session_start_info
+    assert info.hparams["experiment.fm.images"].number_value == 16  # as the quick run used it
+    report = (tmp_path / "report.md").read_text()
+    assert "{" not in report.split("## All tests")[0]  # no Python dict in a table cell
+    assert "*exp6 maps picture*" not in report and "every step" in report
+
+
 def test_wrist_signal_joins_the_line_of_sight_rotation_code_only():
     cfg = _cfg("participants=1", *TINY)
     model = exp6.train_model(cfg, [0])

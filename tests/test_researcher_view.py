@@ -98,7 +98,7 @@ def test_tensorboard_one_event_file_readable_strips_and_hparams(tmp_path):
     assert [e.step for e in img] == [1, 2, 3]
     assert img[0].width % 3 == 0 and img[0].width // 3 >= STRIP and img[0].height == STRIP  # one cell per unit
     assert {"_hparams_/experiment", "_hparams_/session_start_info"} <= set(ea.PluginTagToContent("hparams"))
-    assert [e.value for e in ea.Scalars("hparams/recog/correct_rate")] == pytest.approx([0.7])
+    assert [e.value for e in ea.Scalars("values/recog/correct_rate")] == pytest.approx([0.7])
     assert "summary/headline/text_summary" in ea.Tags()["tensors"]
 
 
@@ -113,7 +113,7 @@ def test_tensorboard_scalars_are_curves_and_single_values_go_to_text(tmp_path):
     ea = _accumulate(tmp_path)
     scalars = ea.Tags()["scalars"]
     assert [e.step for e in ea.Scalars("train/C1/squared_error")] == [0, 1, 2, 3]  # the held first point too
-    assert all(len(ea.Scalars(t)) > 1 for t in scalars if not t.startswith("hparams/")), scalars
+    assert all(len(ea.Scalars(t)) > 1 for t in scalars if not t.startswith("values/")), scalars
     assert "train/C1/weight_norm_final" not in scalars and "recog/none/correct_rate" not in scalars
     text = ea.Tensors("summary/single_values/text_summary")[0].tensor_proto.string_val[0].decode()
     assert "train/C1/weight_norm_final" in text and "2.5" in text and "recog/none/correct_rate" in text

@@ -126,3 +126,35 @@ def test_the_test_bar_has_a_total_and_says_when_the_count_misses_it(capsys, capl
     assert logged[-1] == "exp9 test: counted 4 of the 10 trials announced"
     assert progress_misses == ["exp9 test: counted 4 of 10"]
     progress_misses.clear()  # missed on purpose
+
+
+def _entry(*args: str):
+    return subprocess.run([sys.executable, str(ROOT / "evaluate.py"), *args], capture_output=True, text=True,
+                          cwd=ROOT, timeout=180)
+
+
+def test_help_names_the_experiments_and_explains_the_top_level_keys():
+    from neuroimagery.config import EXPERIMENTS, Config
+
+    p = _entry("--help")
+    assert p.returncode == 0, p.stderr
+    head = p.stdout.split("== Every setting")[0]
+    assert "_schema" not in head
+    for name in EXPERIMENTS:
+        assert name in head, name
+    for key in ("seed", "participants", "preset", "checkpoint", "threads", "progress", "overwrite", "allow_large"):
+        assert f"  {key}=" in head, key
+    assert set(Config.__dataclass_fields__) - {"experiment", "vision", "stimuli", "logger"} <= \
+        {k.split("=")[0].strip() for k in head.splitlines() if "=" in k}
+
+
+@pytest.mark.parametrize("arg, line", [
+    ("experment=exp4", "error: experment is not a setting (did you mean experiment?)"),
+    ("experiment=exp7", "error: experiment=exp7 is not an option of experiment: choose one of demo, exp1, exp2, "
+                        "exp3, exp4, exp5, exp6"),
+    ("seed=-1", "error: invalid configuration: seed must be in [0, 9223372036854775808), got -1"),
+])
+def test_a_refused_top_level_setting_is_one_plain_line(arg, line):
+    p = _entry(arg)
+    assert p.returncode == 2
+    assert [ln for ln in p.stderr.splitlines() if ln.strip()] == [line]

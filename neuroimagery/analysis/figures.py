@@ -19,6 +19,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from ..files import save_figure  # noqa: E402
+from ..logger import own_range  # noqa: E402
 
 
 THESIS_STYLE = dict(color="black", linestyle="--", linewidth=1.2)
@@ -142,19 +143,16 @@ def rate_bars(df: pd.DataFrame, path: str | Path, title: str = "", by: str = "te
 
 CELL = 48  # pixels of one map's cell in a panel grid
 GAP = 4  # pixels between cells
+BAR_MIN = 130  # pixels: the shortest colour bar of a panel grid (its two-line label fits beside it)
 
 
 def _cell(a: np.ndarray) -> np.ndarray:
     """A map scaled to [0, 1] by its own range and resampled by nearest neighbour onto a
     ``CELL x CELL`` square (a 1-D map onto a strip a third as tall, across the middle); NaN
     around it (drawn blank)."""
-    a = np.asarray(a, dtype=float)
+    a = own_range(a)  # the colour scale of the TensorBoard images
     if a.ndim == 1:
         a = a[None, :]
-    if a.size:
-        a = a - a.min()
-        m = a.max()
-        a = a / m if m > 0 else a
     h, w = a.shape
     rows = CELL // 3 if h == 1 else CELL
     img = a[np.arange(rows) * h // rows][:, np.arange(CELL) * w // CELL]
@@ -183,12 +181,14 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
     rgba = plt.get_cmap("viridis")(np.nan_to_num(mosaic))
     rgba[np.isnan(mosaic)] = 1.0
     dpi, left, right = 100, 170, 120
-    bottom = 40 if units else 10
     H, W = mosaic.shape
+    bar_h = max(min(H, 240), BAR_MIN)  # the colour bar, tall enough for its label
+    bottom = (40 if units else 10) + max(0, bar_h - H)
     fw = W + left + right
     width = max(20, int(fw / 6.5))  # characters of a 9-pt line that fit the figure's width
     title = "\n".join(textwrap.fill(line, width) for line in title.split("\n"))
-    top = 56 + 14 * (title.count("\n") + 1)
+    names_h = int(0.71 * 6.5 * max(map(len, names))) + 16  # the map names, 7 pt at 45 deg (6.5 px a character at most)
+    top = max(56, names_h + 16) + 16 * (title.count("\n") + 1)
     fh = H + top + bottom
     fig = plt.figure(figsize=(fw / dpi, fh / dpi), dpi=dpi)
     fig.figimage(rgba, xo=left, yo=bottom, origin="upper")
@@ -205,7 +205,7 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
             for k, lab in enumerate(labs):
                 fig.text((left + c * pitch + (k + 0.5) * CELL / w) / fw, (bottom - 4) / fh, lab, ha="center",
                          va="top", fontsize=6, rotation=90 if w > 3 or max(map(len, labs)) > 3 else 0)
-    cax = fig.add_axes([(left + W + 14) / fw, (bottom + H - min(H, 240)) / fh, 12 / fw, min(H, 240) / fh])
+    cax = fig.add_axes([(left + W + 14) / fw, (bottom + H - bar_h) / fh, 12 / fw, bar_h / fh])
     bar = fig.colorbar(plt.cm.ScalarMappable(cmap="viridis", norm=matplotlib.colors.Normalize(0, 1)), cax=cax)
     bar.set_ticks([0, 0.5, 1], labels=["min", "", "max"])
     bar.ax.tick_params(labelsize=6)

@@ -36,8 +36,8 @@ def cell(x: Any) -> str:
 
 EQUIVALENCE_NOTE = (
     "A claim of no effect ('~0') is tested by equivalence: two one-sided t-tests (TOST) against -B and +B, "
-    "the bound B in the 'expected' column, fixed by a rule before measuring (docs/choices.md: one rotation step "
-    "of RT, 5 points of a rate); its p is the larger one-sided p, Holm-corrected with the rest. It reads "
+    "the bound B in the 'expected' column, fixed by a rule from the measure's unit before measuring "
+    "(docs/choices.md, 'Statistics in the reports'); its p is the larger one-sided p, Holm-corrected with the rest. It reads "
     "'equivalent within ±B' when p (Holm) < 0.05 and 'not shown' otherwise: a large p of a difference test "
     "is never read as no effect.")
 
@@ -124,7 +124,7 @@ class Report:
                    f"{verdict} (alpha 0.05).")
         return self
 
-    def effects(self, rows: list[dict], intro: str | None = None) -> "Report":
+    def effects(self, rows: list[dict], intro: str | None = None, equivalence: str | None = None) -> "Report":
         """The effects table of :func:`neuroimagery.analysis.summary.effect` rows: the participant is
         the unit (paired t-tests over participants, or one-sample t-tests of their slopes), a claim
         of no effect an equivalence test (TOST) within a bound fixed by a rule (docs/choices.md),
@@ -136,7 +136,8 @@ class Report:
                "participants' differences or slopes) with its 95 % interval from the noncentral t distribution. "
                "p is two-sided; p (Holm) applies Holm's correction over the rows of this table, the report's "
                "family of effects. 'yes': the expected sign with p (Holm) < 0.05.")
-        self.p(EQUIVALENCE_NOTE)
+        if any(e["expected"] == "~0" for e in rows):
+            self.p(equivalence or EQUIVALENCE_NOTE)
         ci = lambda c: "-" if not c else f"[{c[0]:.3g}, {c[1]:.3g}]"  # noqa: E731
 
         def expected(e):
@@ -159,6 +160,9 @@ class Report:
                      fmt_p(e["p"]), fmt_p(e.get("p_holm")), verdict(e)] for e in rows])
         if any(e.get("d_z_degenerate") for e in rows):
             self.p(DEGENERATE_NOTE)
+        untested = [e for e in rows if e.get("untested")]
+        if untested:
+            self.p("Rows without a test ('-'): " + "; ".join(f"{e['effect']}: {e['untested']}" for e in untested) + ".")
         return self
 
     def figures(self, run_root: str | Path, paths, errorbars: str = "Error bars: SEM over participants") -> "Report":

@@ -32,8 +32,13 @@ ROBOT_EFFECTS_INTRO = ("Each effect is tested with the simulated robot as the un
                        "standard errors cluster-robust over the skill libraries the groups share; reactive against "
                        "planning pairs each robot's two tests (value: the difference of success rates, McNemar's "
                        "exact p). 95 % intervals; p (Holm) corrects over the rows of this table. 'holds': the "
-                       "expected sign with p (Holm) < 0.05. A group at 0 % or "
-                       "100 % leaves a regression without a finite estimate ('-').")
+                       "expected sign with p (Holm) < 0.05. A row without a test ('-') says why under the table.")
+ROBOT_EQUIVALENCE = ("A claim of no effect ('~0') is tested by equivalence: two one-sided z-tests of the paired "
+                     "difference of success rates (its Wald standard error) against -B and +B, B = 5 points of a "
+                     "rate, fixed before measuring (docs/choices.md, 'Statistics in the reports'); its p is the "
+                     "larger one-sided p, Holm-corrected with the rest. It reads 'equivalent within ±B' when p "
+                     "(Holm) < 0.05 and 'not shown' otherwise: a large p of a difference test is never read as no "
+                     "effect.")
 
 
 def _units(df: pd.DataFrame) -> pd.DataFrame:
@@ -49,7 +54,12 @@ def logistic_trend(df: pd.DataFrame, x: str) -> dict:
     d = _units(df)
     out = {"n": int(d["_robot"].nunique()), "diff": None, "ci95": None, "p": None}
     y, xs = d["success"].astype(float).to_numpy(), d[x].astype(float).to_numpy()
-    if len(d) < 4 or np.ptp(xs) == 0 or y.min() == y.max():
+    counts = ", ".join(f"{x} {k:g}: {int(g['success'].sum())} of {len(g)} succeed" for k, g in d.groupby(x))
+    if len(d) < 4 or np.ptp(xs) == 0:
+        out["untested"] = f"too few robots or one {x} level only ({counts})"
+        return out
+    if y.min() == y.max():
+        out["untested"] = f"every robot {'succeeds' if y[0] else 'fails'}, so no rate can differ ({counts})"
         return out
     groups = pd.factorize(d["_library"])[0]
     with warnings.catch_warnings():
@@ -58,10 +68,15 @@ def logistic_trend(df: pd.DataFrame, x: str) -> dict:
             fit = sm.GLM(y, sm.add_constant(xs), family=sm.families.Binomial()).fit(
                 cov_type="cluster", cov_kwds={"groups": groups})
         except Exception:  # noqa: BLE001 - a singular fit is reported without a test
+            out["untested"] = f"the regression has no fit ({counts})"
             return out
     b, (lo, hi), p = fit.params[1], fit.conf_int()[1], fit.pvalues[1]
-    if not all(map(math.isfinite, (b, lo, hi, p))) or abs(b) > 20 or not fit.bse[1] > 0:
-        return out  # separated, or no spread between the libraries: no finite estimate to test
+    if not all(map(math.isfinite, (b, lo, hi, p))) or abs(b) > 20:
+        out["untested"] = f"a group at 0 % or 100 % separates the outcomes: the log odds have no finite estimate ({counts})"
+        return out
+    if not fit.bse[1] > 0:
+        out["untested"] = f"no spread between the skill libraries, so no cluster-robust error ({counts})"
+        return out
     out.update(diff=rounded(b, 4), ci95=[rounded(lo, 4), rounded(hi, 4)], p=float(p))
     return out
 

@@ -220,6 +220,8 @@ def effect(name: str, expected: str, res: dict, key: str = "diff", bound: float 
     row = {"effect": name, "expected": expected, "value": v, "ci95": res.get("ci95"), "p": p, "n": res.get("n"),
            "d_z": res.get("d_z"), "d_z_ci95": res.get("d_z_ci95"),
            "d_z_degenerate": res.get("d_z") is not None and abs(res["d_z"]) > DEGENERATE_DZ}
+    if res.get("untested"):  # why no test could be made (e.g. a group at 0 % or 100 %)
+        row["untested"] = res["untested"]
     if expected == "~0":
         row.update(bound=bound, p_difference=p, test="TOST")
         if bound is None:

@@ -9,7 +9,7 @@ their U[0, 0.1] initial weights and the SOM's sample order).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -19,7 +19,7 @@ from ..analysis import figures
 from ..analysis.report import Report
 from ..analysis.summary import effect, holm, slope_by_participant, summarise_trials
 from ..thesis import EXP1 as THESIS
-from ..bounds import bounded
+from ..bounds import bounded, check_declared
 from ..models.params import FieldParams, SomParams
 from ..models.rotation_affordance import AffordanceParams, AffordanceRotationModel
 from .ch5_checks import weights_estimate
@@ -29,10 +29,21 @@ from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report,
 
 
 @dataclass
+class Exp1Quick:
+    """What ``preset=quick`` shrinks (``experiment.quick``)."""
+
+    som_iterations: int = bounded(62, ge=1)  # PFC_2's SOM steps: full / 32, by the rule of docs/choices.md ("Quick presets")
+
+    def __post_init__(self) -> None:
+        check_declared(self, "experiment.quick.")
+
+
+@dataclass
 class Exp1Config(AffordanceParams):
     """The model's parameters (:class:`AffordanceParams`) and the run's."""
 
     name: str = "exp1"
+    quick: Exp1Quick = field(default_factory=Exp1Quick)  # what preset=quick shrinks
     auto_threads: int = bounded(0, ge=0)  # intra-op threads for training and testing when the run's `threads` is 0; 0: the free cores measured at start (see docs)
 
 
@@ -79,7 +90,7 @@ def _e(cfg) -> Exp1Config:
     if cfg.preset == "quick":
         from dataclasses import replace
 
-        e = replace(e, som=replace(e.som, iterations=min(e.som.iterations, 300)))
+        e = replace(e, som=replace(e.som, iterations=min(e.som.iterations, e.quick.som_iterations)))
     return e
 
 
@@ -211,7 +222,7 @@ def report(cfg, run, summary) -> None:
     T = summary["tests"]
     r = Report("Experiment 1: mental rotation by affordances and a forward model (thesis 5.1)")
     r.chance_warning(summary)
-    r.p(f"{summary['participants']} simulated robots (the thesis runs one; here each has its own U[0, 0.1] "
+    r.p(f"Preset `{cfg.preset}`. {summary['participants']} simulated robots (the thesis runs one; here each has its own U[0, 0.1] "
         "initial weights and SOM sample order). RT = competition cycles in PMC_1 (one competition per rotation "
         "cycle) plus the answer competition in PMC_2; 1 cycle = 1 ms.")
     rec, gen = T["recognition/none"], T["generalisation/none"]

@@ -32,7 +32,7 @@ from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report,
 class Exp2Quick:
     """What ``preset=quick`` shrinks (``experiment.quick``)."""
 
-    som_iterations: int = bounded(300, ge=1)  # SOM steps
+    som_iterations: int = bounded(5000, ge=1)  # SOM steps: half the full protocol's, by the rule of docs/choices.md ("Quick presets")
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.quick.")
@@ -217,7 +217,7 @@ def report(cfg, run, summary) -> None:
     pr = summary["proprioception"]
     r = Report("Experiment 2: mental rotation through motor models and proprioception (thesis 5.2)")
     r.chance_warning(summary)
-    r.p(f"{summary['participants']} simulated robots, 196 pairs each, three proprioception conditions. "
+    r.p(f"Preset `{cfg.preset}`. {summary['participants']} simulated robots, 196 pairs each, three proprioception conditions. "
         f"SOM training steps: {_e(cfg).som.iterations} (thesis 10,000).")
     r.h("Results beside the thesis")
     success, correct = THESIS["rotation success"].value, THESIS["correct answers"].value

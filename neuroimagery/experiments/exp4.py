@@ -223,9 +223,11 @@ def effects(df: pd.DataFrame) -> list[dict]:
 
 
 def _stats_by_disparity(df: pd.DataFrame) -> dict:
-    """Welch t-tests on RT and chi-square tests on correct answers, per disparity, for the
-    proprioception comparisons of each test (``{"<test>:<a>-vs-<b>": {"<disparity>": {...}}}``)."""
-    out = {}
+    """The proprioception comparisons of each test at each disparity, the participant as the unit:
+    paired t-tests of the participants' mean RT and correct rate (``paired_by_participant``), with
+    Holm's correction over every p of the table (``{"<test>:<a>-vs-<b>": {"<disparity>": {...}}}``;
+    ``rt_a``/``rt_b`` and ``correct_a``/``correct_b`` the means over the participants)."""
+    out, ps = {}, []
     for test in df["test"].unique():
         d = df[df["test"] == test]
         conds = set(d["condition"].unique())
@@ -235,10 +237,20 @@ def _stats_by_disparity(df: pd.DataFrame) -> dict:
             rows = {}
             for disp, g in d.groupby("disparity"):
                 ga, gb = g[g["condition"] == a], g[g["condition"] == b]
-                rt, cr = compare_rt(ga["rt"], gb["rt"]), compare_rates(ga["correct"], gb["correct"])
-                rows[str(int(disp))] = {"rt_a": rt["mean_a"], "rt_b": rt["mean_b"], "rt_p": rt["p"],
-                                        "correct_a": cr["rate_a"], "correct_b": cr["rate_b"], "correct_p": cr["p"]}
+                rt = paired_by_participant(ga, gb, "rt")
+                cr = paired_by_participant(ga.assign(correct=ga["correct"].astype(float)),
+                                           gb.assign(correct=gb["correct"].astype(float)), "correct")
+                row = {"rt_a": rt["mean_a"], "rt_b": rt["mean_b"], "rt_p": rt["p"],
+                       "correct_a": cr["mean_a"], "correct_b": cr["mean_b"], "correct_p": cr["p"], "n": rt["n"]}
+                rows[str(int(disp))] = row
+                ps += [(row, "rt"), (row, "correct")]
             out[f"{test}:{a}-vs-{b}"] = rows
+    tested = [(row, k) for row, k in ps if row[f"{k}_p"] is not None]
+    adjusted = holm([{"p": row[f"{k}_p"], "expected": ">0", "value": None, "holds": None} for row, k in tested])
+    for (row, k), h in zip(tested, adjusted):
+        row[f"{k}_p_holm"] = h["p_holm"]
+    for row, k in ps:
+        row.setdefault(f"{k}_p_holm", None)
     return out
 
 
@@ -365,11 +377,16 @@ def report(cfg, run, summary) -> None:
             [[k, v["rt"]["mean_a"], v["rt"]["mean_b"], fmt_p(v["rt"]["p"]),
               v["correct"]["rate_a"], v["correct"]["rate_b"], fmt_p(v["correct"]["p"])]
              for k, v in summary["statistics"].items()])
-    r.h("Proprioception by disparity (RT: Welch t-test; correct: chi-square)")
-    r.table(["comparison", "disparity", "RT a", "RT b", "RT p", "correct a", "correct b", "correct p"],
-            [[k, dsp, v["rt_a"], v["rt_b"], fmt_p(v["rt_p"]), v["correct_a"], v["correct_b"], fmt_p(v["correct_p"])]
-             for k, rows in summary.get("statistics_by_disparity", {}).items() if "noise" in k or "mismatch" in k
-             for dsp, v in rows.items()])
+    r.h("Proprioception by disparity, the participant as the unit")
+    by = [(k, dsp, v) for k, rows in summary.get("statistics_by_disparity", {}).items() for dsp, v in rows.items()]
+    r.p(f"Condition a against b at each disparity: paired t-tests over the participants of their mean RT and "
+        f"correct rate (a, b: the means over the participants); p (Holm) corrects over the "
+        f"{sum((v['rt_p'] is not None) + (v['correct_p'] is not None) for _, _, v in by)} tests of this table. "
+        "Exploratory: the thesis's claims are the effects above.")
+    r.table(["comparison", "disparity", "n", "RT a", "RT b", "RT p", "RT p (Holm)", "correct a", "correct b", "correct p",
+             "correct p (Holm)"],
+            [[k, dsp, v.get("n", "-"), v["rt_a"], v["rt_b"], fmt_p(v["rt_p"]), fmt_p(v.get("rt_p_holm")), v["correct_a"],
+              v["correct_b"], fmt_p(v["correct_p"]), fmt_p(v.get("correct_p_holm"))] for k, dsp, v in by])
     r.h("Forward models trained on three dots, applied to the test shapes")
     r.table(["set", "IoU after 1 step", "2 steps", "3 steps"],
             [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])

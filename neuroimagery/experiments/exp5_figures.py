@@ -1,6 +1,7 @@
 """Figures and report of Experiment 5 (Fig. 7.9, 7.10, the four situations, a retrieval film strip)."""
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -9,7 +10,7 @@ import pandas as pd
 from ..analysis import figures
 from ..analysis.figures import plt, save
 from ..analysis.report import Report, reproducibility_note
-from ..analysis.robots import ROBOT_EFFECTS_INTRO
+from ..analysis.robots import ROBOT_EFFECTS_INTRO, ROBOT_EQUIVALENCE
 from ..models.tool_use import EVENTS, N_POSTURES, SKILL_LETTERS
 from .exp5_config import THESIS, THESIS_TABLE_7_1
 from .exp5_summary import group_rates
@@ -92,8 +93,9 @@ def filmstrip(film: dict, path: Path) -> Path:
     for ax in axes.ravel():
         ax.set_xticks([])
         ax.set_yticks([])
-    fig.suptitle(f"{film['strategy']} child, tool {film['situation']} ({film['hypothesis']} level {film['level']}): "
-                 "mental image (top) vs the scene after really moving (bottom)", fontsize=9)
+    title = (f"{film['strategy']} child, tool {film['situation']} ({film['hypothesis']} level {film['level']}): "
+             "mental image (top) vs the scene after really moving (bottom)")
+    fig.suptitle(textwrap.fill(title, max(24, int(2.6 * n * 11))), fontsize=9)  # 9 pt: about 11 characters an inch
     return save(fig, path)
 
 
@@ -248,7 +250,7 @@ def write_report(cfg, run, summary: dict) -> None:
         rep.table(["claim", "this run", "holds"], [[c["claim"], c["value"], "yes" if c["holds"] else "**no**"] for c in claims])
     if summary.get("effects"):
         rep.h("Effects, the robot as the unit")
-        rep.effects(summary["effects"], ROBOT_EFFECTS_INTRO)
+        rep.effects(summary["effects"], ROBOT_EFFECTS_INTRO, ROBOT_EQUIVALENCE)
     routes = [r for r in summary.get("routes", []) if r["hypothesis"] == "hp1"]
     if routes:
         rep.h("How the tool-far successes happen (HP1)")

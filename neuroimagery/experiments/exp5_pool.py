@@ -25,7 +25,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from ..analysis.report import Report
-from ..analysis.robots import ROBOT_EFFECTS_INTRO
+from ..analysis.robots import ROBOT_EFFECTS_INTRO, ROBOT_EQUIVALENCE
 from ..analysis.tables import read_whole_csv
 from ..errors import UserInputError
 from .exp5_config import POOL_FREE_KEYS, Exp5Config, dotted, from_dict, nest
@@ -205,7 +205,7 @@ def report(summary: dict, e: Exp5Config) -> Report:
     rep.table(["claim", "pooled", "holds"], [[c["claim"], c["value"], "yes" if c["holds"] else "**no**"] for c in claims])
     if summary.get("effects"):
         rep.h("Effects over the pooled robots, the robot as the unit")
-        rep.effects(summary["effects"], ROBOT_EFFECTS_INTRO)
+        rep.effects(summary["effects"], ROBOT_EFFECTS_INTRO, ROBOT_EQUIVALENCE)
     mech = summary.get("mechanism") or {}
     if mech:
         rep.h("The mechanism of the tool-far test, pooled")

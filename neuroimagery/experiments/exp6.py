@@ -15,7 +15,7 @@ import pandas as pd
 import torch
 
 from .. import progress
-from ..nn import seeding
+from ..nn import monitor, seeding
 from ..vision import shepard_metzler as sm
 from . import exp6_data as data
 from .exp6_checks import check_inputs, memory_estimate  # noqa: F401  (checks before work: neuroimagery.validation)
@@ -71,6 +71,9 @@ def train_completion(model, cfg, ids, scene) -> None:
     model.fit_completion(code_s[order], code_w[order], e.image.batch)
 
 
+CURVE_POINTS = 10  # points of each forward model's training curve (each costs one product of the batch)
+
+
 def train_forward_models(model, cfg, ids) -> None:
     """Each forward model: graded dot images at sub-voxel positions and the same dots turned by its move.
     The moves are independent (a connection and generators of their own each), so with a thread
@@ -84,14 +87,22 @@ def train_forward_models(model, cfg, ids) -> None:
     e = cfg.experiment
     n = e.quick.fm_images if cfg.preset == "quick" else e.fm.images
 
+    starts = range(0, n, e.fm.batch)
+    every = max(1, len(starts) // CURVE_POINTS)
+    points: dict[int, list] = {}  # move -> (images seen, squared error of the batch before its change)
+
     def learn(m: int) -> None:
         axis, deg = model.moves[m]
         R = vc.axis_rotation(axis, deg)
         gens = seeding.participant_generators(cfg.seed, ids, stream=10 + m)
-        for s in range(0, n, e.fm.batch):
+        points[m] = []
+        for b, s in enumerate(starts):
             x, y = data.dot_pair(gens, min(e.fm.batch, n - s), e.fm.dots, model.side, e.image.sigma, R)
+            if watch and (b % every == 0 or b == len(starts) - 1):
+                points[m].append((s + x.shape[1], float(model.forward_error(m, x, y))))
             model.fit_forward_models(m, x, y)
 
+    watch = monitor.active()
     moves = range(1, len(model.moves))
     workers = min(thread_budget(), len(moves))
     bar = progress.bar(total=len(moves), what="forward models", unit="move")
@@ -104,6 +115,9 @@ def train_forward_models(model, cfg, ids) -> None:
             for _ in pool.map(learn, moves):
                 bar.update(1)
     bar.close()
+    for m in moves if watch else ():  # recorded here, in this thread, in the moves' order
+        for step, value in points[m]:
+            monitor.record(model.forward_curve(m), value, step)
 
 
 def angles(e, kind: str) -> list[float]:
@@ -208,6 +222,17 @@ def test_names(cfg):
     return test, names
 
 
+def sample_trials(table: pd.DataFrame, count: int) -> list[int]:
+    """The ``count`` trials of participant 0 recorded step by step (the report's and TensorBoard's
+    sample trials): the first object's pairs at the largest angle, the same pair first, then the
+    mirror pair, then the next angle down, so that a sample trial shows a long mental rotation.
+    Only what is recorded depends on the choice, not any answer."""
+    first = table[table["target_object"] == table["target_object"].iloc[0]]
+    order = first.assign(mirror=~first["same"].astype(bool)).sort_values(["rotated_angle", "mirror"],
+                                                                         ascending=[False, True], kind="stable")
+    return [int(i) for i in order.index[:max(0, int(count))]]
+
+
 def run_tests(cfg, model, scene=None, record: int = 0):
     """Every test -> (trials DataFrame, sample histories, bank images)."""
     from ..analysis.summary import TRIAL_COLUMNS
@@ -231,9 +256,11 @@ def run_tests(cfg, model, scene=None, record: int = 0):
             tgt = images[:, torch.as_tensor(table["target_row"].to_numpy().copy())]
             rot = images[:, torch.as_tensor(table["rotated_row"].to_numpy().copy())]
             stream = 100 + TESTS.index(t) + 10 * CONDITIONS.index(cond)  # none keeps the stream of a run without the others
-            out = model.run(tgt, rot, seeding.participant_generators(cfg.seed, ids, stream=stream), record=record,
+            shown = sample_trials(table, record)
+            out = model.run(tgt, rot, seeding.participant_generators(cfg.seed, ids, stream=stream), record=shown,
                             proprioception=cond)
-            histories[f"{t}/{cond}"] = out.pop("history")
+            histories[f"{t}/{cond}"] = {"steps": out.pop("history"), "trials": [
+                {k: table.iloc[i][k] for k in ("target_object", "rotated_angle", "same")} for i in shown]}
             for j, pid in enumerate(ids):
                 df = table.drop(columns=["target_row", "rotated_row"]).copy()
                 df.insert(0, "participant", int(pid))

@@ -7,6 +7,7 @@ from __future__ import annotations
 import torch
 
 from ..models import voxel_code as vc
+from .. import progress
 from ..nn import seeding
 from ..vision import shepard_metzler as sm
 from . import exp6_data as data
@@ -192,10 +193,19 @@ def confirm(model, cfg, scene, count: int = 6, al: dict | None = None) -> dict:
 
 def measure(model, cfg, scene) -> dict:
     """Every stage contract's measure on small held-out sets (the contract tests use larger ones)."""
-    al = alignment(model, cfg, scene, 3)
-    return {"image": completion(model, cfg, scene, 20), "transform": transform(model, cfg, scene, 6),
-            "search": search(model, cfg, scene, 4), "confirm": confirm(model, cfg, scene, al=al),
-            "precision": precision(model, cfg, scene, al=al), "realisation": realisation(model, cfg, scene, al=al)}
+    out: dict = {}
+    jobs = [("alignment", lambda: alignment(model, cfg, scene, 3)),
+            ("image", lambda: completion(model, cfg, scene, 20)), ("transform", lambda: transform(model, cfg, scene, 6)),
+            ("search", lambda: search(model, cfg, scene, 4)), ("confirm", lambda: confirm(model, cfg, scene, al=out["alignment"])),
+            ("precision", lambda: precision(model, cfg, scene, al=out["alignment"])),
+            ("realisation", lambda: realisation(model, cfg, scene, al=out["alignment"]))]
+    with progress.bar(total=len(jobs), what="stage measures (docs/contracts.md)", unit="stage") as shown:
+        for name, job in jobs:
+            shown.set_postfix_str(name)
+            out[name] = job()
+            shown.update()
+    del out["alignment"]
+    return out
 
 
 def angle_between(R1: torch.Tensor, R2: torch.Tensor) -> torch.Tensor:

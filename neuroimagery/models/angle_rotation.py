@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import torch
 
-from ..nn import AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
+from ..nn import AllToAll, DynamicField, Hebbian, PopulationMap, monitor, participant_generators
 
 
 class AngleRotationModel(torch.nn.Module):
@@ -36,7 +36,7 @@ class AngleRotationModel(torch.nn.Module):
         P = self.affordance.participants
         train_angles = torch.arange(-90.0, 90.1, self.e.step_deg)
         gens = participant_generators(seed, P, stream=2)
-        for _ in range(self.e.epochs):
+        for epoch in range(self.e.epochs):
             order = torch.stack([torch.randperm(len(train_angles), generator=g) for g in gens])  # (P, N)
             for k in range(order.shape[1]):
                 a = train_angles[order[:, k]]  # (P,)
@@ -44,6 +44,18 @@ class AngleRotationModel(torch.nn.Module):
                 self.affordance.learn(x, self.posture.encode(a).unsqueeze(1))
                 nxt = a - torch.sign(a) * torch.minimum(a.abs(), torch.tensor(self.e.step_deg))
                 self.forward_model.learn(self.posture.encode(a).unsqueeze(1), self.angle.encode(nxt).unsqueeze(1))
+            if monitor.active():  # the training curve: recall error on every training angle after each epoch
+                self._record_recall(train_angles, (epoch + 1) * len(train_angles))
+
+    def _record_recall(self, angles: torch.Tensor, step: int) -> None:
+        """Mean squared error of the affordance (angle -> posture) and the forward model (posture ->
+        next angle) on ``angles``, each output scaled to its peak, as ``train/<connection>/recall_error``."""
+        x, post = self.angle.encode(angles), self.posture.encode(angles)
+        nxt = self.angle.encode(angles - torch.sign(angles) * torch.minimum(angles.abs(), torch.tensor(self.e.step_deg)))
+        for conn, a, b in ((self.affordance, x, post), (self.forward_model, post, nxt)):
+            y = conn(a.unsqueeze(0).expand(self.participants, -1, -1))
+            y = y / y.amax(-1, keepdim=True).clamp_min(1e-9)
+            monitor.record(f"train/{conn.name}/recall_error", (y - b).pow(2).sum(-1).mean(), step)
 
     @torch.no_grad()
     def trial(self, angles: torch.Tensor, generators, logger=None, tag: str = "") -> dict:

@@ -45,6 +45,7 @@ from ..nn.local import LocalConnection
 from . import voxel_code as vc
 from .layout_3d import (AXES, MOVES, SIGNS, WRIST_AXIS, c20_weights, fill_offsets, fm_bytes,  # noqa: F401 (re-exported)
                         grid_for_budget, matched_axes, move_angles, receptive_radius)
+from .recording import sample_indices
 from .rotation_embodied import check_proprioception
 from .search_starts import multi_start
 
@@ -122,6 +123,15 @@ class Rotation3D(nn.Module):
             if sel.numel():
                 out[sel] = conn.net_rows(x[sel], part[sel]).clamp(0.0, 1.0)
         return out
+
+    @torch.no_grad()
+    def forward_error(self, move: int, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        """Squared error of forward model ``move`` on a batch, summed over voxels, mean over images."""
+        return (self.fm[move - 1].net(x) - y).pow(2).sum(-1).mean()
+
+    def forward_curve(self, move: int) -> str:
+        """The tag of forward model ``move``'s training curve (:mod:`neuroimagery.nn.monitor`)."""
+        return f"train/{self.fm[move - 1].name}/squared_error"
 
     @torch.no_grad()
     def fit_forward_models(self, move: int, x: torch.Tensor, y: torch.Tensor) -> None:
@@ -351,7 +361,7 @@ class Rotation3D(nn.Module):
         return am.argmax(-1)  # the first of equals: "still" unless a move brings the remaining rotation closer
 
     @torch.no_grad()
-    def align(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int = 0,
+    def align(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int | Sequence[int] = 0,
               proprioception: str = "none") -> dict:
         """Search and transform for images ``(P, B, n)`` (already coded, completed and centred):
         the turned comparison images, steps, the net turn (``net``, composed from the steps'
@@ -372,7 +382,8 @@ class Rotation3D(nn.Module):
         sums = torch.zeros(Q, 3, dtype=torch.float64)  # per-axis sums of the steps (move_rule 'axis_sums')
         steps = torch.zeros(Q, dtype=torch.long)
         live = torch.ones(Q, dtype=torch.bool) if p.strategy == "rotate" else torch.zeros(Q, dtype=torch.bool)
-        hist: list[list[dict]] = [[] for _ in range(min(record, B))]
+        rec = sample_indices(record, B)
+        hist: list[list[dict]] = [[] for _ in rec]
         img = poci.clone()
         step_rot = [None] + [(AXES.index(a), d) for a, d in self.moves[1:]]
         turn = self.move_turns
@@ -395,9 +406,9 @@ class Rotation3D(nn.Module):
             moving = move > 0
             steps[q] += moving.long()
             live[q] = moving
-            for k in range(len(hist)):
+            for h, k in zip(hist, rec):
                 if bool(live[k]) or bool((q == k).any()):
-                    hist[k].append({"PFCt": pfct[k].clone(), "POCp": img[k].clone(),
+                    h.append({"PFCt": pfct[k].clone(), "POCp": img[k].clone(),
                                     "PMCm": torch.nn.functional.one_hot(move[(q == k).nonzero()[0, 0]] if (q == k).any()
                                                                         else torch.tensor(0), len(MOVES)).float()})
         done = vc.rotation_vector(net) if composed else sums
@@ -405,7 +416,7 @@ class Rotation3D(nn.Module):
                 "timeout": live, "history": hist, "part": part, "target": pfct}
 
     @torch.no_grad()
-    def run(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int = 0,
+    def run(self, target: torch.Tensor, comp: torch.Tensor, generators, record: int | Sequence[int] = 0,
             proprioception: str = "none") -> dict:
         """Trials ``(P, B, n)`` of images (coded, completed, centred). Randomness from ``generators``
         (one ``(B,)`` draw per step and one for a tie, in a fixed order, so a result does not depend
@@ -427,7 +438,7 @@ class Rotation3D(nn.Module):
         coin = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(P * B)
         answer = torch.where(dec.decided, dec.winner, (coin < 0.5).long())
         rt = p.lca.cycles * (1 + out["steps"]) + dec.cycles
-        for k, h in enumerate(out["history"]):
+        for k, h in zip(sample_indices(record, B), out["history"]):
             if h:
                 h[-1].update({"PMCd": dec.state[k].clone(), "match": match[k].float(), "cubes": cubes[k].float()})
         sh = (P, B)

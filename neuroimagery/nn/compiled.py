@@ -45,4 +45,29 @@ class Kernels:
         with self._lock:
             if name not in self._compiled:
                 self._compiled[name] = numba.njit(cache=True, nogil=True)(self._namespace["_" + name])
+                _say_if_compiling(self._compiled[name])
             return self._compiled[name]
+
+
+FIRST_COMPILE = ("compiling the package's numba loops on their first use (a few seconds: Exp 2's and Exp 6's "
+                 "measured within the noise of their training time); numba caches them beside the package "
+                 "(__pycache__/*.nbi, *.nbc), so later runs skip this")
+_said = threading.Event()
+
+
+def _say_if_compiling(dispatcher) -> None:
+    """One ``note:`` per process, the first time a loop is compiled rather than read from numba's
+    cache (its index file is missing)."""
+    if _said.is_set():
+        return
+    try:
+        import os
+
+        cached = os.path.exists(dispatcher._cache._cache_file._index_path)
+    except Exception:  # noqa: BLE001 - another numba's internals: say nothing
+        return
+    if not cached:
+        _said.set()
+        from ..console import note
+
+        note(FIRST_COMPILE)

@@ -16,6 +16,7 @@ module is in ``eval()`` mode (warning once per connection) or has no rule. Of th
 """
 from __future__ import annotations
 
+import math
 import warnings
 from typing import Iterable, Sequence
 
@@ -27,7 +28,7 @@ from .forms import Form, register
 from .functional import (as_batched, check_participants, check_tensor, checks_enabled, gain_field,
                          participants_weight, transfer)
 from .learning import learn_sequence, run_plain
-from .rules import Rule
+from .rules import STEP_BOUND, Rule
 
 
 def _applies_in_place(rule: Rule) -> bool:
@@ -65,6 +66,7 @@ class Connection(nn.Module):
         self.rules = nn.ModuleList([rules] if isinstance(rules, Rule) else list(rules))
         self.learnt_factors: dict | None = None  # what a closed-form sequence formed the weights from
         self.warned_eval = False  # learn() in eval() mode has warned once
+        self.warned_step = False  # a step beyond a rule's stated bound has warned once
 
     @property
     def participants(self) -> int:
@@ -112,12 +114,15 @@ class Connection(nn.Module):
                 raise ValueError("return_delta is for one step, not a sequence")
             learn_sequence(self, pre, post, batch, method, progress, **kw)
             return None
+        self._check_needs(post, kw)
         pre_b = self._activity(pre, self.n_in, "pre")
         if post is not None:
             post = self._activity(post, self.n_out, "post")
         for key in ("target",):
             if key in kw and kw[key] is not None:
                 kw[key] = self._activity(kw[key], self.n_out, key)
+        if not self.warned_step and checks_enabled(pre_b):
+            self._check_step(pre_b, post)
         if len(self.rules) == 1 and _applies_in_place(self.rules[0]) and not return_delta:
             # one rule: let it update the weights in place (same numbers, fewer passes over memory);
             # the inputs were checked finite (while value checks run)
@@ -128,6 +133,36 @@ class Connection(nn.Module):
             raise FloatingPointError(f"connection {self.name!r}: learning produced non-finite weights")
         self.weight.add_(total)
         return total
+
+    def _check_needs(self, post, kw) -> None:
+        """One error naming the connection and the activity a rule needs and was not given."""
+        given = {"post": post, **kw}
+        for rule in self.rules:
+            missing = [k for k in rule.needs if given.get(k) is None]
+            if missing:
+                hint = (f" (the actual output: conn.learn(x, conn(x), target=y))" if "post" in missing
+                        and "target" in rule.needs else "")
+                raise ValueError(f"connection {self.name!r}: {type(rule).__name__}.learn needs "
+                                 f"{' and '.join(repr(k) for k in missing)}{hint}")
+
+    def _check_step(self, pre: torch.Tensor, post: torch.Tensor | None) -> None:
+        """Warn once when a rule's step gain (:meth:`~.rules.Rule.step_gain`, one reduction over
+        this batch's activity) exceeds the bound beyond which repeated steps diverge, or when the
+        weights are no longer finite."""
+        for rule in self.rules:
+            gain = rule.step_gain(pre, post)
+            if gain is None:
+                continue
+            g = float(gain)
+            if not math.isfinite(g) or g > STEP_BOUND:
+                self.warned_step = True
+                batch = "" if pre.shape[1] == 1 else f" over a batch of {pre.shape[1]} patterns"
+                warnings.warn(
+                    f"connection {self.name!r}: a {type(rule).__name__} step{batch} has gain {g:.3g} = "
+                    f"{rule.gain_formula()}, above the bound {STEP_BOUND:g} beyond which each step makes "
+                    "the error it corrects grow and the weights diverge: lower eta, use "
+                    "reduction='mean' or smaller batches (this warning is given once)", stacklevel=4)
+                return
 
     def learning(self) -> bool:
         """Whether :meth:`learn` changes the weights now: in ``train()`` mode with a rule. The
@@ -141,7 +176,13 @@ class Connection(nn.Module):
     def _activity(self, x: torch.Tensor, n: int, what: str) -> torch.Tensor:
         """``x`` ``(P, B, n)`` for a learning step, in the weights' dtype (so they keep it)."""
         name = f"{what} of connection {self.name!r}"
-        xb, _ = as_batched(x, n, name)
+        try:
+            xb, _ = as_batched(x, n, name)
+        except ValueError as e:
+            if "NaN" in str(e) and checks_enabled(self.weight) and not torch.isfinite(self.weight).all():
+                raise ValueError(f"{e}: the weights of connection {self.name!r} are no longer finite "
+                                 "(learning diverged; a step beyond the rule's bound warns when it happens)") from None
+            raise
         check_participants(name, self.participants, xb, x.shape)
         return xb if xb.dtype == self.weight.dtype else xb.to(self.weight.dtype)
 

@@ -40,6 +40,18 @@ class Delta(Rule):
         self.eta = check_rate("eta", eta)
         self.reduction = check_reduction(reduction)
 
+    needs = ("post", "target")
+
+    def step_gain(self, pre, post):
+        """``rate * max_p sum_b |x_b|^2``: a step multiplies the batch's errors by
+        ``I - rate X X^T``, which shrinks every one of them while ``rate`` times the largest
+        eigenvalue of ``X X^T`` (at most its trace, ``sum_b |x_b|^2``) is below 2 (the
+        Widrow-Hoff stability bound)."""
+        return self.rate(pre.shape[1]) * torch.linalg.vector_norm(pre.flatten(1), dim=1).amax().square()
+
+    def gain_formula(self) -> str:
+        return f"rate * sum_b |x_b|^2 (eta={self.eta}, reduction={self.reduction!r}: rate = eta{' / B' if self.reduction == 'mean' else ''})"
+
     def rate(self, batch: int) -> float:
         """The rate of a batch of ``batch`` patterns: ``eta`` (summed) or ``eta / batch`` (averaged)."""
         return self.eta / batch if self.reduction == "mean" else self.eta

@@ -20,12 +20,13 @@ A form may leave what it formed the weights from in ``conn.learnt_factors`` (a d
 """
 from __future__ import annotations
 
+import warnings
 from types import SimpleNamespace
 
 import torch
 
 from . import forms, monitor
-from .functional import check_floating
+from .functional import check_floating, checks_enabled
 
 
 class IndexedRows:
@@ -120,6 +121,10 @@ def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", p
         raise ValueError("pre, post and target must have the same number of steps")
     conn.learnt_factors = None
     _learn(conn, pre, post, batch, method, progress, kw)
+    if not getattr(conn, "warned_step", True) and checks_enabled(conn.weight) and not torch.isfinite(conn.weight).all():
+        conn.warned_step = True  # one pass over the weights per sequence: the fast forms check no step
+        warnings.warn(f"connection {conn.name!r}: its weights are no longer finite after this sequence "
+                      "(learning diverged: lower eta or the batch; this warning is given once)", stacklevel=4)
     if monitor.active():  # the final state of every implementation, closed forms included
         w = conn.weight.detach()
         monitor.record(f"train/{conn.name or 'connection'}/weight_norm_final", w.flatten(1).norm(dim=1).mean(), T)

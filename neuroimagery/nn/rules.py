@@ -35,11 +35,29 @@ def check_reduction(reduction: str) -> str:
     return reduction
 
 
+STEP_BOUND = 2.0  # the largest step gain (see Rule.step_gain) at which a step still shrinks what it corrects
+
+
 class Rule(nn.Module):
-    """Base class: ``delta(weight, **activity) -> change`` with the weight's shape."""
+    """Base class: ``delta(weight, **activity) -> change`` with the weight's shape.
+
+    ``needs`` names the activity a step cannot do without (a connection refuses a step that lacks
+    one, naming it). :meth:`step_gain` is the factor a step multiplies what it corrects by, minus
+    one, in the worst direction: above :data:`STEP_BOUND` (2) a step makes that grow instead of
+    shrink, so repeated steps diverge; a connection warns once when a step exceeds it."""
+
+    needs: tuple[str, ...] = ()
 
     def delta(self, weight: torch.Tensor, **kw) -> torch.Tensor:  # pragma: no cover - interface
         raise NotImplementedError
+
+    def step_gain(self, pre: torch.Tensor, post: torch.Tensor | None) -> torch.Tensor | None:
+        """The step's gain (a 0-d tensor) for this batch, or None when the rule states no bound."""
+        return None
+
+    def gain_formula(self) -> str:
+        """How :meth:`step_gain` is computed, for the warning that quotes it."""
+        return ""
 
 
 class Hebbian(Rule):
@@ -63,6 +81,19 @@ class Hebbian(Rule):
             raise ValueError(f"form must be 'outstar' or 'instar', got {form!r}")
         self.form = form
         self.reduction = check_reduction(reduction)
+
+    needs = ("post",)
+
+    def step_gain(self, pre, post):
+        """``rate * max_i sum_b a_i``: the decay of eq. 4.3 multiplies each weight by
+        ``1 - rate sum_b a_i`` (``a`` the input for the outstar form, the output for the instar);
+        beyond 2 that factor is below -1 and the weights oscillate with growing size."""
+        scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta
+        a = pre if self.form == "outstar" else post
+        return scale * a.sum(1).amax()
+
+    def gain_formula(self) -> str:
+        return f"eta * max_i sum_b a_i (eta={self.eta}, reduction={self.reduction!r}, a the {'input' if self.form == 'outstar' else 'output'})"
 
     def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, **_) -> torch.Tensor:
         scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta

@@ -212,11 +212,13 @@ class SOM(nn.Module):
         if _together is not None:  # fit_together: the map's checked call, trained with the others
             _together.append((self, trainer, X, order, labels, parts, it))
             return None
-        return self._finish(X, _run(trainer, self, X, order, labels, it, parts))
+        return self._finish(X, _run(trainer, self, X, order, labels, it, parts), order)
 
-    def _finish(self, X: torch.Tensor, winners: torch.Tensor) -> torch.Tensor:
+    def _finish(self, X: torch.Tensor, winners: torch.Tensor, order: torch.Tensor) -> torch.Tensor:
         if monitor.active():  # the trained map's final state, at its own step count
             tag = f"train/som/{self.name or 'som'}"
+            if not self.supervised and winners is not None:
+                winner_changes(tag, order, winners, int(self.steps) - order.shape[1])
             monitor.record(f"{tag}/quantisation_error_final", self.quantization_error(X).mean(), int(self.steps))
             if self.units > 1:
                 monitor.record(f"{tag}/topographic_error_final", self.topographic_error(X).mean(), int(self.steps))
@@ -271,6 +273,29 @@ def choose(som, X: torch.Tensor, labels: torch.Tensor | None, method: str, optio
     return form
 
 
+def winner_changes(tag: str, order: torch.Tensor, winners: torch.Tensor, offset: int, points: int = 100) -> None:
+    """The training curve every form of a fit has, from its winners alone: the share of
+    presentations whose winner differs from the winner of the same pattern's previous presentation
+    (a pattern's first presentation does not count), over the participants, about ``points``
+    stretches of the fit (``tag/winner_changes``). It falls as the map settles."""
+    P, T = order.shape
+    key = (torch.arange(P, device=order.device).unsqueeze(1) * (int(order.max()) + 1) + order).reshape(-1)
+    idx = torch.argsort(key * T + torch.arange(T, device=order.device).repeat(P), stable=True)
+    k, w = key[idx], winners.reshape(-1)[idx]
+    again = torch.zeros(P * T, dtype=torch.bool, device=order.device)
+    changed = torch.zeros(P * T, dtype=torch.float64, device=order.device)
+    same = k[1:] == k[:-1]  # the same pattern of the same participant, presented again
+    again[idx[1:][same]] = True
+    changed[idx[1:][same]] = (w[1:][same] != w[:-1][same]).double()
+    stride = max(1, T // points)
+    again, changed = again.view(P, T), changed.view(P, T)
+    for lo in range(0, T, stride):
+        n = int(again[:, lo:lo + stride].sum())
+        if n:
+            monitor.record(f"{tag}/winner_changes", float(changed[:, lo:lo + stride].sum()) / n,
+                           offset + min(lo + stride, T))
+
+
 def curve(som, T: int) -> monitor.Curve | None:
     """The running training curve of a fit of ``T`` steps: the mean distance of the presented
     patterns to their winners (or labelled units) before each step's change; None when no reader
@@ -323,8 +348,8 @@ def fit_together(fits: Sequence[tuple[SOM, dict]]) -> list[torch.Tensor]:
             wins = tr.run_many([(som, X, order, labels, parts) for _, som, _, X, order, labels, parts, _ in jobs])
         else:
             wins = [_run(tr, som, X, order, labels, it, parts) for _, som, _, X, order, labels, parts, it in jobs]
-        for (i, som, _, X, *_), w in zip(jobs, wins):
-            out[i] = som._finish(X, w)
+        for (i, som, _, X, order, *_), w in zip(jobs, wins):
+            out[i] = som._finish(X, w, order)
     return out
 
 
