@@ -32,7 +32,7 @@ def test_summed_delta_on_a_large_batch_warns_once_naming_the_block():
     assert not torch.isfinite(conn.weight).all() or conn.weight.abs().max() > 1e6  # it does diverge
     assert len(caught) == 1
     msg = str(caught[0].message)
-    assert "'forward'" in msg and "Delta" in msg and "batch of 200" in msg and f"bound {STEP_BOUND:g}" in msg
+    assert "'forward'" in msg and "Delta" in msg and "batch of 200" in msg and f"above {STEP_BOUND:g}, the bound" in msg
     assert caught[0].filename == __file__  # points at the caller's line
 
 

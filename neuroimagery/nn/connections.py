@@ -147,8 +147,9 @@ class Connection(nn.Module):
 
     def _check_step(self, pre: torch.Tensor, post: torch.Tensor | None) -> None:
         """Warn once when a rule's step gain (:meth:`~.rules.Rule.step_gain`, one reduction over
-        this batch's activity) exceeds the bound beyond which repeated steps diverge, or when the
-        weights are no longer finite."""
+        this batch's activity) exceeds the bound under which no step can make the error it corrects
+        grow (a sufficient condition: above it the weights can diverge, nearly orthogonal patterns
+        may still converge), or when the weights are no longer finite."""
         for rule in self.rules:
             gain = rule.step_gain(pre, post)
             if gain is None:
@@ -159,8 +160,8 @@ class Connection(nn.Module):
                 batch = "" if pre.shape[1] == 1 else f" over a batch of {pre.shape[1]} patterns"
                 warnings.warn(
                     f"connection {self.name!r}: a {type(rule).__name__} step{batch} has gain {g:.3g} = "
-                    f"{rule.gain_formula()}, above the bound {STEP_BOUND:g} beyond which each step makes "
-                    "the error it corrects grow and the weights diverge: lower eta, use "
+                    f"{rule.gain_formula()}, above {STEP_BOUND:g}, the bound under which no step can make "
+                    "the error it corrects grow; above it the weights can diverge: lower eta, use "
                     "reduction='mean' or smaller batches (this warning is given once)", stacklevel=4)
                 return
 
