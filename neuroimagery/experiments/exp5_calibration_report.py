@@ -28,7 +28,8 @@ def report(study) -> str:
                       if t.user_attrs.get("stage") == "rejected")
     screened = [(f"trial {t.number}", t.user_attrs["measures"]) for t in trials if t.user_attrs.get("stage") == "screened"]
     out = [f"## The search: {len(trials)} candidates ({stages.get('rejected', 0)} rejected by stage 1, "
-           f"{stages.get('screened', 0)} screened, {stages.get('fail', 0)} stopped, {stages.get('running', 0)} running), "
+           f"{stages.get('screened', 0)} screened, {stages.get('fail', 0)} stopped, {stages.get('running', 0)} running, "
+           f"{stages.get('waiting', 0)} waiting), "
            f"{sum(1 for k in attrs if k.startswith('confirmed_') and k != 'confirmed_baseline')} confirmed; "
            f"{cpu + extra:.0f} CPU-s spent ({cpu:.0f} in trials)\n",
            f"Screening sizes: {attrs.get('sizes')}.\n",
