@@ -222,6 +222,8 @@ def parse(argv):
 def run(args) -> None:
     from .exp5_calibration_report import report
 
+    if args.stage in ("confirm", "report") and not args.storage.is_file():
+        raise UserInputError(f"--storage {args.storage}: no such journal (the stage {args.stage} reads a search)")
     sizes = dict(babble=args.babble, libraries=args.libraries, fk_movements=args.fk_movements)
     work = args.work or args.storage.with_name(args.storage.name + ".d")
     study = open_study(args.storage, sizes, args.sampler_seed)
