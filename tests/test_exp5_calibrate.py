@@ -85,8 +85,9 @@ def test_a_journal_of_other_sizes_a_missing_folder_or_a_foreign_file_is_refused(
     assert cal.main(["--storage", str(journal), "--stage", "report", "--babble", "30", "--libraries", "1",
                      "--fk-movements", "60"]) == 2
     assert "was screened with" in capsys.readouterr().err
-    assert cal.main(["--storage", str(tmp_path / "no" / "j.journal"), "--stage", "screen"]) == 2
-    assert "does not exist" in capsys.readouterr().err
+    (tmp_path / "file").write_text("")
+    assert cal.main(["--storage", str(tmp_path / "file" / "j.journal"), "--stage", "screen"]) == 2
+    assert "cannot make its folder" in capsys.readouterr().err
     assert cal.main(["--storage", str(tmp_path / "none.journal"), "--stage", "report"]) == 2
     assert "no such journal" in capsys.readouterr().err
     foreign = tmp_path / "notes.txt"

@@ -50,8 +50,10 @@ def open_study(storage: Path, sizes: dict, sampler_seed: int):
     from optuna.storages import JournalStorage
     from optuna.storages.journal import JournalFileBackend
 
-    if not storage.parent.is_dir():
-        raise UserInputError(f"--storage {storage}: folder {storage.parent} does not exist")
+    try:
+        storage.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise UserInputError(f"--storage {storage}: cannot make its folder: {err.strerror or err}") from None
     try:
         store = JournalStorage(JournalFileBackend(str(storage)))
         # stage 1's verdict is the trial's constraint (Trial.set_constraint from Optuna 5, else constraints_func)
