@@ -62,7 +62,10 @@ def _kept_library(out: Path, seed: int, i: int, table_contact: str) -> dict:
                      lambda: dict(_one_library(seed, i, table_contact), seed=seed))
 
 
-def _one_library(seed: int, i: int, table_contact: str = "lift") -> dict:
+def one_library(seed: int, i: int, table_contact: str = "lift", world_config=None, env_kwargs: dict | None = None) -> dict:
+    """Library ``i`` of ``seed`` and its W2-W4 measures, in the world of ``WorldParams`` with the
+    table rule ``table_contact``, or in ``world_config`` (a ``WorldConfig``) with the environment's
+    ``env_kwargs`` updated (a candidate world of ``exp5_calibrate``)."""
     import torch
 
     from ..models.tool_use import AcquisitionParams, Outcomes, acquire_skills
@@ -71,7 +74,7 @@ def _one_library(seed: int, i: int, table_contact: str = "lift") -> dict:
 
     torch.set_num_threads(1)
     w = WorldParams(table_contact=table_contact)
-    env = ToolWorldEnvironment(w.world_config(), **w.env_kwargs())
+    env = ToolWorldEnvironment(world_config or w.world_config(), **{**w.env_kwargs(), **(env_kwargs or {})})
     try:
         g = torch.Generator().manual_seed(seed * 100003 + i)
         lib = acquire_skills(env, EVENTS, AcquisitionParams(), g, brain=None)
@@ -87,6 +90,9 @@ def _one_library(seed: int, i: int, table_contact: str = "lift") -> dict:
                     rollouts=lib.explore_rollouts + lib.learn_rollouts + outcomes.rollouts)
     finally:
         env.close()
+
+
+_one_library = one_library  # the name the acceptance command calls (tests replace it)
 
 
 def summarise(libs: list[dict]) -> dict:

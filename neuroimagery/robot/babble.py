@@ -102,6 +102,9 @@ def _piece(posture: int, n: int, seed: int, cfg: MovementConfig, config: WorldCo
     return kept_json(out / COUNTS_DIR / f"posture{posture}_seed{seed}.json", settings, compute)
 
 
+kept_counts = _piece  # the public name (exp5_calibrate's candidates)
+
+
 def measure(n_rollouts: int, seeds: int = 3, cfg: MovementConfig | None = None, world: ToolWorld | None = None,
             table_contact: str = "lift", out: Path | None = None, jobs: int = 1) -> dict:
     """Babble ``n_rollouts`` times per seed from each posture; the table (see module docstring).

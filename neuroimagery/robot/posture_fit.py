@@ -46,10 +46,13 @@ def fit_posture(cfg: WorldConfig, target_xy, q_ref, clearance: float = 0.005, ma
 
 
 def fit_posture_heading(cfg: WorldConfig, target_xy, yaw_deg: float, q_refs, pitch_deg: float = 25.0,
-                        clearance: float = 0.005, margin: float = 0.12) -> np.ndarray:
+                        clearance: float = 0.005, margin: float = 0.12, swivel: float | None = None) -> np.ndarray:
     """Joint vector whose plate centre is at ``target_xy``, its lowest point ``clearance`` above the
     table, the handle pointing ``yaw_deg`` to the left of straight ahead and ``pitch_deg`` down, the
-    plate's width horizontal; the best fit started from each joint vector of ``q_refs``."""
+    plate's width horizontal; the best fit started from each joint vector of ``q_refs``. The hand's
+    pose leaves the arm one freedom (the elbow's swivel): ``swivel`` in [0, 1] sets it by a weak
+    pull (1/50 of the pose residuals) of the shoulder yaw joint toward that share of its range
+    (None: wherever the fit from ``q_refs`` lands)."""
     from scipy.optimize import least_squares
 
     from .kinematics import ArmKinematics
@@ -68,8 +71,11 @@ def fit_posture_heading(cfg: WorldConfig, target_xy, yaw_deg: float, q_refs, pit
     def res(q):
         T = kin.rake_pose_np(q[None])[0]
         low = (plate @ T.T)[:, 2].min()
-        return np.concatenate([((T @ centre)[:2] - np.asarray(target_xy)) / 0.002,
-                               [(low - cfg.table_top - clearance) / 0.002], (T[:3, 0] - handle) / 0.05, [T[2, 1] / 0.05]])
+        pose = [((T @ centre)[:2] - np.asarray(target_xy)) / 0.002,
+                [(low - cfg.table_top - clearance) / 0.002], (T[:3, 0] - handle) / 0.05, [T[2, 1] / 0.05]]
+        if swivel is not None:  # shoulder yaw (joint 2) toward its share ``swivel`` of the range
+            pose.append([(q[2] - lim[2, 0] - swivel * (lim[2, 1] - lim[2, 0])) / (lim[2, 1] - lim[2, 0]) / 50.0])
+        return np.concatenate(pose)
 
     fits = [least_squares(res, np.clip(np.asarray(q, dtype=np.float64), lo, hi), bounds=(lo, hi)) for q in q_refs]
     return min(fits, key=lambda r: r.cost).x

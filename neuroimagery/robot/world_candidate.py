@@ -1,0 +1,154 @@
+"""A candidate tool-use world of the calibration (docs/world_calibration.md): the parameters the
+thesis leaves open, turned into a complete ``WorldConfig`` through inverse kinematics.
+
+``PARAMETERS`` names each parameter and its range (the page's table); :func:`build` takes one value
+of each, fits the four postures (``robot.posture_fit.fit_posture_heading``: a plate-centre target,
+a heading of the handle, the elbow's swivel), writes the rake of the candidate's size into a folder
+of URDFs and returns the world with what the fit reached. :func:`reject_reasons` is stage 1's
+scene part (the criteria of Fig. 7.2, ``robot.scene_check`` without the two derived rules the
+calibration searches over); the pull paths are ``robot.pull_paths``.
+"""
+from __future__ import annotations
+
+import math
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from .config import DEFAULT_POSTURES, URDF_DIR, WorldConfig
+
+# name: (low, high) of a float, or a tuple of choices (docs/world_calibration.md, "Parameters")
+PARAMETERS: dict[str, tuple] = {
+    "toy_dx": (0.05, 0.11), "toy_y": (-0.20, 0.00),
+    "rake_length": (0.36, 0.48), "plate_width": (0.12, 0.20),
+    "p1_dx": (0.01, 0.07), "p1_dy": (-0.05, 0.05),
+    "r_2": (0.07, 0.20), "dr_3": (0.0, 0.15), "dr_4": (0.0, 0.15),
+    **{f"dir_{k}": (-180.0, 180.0) for k in (2, 3, 4)},
+    **{f"yaw_{k}": (-45.0, 60.0) for k in (1, 2, 3, 4)},
+    **{f"pitch_{k}": (15.0, 40.0) for k in (1, 2, 3, 4)},
+    **{f"swivel_{k}": (0.0, 1.0) for k in (1, 2, 3, 4)},
+    "goal_noise_share": (0.05, 0.20), "weight_sigma": (100.0, 600.0),
+    "table_contact": ("lift", "grip", "yield"), "grip_pivot_deg": (5.0, 60.0),
+}
+# the present world (docs/robot.md) re-expressed in these parameters: its plate centres, toy and
+# rake; postures 1 and 2 turned to a heading of 0 (the present ones keep a reference orientation)
+PRESENT = dict(toy_dx=0.059, toy_y=-0.10, rake_length=0.40, plate_width=0.16, p1_dx=0.04, p1_dy=-0.035,
+               r_2=0.16, dr_3=0.021, dr_4=0.102, dir_2=-86.0, dir_3=96.0, dir_4=98.0,
+               yaw_1=0.0, yaw_2=0.0, yaw_3=0.0, yaw_4=30.0, pitch_1=25.0, pitch_2=25.0, pitch_3=25.0, pitch_4=25.0,
+               swivel_1=0.5, swivel_2=0.5, swivel_3=0.5, swivel_4=0.5, goal_noise_share=0.1, weight_sigma=300.0,
+               table_contact="lift", grip_pivot_deg=10.0)
+FIT_TOLERANCE = 0.01  # m: a posture whose plate centre misses its target by more rejects the candidate
+HEAD_BEYOND_HANDLE = 0.0148  # m: the plate's centre lies this far past the handle's end (urdf/rake.urdf)
+
+
+def rake_urdf(length: float, width: float) -> str:
+    """``urdf/rake.urdf`` with the handle ``length`` long and the plate ``width`` wide (the plate's
+    thickness, height and pitch, and where the handle meets it, unchanged)."""
+    text = (Path(URDF_DIR) / "rake.urdf").read_text()
+    hx = length + HEAD_BEYOND_HANDLE
+    for old, new in (('xyz="0.25 0 0"', f'xyz="{0.625 * length:.4f} 0 0"'),
+                     ('xyz="0.20 0 0"', f'xyz="{length / 2:.4f} 0 0"'),
+                     ('length="0.40"', f'length="{length:.4f}"'),
+                     ('xyz="0.4148 0 -0.0317"', f'xyz="{hx:.4f} 0 -0.0317"'),
+                     ('size="0.02 0.16 0.08"', f'size="0.02 {width:.4f} 0.08"')):
+        if old not in text:
+            raise ValueError(f"urdf/rake.urdf no longer has {old}: update robot.world_candidate.rake_urdf")
+        text = text.replace(old, new)
+    return text
+
+
+def write_urdfs(folder: Path, length: float, width: float) -> Path:
+    """A folder of the world's URDFs with the candidate's rake (table and toy copied)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in ("table.urdf", "toy.urdf"):
+        shutil.copyfile(Path(URDF_DIR) / name, folder / name)
+    (folder / "rake.urdf").write_text(rake_urdf(length, width))
+    return folder
+
+
+def targets(cfg: WorldConfig, p: dict) -> list[tuple[float, float]]:
+    """The plate-centre targets of postures 1-4 (docs/world_calibration.md)."""
+    (tx, ty), h = cfg.toy_xy, cfg.toy_size / 2
+    out = [(tx + h + p["p1_dx"], ty + p["p1_dy"])]
+    r = p["r_2"]
+    for k in (2, 3, 4):
+        r += p.get(f"dr_{k}", 0.0)
+        a = math.radians(p[f"dir_{k}"])
+        out.append((tx + r * math.cos(a), ty + r * math.sin(a)))
+    return out
+
+
+def base_config(p: dict, urdf_dir: Path) -> WorldConfig:
+    """Every setting of the candidate but the postures (kept at the present ones until fitted)."""
+    ty = float(p["toy_y"])
+    probe = WorldConfig()
+    tx = probe.reach_frontier_at(ty) + float(p["toy_dx"])
+    table = p["table_contact"]
+    return replace(probe, toy_xy=(round(tx, 4), round(ty, 4)), rake_length=float(p["rake_length"]),
+                   rake_head_offset=(float(p["rake_length"]) + HEAD_BEYOND_HANDLE, 0.0, -0.0317),
+                   rake_plate=(0.02, float(p["plate_width"]), 0.08), goal_noise_share=float(p["goal_noise_share"]),
+                   table_contact=table,
+                   grip_pivot_max=math.radians(float(p["grip_pivot_deg"])) if table == "grip" else probe.grip_pivot_max,
+                   urdf_dir=str(urdf_dir))
+
+
+def _starts() -> tuple:
+    from .posture_fit import HEADING_STARTS
+
+    return HEADING_STARTS + tuple(DEFAULT_POSTURES)
+
+
+def plate_centre(cfg: WorldConfig, q) -> tuple[float, float]:
+    import torch
+
+    from .kinematics import ArmKinematics
+
+    kin = ArmKinematics(root_height=cfg.root_height, grasp=torch.tensor(cfg.grasp, dtype=torch.float32),
+                        rake_head_offset=tuple(cfg.rake_head_offset))
+    c = kin.rake_pose_np(np.asarray(q, dtype=np.float64)[None])[0] @ np.array([*cfg.rake_head_offset, 1.0])
+    return float(c[0]), float(c[1])
+
+
+def build(p: dict, urdf_dir: Path) -> tuple[WorldConfig, list[str]]:
+    """The candidate world of parameters ``p`` (its rake written into ``urdf_dir``) and the reasons
+    its postures could not be fitted (empty: every target met within ``FIT_TOLERANCE``)."""
+    from .posture_fit import fit_posture_heading
+
+    write_urdfs(urdf_dir, float(p["rake_length"]), float(p["plate_width"]))
+    cfg = base_config(p, urdf_dir)
+    postures, bad = [], []
+    for k, xy in enumerate(targets(cfg, p), start=1):
+        q = fit_posture_heading(cfg, xy, p[f"yaw_{k}"], _starts(), pitch_deg=p[f"pitch_{k}"], swivel=p[f"swivel_{k}"])
+        postures.append(tuple(round(float(v), 4) for v in q))
+        miss = math.dist(plate_centre(cfg, postures[-1]), xy)
+        if miss > FIT_TOLERANCE:  # rejected: the other postures need not be fitted
+            return replace(cfg, postures=tuple(postures) + DEFAULT_POSTURES[k:]), [
+                f"posture {k}: the fit misses its plate-centre target by {miss:.3f} m"]
+    cfg = replace(cfg, postures=tuple(postures))
+    # the rake reaches behind the toy with posture 4's heading (no W3 made trivial by a short rake)
+    q = fit_posture_heading(cfg, targets(cfg, p)[0], p["yaw_4"], _starts(), pitch_deg=p["pitch_4"], margin=0.10)
+    miss = math.dist(plate_centre(cfg, q), targets(cfg, p)[0])
+    if miss > FIT_TOLERANCE:
+        bad.append(f"the rake cannot reach behind the toy with posture 4's heading (misses by {miss:.3f} m)")
+    return cfg, bad
+
+
+def reject_reasons(cfg: WorldConfig) -> list[str]:
+    """Stage 1's scene criteria (Fig. 7.2; ``scene_check.check_scene`` without the derived W6 and
+    gap(4) rules, docs/world_calibration.md) that ``cfg`` fails."""
+    from .scene_check import check_scene
+
+    return check_scene(cfg, derived=False)
+
+
+def derived_rules(cfg: WorldConfig) -> dict:
+    """The two rules the calibration no longer imposes, as measured on ``cfg`` (recorded)."""
+    from .scene_check import scene_geometry
+
+    g = scene_geometry(cfg)
+    far = cfg.toy_xy[0] + cfg.toy_size / 2
+    return dict(w6=all(p["plate_x_max"] <= far for p in g[2:]), gap4_at_least_plate=g[3]["gap"] >= cfg.rake_plate[1],
+                gaps=[p["gap"] for p in g], plate_centres=[p["head_xy"] for p in g])

@@ -1,0 +1,97 @@
+"""The Exp 5 world's calibration search (``experiments.exp5_calibrate``, docs/world_calibration.md):
+a tiny search in a journal, resumed from it, an interrupted trial retried, and bad input."""
+from __future__ import annotations
+
+import pytest
+
+optuna = pytest.importorskip("optuna")
+
+from neuroimagery.experiments import exp5_calibrate as cal  # noqa: E402
+from neuroimagery.robot.world_candidate import PRESENT  # noqa: E402
+
+TINY = ["--babble", "20", "--libraries", "1", "--fk-movements", "60"]
+
+
+def _trials(path):
+    study = cal.open_study(path, dict(babble=20, libraries=1, fk_movements=60), 0)
+    return study, study.get_trials(deepcopy=False)
+
+
+def test_a_tiny_search_screens_the_present_world_first_and_resumes_from_its_journal(tmp_path, monkeypatch, capsys):
+    """Two trials at tiny sizes: the first is the present world re-expressed (stage 1's pull-path
+    threshold lifted so that it reaches the screen), measured with the acceptance code; a rerun
+    adds a trial to the same journal and keeps the first two."""
+    monkeypatch.setattr(cal, "BEHIND_MAX", 1.0)
+    journal = tmp_path / "j.journal"
+    assert cal.main(["--storage", str(journal), "--trials", "2", *TINY]) == 0
+    study, trials = _trials(journal)
+    assert len(trials) == 2
+    first = trials[0]
+    assert {k: first.params[k] for k in PRESENT if k in first.params} == {k: v for k, v in PRESENT.items() if k in first.params}
+    assert first.user_attrs["stage"] == "screened"
+    m = first.user_attrs["measures"]
+    assert 0 <= m["w1"] <= 24 and 0 <= m["w2"] <= 24 and m["libraries"] == 1 and m["movements_per_posture"] == 20
+    assert first.values == [m["w3"], m["w4"], m["w1"] + m["w2"]]
+    assert first.user_attrs["pulls"]["movements"] == 60
+    assert "2 candidates" in capsys.readouterr().out
+    kept = sorted(p.name for p in (tmp_path / "j.journal.d").rglob("*.json"))
+    assert "posture1_seed100.json" in kept and "seed100_0000.json" in kept
+
+    assert cal.main(["--storage", str(journal), "--trials", "1", *TINY]) == 0
+    _, again = _trials(journal)
+    assert len(again) == 3
+    assert again[0].values == first.values and again[0].params == first.params
+
+
+def test_an_interrupted_trial_is_kept_as_failed_and_retried_with_its_parameters(tmp_path, monkeypatch, capsys):
+    from neuroimagery.robot.config import WorldConfig
+
+    monkeypatch.setattr(cal, "stage1", lambda p, folder, n: (WorldConfig(), [], None))
+
+    def stop(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cal, "measure", stop)
+    journal = tmp_path / "j.journal"
+    assert cal.main(["--storage", str(journal), "--trials", "3", *TINY]) == 130
+    assert "interrupted:" in capsys.readouterr().err
+    _, trials = _trials(journal)
+    assert [t.state for t in trials] == [optuna.trial.TrialState.FAIL]
+
+    fake = dict(w1=20, w2=20, w3=0.0, w4=1.0, pull_alone=0, with_pull=1, routes=1, libraries=1)
+    monkeypatch.setattr(cal, "measure", lambda *a, **k: fake)
+    assert cal.main(["--storage", str(journal), "--trials", "1", *TINY]) == 0
+    _, trials = _trials(journal)
+    assert len(trials) == 2 and trials[1].params == trials[0].params
+    assert trials[1].values == [0.0, 1.0, 40.0]
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--trials", "0"], "--trials must be >= 1"),
+    (["--stage", "tune"], "invalid choice"),
+    (["--babble", "1.5"], "not a whole number"),
+    (["--confirm-seeds", "0", "5"], "--confirm-seeds"),
+])
+def test_bad_input_is_one_error_line_before_any_work(tmp_path, capsys, argv, says):
+    assert cal.main(["--storage", str(tmp_path / "j.journal"), *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and says in err[0]
+    assert not (tmp_path / "j.journal").exists()
+
+
+def test_a_journal_of_other_sizes_a_missing_folder_or_a_foreign_file_is_refused(tmp_path, capsys):
+    journal = tmp_path / "j.journal"
+    cal.open_study(journal, dict(babble=20, libraries=1, fk_movements=60), 0)
+    assert cal.main(["--storage", str(journal), "--stage", "report", "--babble", "30", "--libraries", "1",
+                     "--fk-movements", "60"]) == 2
+    assert "was screened with" in capsys.readouterr().err
+    (tmp_path / "file").write_text("")
+    assert cal.main(["--storage", str(tmp_path / "file" / "j.journal"), "--stage", "screen"]) == 2
+    assert "cannot make its folder" in capsys.readouterr().err
+    assert cal.main(["--storage", str(tmp_path / "none.journal"), "--stage", "report"]) == 2
+    assert "no such journal" in capsys.readouterr().err
+    foreign = tmp_path / "notes.txt"
+    foreign.write_text("not a journal\n")
+    assert cal.main(["--storage", str(foreign), "--stage", "report"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:")
