@@ -19,7 +19,7 @@ import pytest
 
 from neuroimagery import cli, pool, stimuli
 from neuroimagery.arguments import run_tool
-from neuroimagery.experiments import exp5_world
+from neuroimagery.experiments import exp5_calibrate, exp5_world
 from neuroimagery.robot import babble, posture_fit, reach, scene_check
 
 from support_bad_inputs import refused
@@ -59,6 +59,29 @@ def test_exp5_world_arguments(tmp_path, capsys, monkeypatch, args, needle, also)
     _forbid(monkeypatch, exp5_world, "_one_library", "run_pieces")
     refused(capsys, lambda: exp5_world.main([*args, "--out", str(tmp_path / "o")]), needle, *([also] if also else []))
     assert not (tmp_path / "o").exists()
+
+
+CALIBRATE = [  # python -m neuroimagery.experiments.exp5_calibrate
+    (["--trials", "-1"], "--trials must be >= 1", None),
+    (["--sampler-seed", "-3"], "--sampler-seed", "a seed must be >= 0, got -3"),
+    (["--babble", "1e9"], "--babble 1000000000", "--allow-large"),
+    (["--trials", "1e6"], "--trials 1000000", "--allow-large"),
+    (["--stage", "nowhere"], "--stage", "invalid choice"),
+    (["--stag", "report"], "unrecognized arguments", None),
+]
+
+
+@pytest.mark.parametrize("args,needle,also", CALIBRATE, ids=[" ".join(a)[:30] for a, _, _ in CALIBRATE])
+def test_exp5_calibrate_arguments(tmp_path, capsys, monkeypatch, args, needle, also):
+    _forbid(monkeypatch, exp5_calibrate, "run", "open_study")
+    journal = tmp_path / "j" / "search.journal"
+    refused(capsys, lambda: exp5_calibrate.main(["--storage", str(journal), *args]), needle, *([also] if also else []))
+    assert not (tmp_path / "j").exists()
+
+
+def test_exp5_calibrate_refuses_an_empty_storage_path(capsys, monkeypatch):
+    _forbid(monkeypatch, exp5_calibrate, "run", "open_study")
+    refused(capsys, lambda: exp5_calibrate.main(["--storage", ""]), "--storage", "empty path")
 
 
 @pytest.mark.parametrize("tool", ["world", "babble"])

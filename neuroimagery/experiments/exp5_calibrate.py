@@ -25,7 +25,7 @@ import warnings
 from pathlib import Path
 
 from ..errors import UserInputError
-from ..robot.babble import OneLineParser, count
+from ..arguments import ToolParser, check, check_size, count, path, seed
 from .exp5_candidate import SEED0, candidate_key, measure, rank_key
 
 STUDY = "exp5-world"
@@ -199,9 +199,17 @@ def _terminate_as_interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
+MAX_TRIALS = 10_000  # per call without --allow-large
+MAX_SIZE = {"babble": 100_000, "libraries": 1000, "fk_movements": 100_000}  # per seed, without --allow-large
+
+
+def _path(text: str) -> Path:
+    return Path(path(text))
+
+
 def parse(argv):
-    parser = OneLineParser(prog="python -m neuroimagery.experiments.exp5_calibrate", description=__doc__.split("\n")[0])
-    parser.add_argument("--storage", type=Path, required=True, help="Optuna journal file (created if absent; resumed)")
+    parser = ToolParser(prog="python -m neuroimagery.experiments.exp5_calibrate", description=__doc__.split("\n")[0])
+    parser.add_argument("--storage", type=_path, required=True, help="Optuna journal file (created if absent; resumed)")
     parser.add_argument("--stage", choices=STAGES, default="screen", help="what to run (docs/world_calibration.md)")
     parser.add_argument("--trials", type=count, default=10, help="screen: trials to run in this call")
     parser.add_argument("--confirm", type=count, default=1, help="confirm: best screened candidates to confirm")
@@ -210,14 +218,16 @@ def parse(argv):
     parser.add_argument("--babble", type=count, default=10_000, help="exploration movements per posture and seed")
     parser.add_argument("--libraries", type=count, default=16, help="skill libraries per seed")
     parser.add_argument("--fk-movements", type=count, default=2000, help="stage 1: movements of the pull paths")
-    parser.add_argument("--sampler-seed", type=count, default=0, help="the sampler's seed (one per worker)")
-    parser.add_argument("--work", type=Path, default=None, help="folder of the kept pieces (default FILE.d)")
+    parser.add_argument("--sampler-seed", type=seed, default=0, help="the sampler's seed (one per worker)")
+    parser.add_argument("--work", type=_path, default=None, help="folder of the kept pieces (default FILE.d)")
+    parser.add_argument("--allow-large", action="store_true", help="allow sizes past the limits of --help's defaults")
     args = parser.parse_args(argv)
     for name in ("trials", "confirm", "babble", "libraries", "fk_movements"):
-        if getattr(args, name) < 1:
-            raise UserInputError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
-    if min(args.confirm_seeds) < 1:
-        raise UserInputError(f"--confirm-seeds must be >= 1, got {args.confirm_seeds}")
+        check(f"--{name.replace('_', '-')}", getattr(args, name), ge=1)
+    check("--confirm-seeds", min(args.confirm_seeds), ge=1)
+    check_size("--trials", args.trials, MAX_TRIALS, args.allow_large)
+    for name, most in MAX_SIZE.items():
+        check_size(f"--{name.replace('_', '-')}", getattr(args, name), most, args.allow_large)
     return args
 
 
