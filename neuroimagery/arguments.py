@@ -106,6 +106,28 @@ def run_tool(fn: Callable[[Sequence[str] | None], int | None], argv: Sequence[st
         return 2
 
 
+def _terminate_as_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def run_resumable(fn: Callable[[Sequence[str] | None], int | None], argv: Sequence[str] | None,
+                  kept: Callable[[], str], sigterm: bool = False) -> int:
+    """:func:`run_tool` for a tool that keeps its finished pieces for a rerun: an interrupt (Ctrl-C,
+    and SIGTERM when ``sigterm``) prints one line, ``interrupted: <kept()>; the same command
+    resumes``, and returns 130. ``kept()`` is asked at the interrupt (what was kept, and where)."""
+    import signal
+
+    previous = signal.signal(signal.SIGTERM, _terminate_as_interrupt) if sigterm else None
+    try:
+        return run_tool(fn, argv)
+    except KeyboardInterrupt:
+        print(f"interrupted: {kept()}; the same command resumes", file=sys.stderr)
+        return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
 def os_error_message(err: OSError) -> str:
     """An ``OSError`` in one line: the file, then why."""
     where = f"{err.filename}: " if getattr(err, "filename", None) else ""

@@ -18,14 +18,13 @@ HP1 and HP2 are never run.
 """
 from __future__ import annotations
 
-import signal
 import sys
 import time
 import warnings
 from pathlib import Path
 
 from ..errors import UserInputError
-from ..arguments import ToolParser, check, check_size, count, path, seed
+from ..arguments import ToolParser, check, check_size, count, path, run_resumable, seed
 from .exp5_candidate import SEED0, candidate_key, measure, rank_key
 
 STUDY = "exp5-world"
@@ -195,10 +194,6 @@ def confirm(study, work: Path, sizes: dict, k: int, babble_seeds: int, library_s
               f"W4 {m['routes']}/{m['libraries']}", flush=True)
 
 
-def _terminate_as_interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 MAX_TRIALS = 10_000  # per call without --allow-large
 MAX_SIZE = {"babble": 100_000, "libraries": 1000, "fk_movements": 100_000}  # per seed, without --allow-large
 
@@ -253,21 +248,17 @@ def run(args) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    previous = signal.signal(signal.SIGTERM, _terminate_as_interrupt)
-    args = None
-    try:
-        args = parse(argv)
-        run(args)
-    except UserInputError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"interrupted: the finished trials are kept in {args.storage if args else 'the journal'} and their "
-              "pieces in the work folder; the same command resumes", file=sys.stderr)
-        return 130
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-    return 0
+    given: dict = {}
+
+    def work(argv) -> None:
+        given["args"] = parse(argv)
+        run(given["args"])
+
+    def kept() -> str:
+        journal = given["args"].storage if "args" in given else "the journal"
+        return f"the finished trials are kept in {journal} and their pieces in the work folder"
+
+    return run_resumable(work, argv, kept, sigterm=True)
 
 
 if __name__ == "__main__":

@@ -27,11 +27,10 @@ settings are the same, so an interrupted or killed run resumes.
 from __future__ import annotations
 
 import json
-import sys
 import time
 from pathlib import Path
 
-from ..arguments import ToolParser, check, check_jobs, check_size, count, path, seed
+from ..arguments import ToolParser, check, check_jobs, check_size, count, path, run_resumable, seed
 from ..errors import UserInputError
 from ..files import kept_json, writable_folder, write_text
 from ..workers import run_pieces
@@ -161,7 +160,7 @@ def seed_table(rows: list[dict]) -> str:
 MAX_LIBRARIES = 1000  # per seed without --allow-large
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> ToolParser:
     parser = ToolParser(prog="python -m neuroimagery.experiments.exp5_world", description=__doc__.split("\n")[0])
     parser.add_argument("--libraries", type=count, default=16, help="skill libraries to acquire per seed")
     parser.add_argument("--seed", type=seed, nargs="+", default=[0],
@@ -174,20 +173,31 @@ def main(argv: list[str] | None = None) -> int:
                         "workers than cores")
     parser.add_argument("--table-contact", choices=TABLE_CONTACTS, default="lift",
                         help="how the table meets the rake (experiment.world.table_contact; docs/robot.md)")
-    try:
-        args = parser.parse_args(argv)
-        check("--libraries", args.libraries, ge=1)
-        check_size("--libraries", args.libraries, MAX_LIBRARIES, args.allow_large, "libraries acquired per seed")
-        check_size("--seed: the number of seeds", len(args.seed), MAX_SEEDS, args.allow_large)
-        if args.jobs is None:
-            args.jobs = min(2, core_limit()[0])
-        check_jobs("--jobs", args.jobs, args.allow_large)
-        if len(set(args.seed)) != len(args.seed):
-            raise UserInputError(f"--seed: each seed once, got {' '.join(map(str, args.seed))}")
+    return parser
+
+
+def parse(argv):
+    args = _parser().parse_args(argv)
+    check("--libraries", args.libraries, ge=1)
+    check_size("--libraries", args.libraries, MAX_LIBRARIES, args.allow_large, "libraries acquired per seed")
+    check_size("--seed: the number of seeds", len(args.seed), MAX_SEEDS, args.allow_large)
+    if args.jobs is None:
+        args.jobs = min(2, core_limit()[0])
+    check_jobs("--jobs", args.jobs, args.allow_large)
+    if len(set(args.seed)) != len(args.seed):
+        raise UserInputError(f"--seed: each seed once, got {' '.join(map(str, args.seed))}")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    given: dict = {}
+
+    def work(argv) -> None:
+        args = given["args"] = parse(argv)
         writable_folder(args.out, OUTPUTS)
         t0 = time.perf_counter()
-        work = [(args.out, seed, i, args.table_contact) for seed in args.seed for i in range(args.libraries)]
-        libs = run_pieces(_kept_library, work, args.jobs, "libraries", " library")
+        pieces = [(args.out, seed, i, args.table_contact) for seed in args.seed for i in range(args.libraries)]
+        libs = run_pieces(_kept_library, pieces, args.jobs, "libraries", " library")
         s = summarise(libs)
         seeds = per_seed(libs)
         text = markdown(s) + ("\n" + seed_table(seeds) if len(seeds) > 1 else "")
@@ -195,14 +205,12 @@ def main(argv: list[str] | None = None) -> int:
         write_text(args.out / OUTPUTS[1], text)
         print(text)
         print(f"wrote {args.out / 'world_libraries.json'} in {time.perf_counter() - t0:.0f} s")
-    except UserInputError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"interrupted: the finished libraries are kept in {args.out / LIBRARY_DIR}; "
-              "the same command resumes", file=sys.stderr)
-        return 130
-    return 0
+
+    def kept() -> str:
+        where = given["args"].out / LIBRARY_DIR if "args" in given else "the output folder"
+        return f"the finished libraries are kept in {where}"
+
+    return run_resumable(work, argv, kept)
 
 
 if __name__ == "__main__":

@@ -21,7 +21,6 @@ import argparse
 import json
 import math
 import os
-import sys
 import tempfile
 import time
 from functools import partial
@@ -29,7 +28,8 @@ from pathlib import Path
 
 import torch
 
-from neuroimagery.arguments import ToolParser, check, check_jobs, check_size, count, path as nonempty_path
+from neuroimagery.arguments import (ToolParser, check, check_jobs, check_size, count, path as nonempty_path,
+                                    run_resumable)
 from neuroimagery.errors import UserInputError
 from neuroimagery.files import kept_json, writable_folder, write_text
 from neuroimagery.workers import run_pieces
@@ -230,22 +230,22 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> int:
-    try:
-        args = parse(argv)
+    given: dict = {}
+
+    def work(argv) -> None:
+        args = given["args"] = parse(argv)
         t0 = time.perf_counter()
         check_out(args.out)
         table = measure(args.rollouts, args.seeds, table_contact=args.table_contact, out=args.out, jobs=args.jobs)
         write_outputs(args.out, table)
         print(markdown(table))
         print(f"wrote {args.out / 'table_7_1.json'} in {time.perf_counter() - t0:.1f} s")
-    except UserInputError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"interrupted: the finished postures x seeds are kept in {args.out / COUNTS_DIR}; "
-              "the same command resumes", file=sys.stderr)
-        return 130
-    return 0
+
+    def kept() -> str:
+        where = given["args"].out / COUNTS_DIR if "args" in given else "the output folder"
+        return f"the finished postures x seeds are kept in {where}"
+
+    return run_resumable(work, argv, kept)
 
 
 if __name__ == "__main__":

@@ -121,3 +121,14 @@ def entropy_bits(p: torch.Tensor) -> torch.Tensor:
     """Entropy in bits of non-negative codes ``(..., units)`` scaled to sum 1."""
     q = p / p.sum(-1, keepdim=True).clamp_min(1e-12)
     return -(q * torch.log2(q.clamp_min(1e-12))).sum(-1)
+
+
+def assert_supervised_rate(trained, soms, angles, eta: float, contract: str) -> None:
+    """X3.1 / X4.1: each configured posture map's one step of its own rule moves the winner's
+    prototype by between 0.5 eta and 2 eta of its distance to the image (eta 0.1 stated)."""
+    bank = trained.bank(trained.e.train_set)
+    labels = bank.angle_labels(angles)
+    for som in soms:
+        r = model_rule_rate(som, bank.maps, labels)
+        print(f"{contract} {som.name} relative change per step {[round(float(v), 4) for v in r]} (eta {eta})")
+        assert bool(((r >= 0.5 * 0.1) & (r <= 2 * 0.1)).all())

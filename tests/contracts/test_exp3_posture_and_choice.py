@@ -3,7 +3,7 @@ posture maps C2/C3, the choice of the move by M1_1 -> M1_2, and the less certain
 objects."""
 import pytest
 import torch
-from support_ch6 import entropy_bits, item_rows, model_rule_rate
+from support_ch6 import entropy_bits, item_rows, assert_supervised_rate
 
 from neuroimagery.nn.functional import gain_field, softmax_probabilities
 
@@ -21,12 +21,8 @@ def _move_probs(t, target, rotated):
 
 
 def test_x3_1_supervised_step_moves_at_the_stated_rate(trained3):
-    bank = trained3.bank(trained3.e.train_set)
-    labels = bank.angle_labels(trained3.e.posture.angles)
-    for som in (trained3.model.c2, trained3.model.c3):
-        r = model_rule_rate(som, bank.maps, labels)
-        print(f"X3.1 {som.name} relative change per step {[round(float(v), 4) for v in r]} (eta {trained3.e.posture.eta})")
-        assert bool(((r >= 0.05) & (r <= 0.2)).all())
+    m = trained3.model
+    assert_supervised_rate(trained3, (m.c2, m.c3), trained3.e.posture.angles, trained3.e.posture.eta, "X3.1")
 
 
 def test_x3_2_x3_3_posture_maps_read_the_trained_posture(trained3):

@@ -3,19 +3,15 @@ Kohonen step, the posture maps C16/C17, the gain field and PMCm, the wrist signa
 stochastic draw of the move and the percept that varies between looks."""
 import pytest
 import torch
-from support_ch6 import item_rows, model_rule_rate
+from support_ch6 import item_rows, assert_supervised_rate
 
 from neuroimagery.experiments import exp4
 from neuroimagery.nn.functional import gain_field, softmax_probabilities, softmax_select
 
 
 def test_x4_1_supervised_step_moves_at_the_stated_rate(trained4):
-    bank = trained4.bank(trained4.e.train_set)
-    labels = bank.angle_labels(trained4.e.ppc.angles)
-    for som in (trained4.model.c16, trained4.model.c17):
-        r = model_rule_rate(som, bank.maps, labels)
-        print(f"X4.1 {som.name} relative change per step {[round(float(v), 4) for v in r]} (eta {trained4.e.posture.eta})")
-        assert bool(((r >= 0.05) & (r <= 0.2)).all())
+    m = trained4.model
+    assert_supervised_rate(trained4, (m.c16, m.c17), trained4.e.ppc.angles, trained4.e.posture.eta, "X4.1")
 
 
 def test_x4_2_posture_maps_read_the_trained_posture(trained4):
