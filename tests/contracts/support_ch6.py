@@ -132,3 +132,17 @@ def assert_supervised_rate(trained, soms, angles, eta: float, contract: str) -> 
         r = model_rule_rate(som, bank.maps, labels)
         print(f"{contract} {som.name} relative change per step {[round(float(v), 4) for v in r]} (eta {eta})")
         assert bool(((r >= 0.5 * 0.1) & (r <= 2 * 0.1)).all())
+
+
+def assert_looks_vary(trained, soms, angles, winner, contract: str) -> None:
+    """X3.13 / X4.14: two looks at the training items differ for at least half of them, and each
+    configured posture map still reads the fresh look's posture (``winner``: a map's output -> the
+    winning unit) for at least 0.95 of the items."""
+    e, m = trained.e, trained.model
+    looks = trained.looks(e.train_set)
+    differ = float((looks[0] != looks[1]).any(-1).float().mean())
+    labels = trained.bank(e.train_set).angle_labels(angles)
+    x = looks[1].unsqueeze(0).expand(m.participants, -1, -1)
+    acc = [float((winner(m.posture(som, x)) == labels).float().mean()) for som in soms]
+    print(f"{contract} items whose two looks differ {differ:.3f}; {' / '.join(s.name for s in soms)} right on fresh looks {acc}")
+    assert differ >= 0.5 and min(acc) >= 0.95

@@ -5,7 +5,7 @@ import os
 
 import pytest
 import torch
-from support_ch6 import forward_fn, forward_model_shape, item_rows, shape_and_detail
+from support_ch6 import assert_looks_vary, forward_fn, forward_model_shape, item_rows, shape_and_detail
 
 from neuroimagery.vision.edges import rotate
 
@@ -89,11 +89,5 @@ def test_x3_12_set_c_mirrors_differ_little_from_their_targets(trained3):
 
 
 def test_x3_13_the_percept_varies_between_looks(trained3):
-    e, m = trained3.e, trained3.model
-    looks = trained3.looks(e.train_set)
-    differ = float((looks[0] != looks[1]).any(-1).float().mean())
-    labels = trained3.bank(e.train_set).angle_labels(e.posture.angles)
-    x = looks[1].unsqueeze(0).expand(m.participants, -1, -1)
-    acc = [float((m.posture(som, x).argmax(-1) == labels).float().mean()) for som in (m.c2, m.c3)]
-    print(f"X3.13 items whose two looks differ {differ:.3f}; C2 / C3 right on fresh looks {acc}")
-    assert differ >= 0.5 and min(acc) >= 0.95
+    m = trained3.model
+    assert_looks_vary(trained3, (m.c2, m.c3), trained3.e.posture.angles, lambda out: out.argmax(-1), "X3.13")

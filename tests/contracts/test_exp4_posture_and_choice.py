@@ -3,7 +3,7 @@ Kohonen step, the posture maps C16/C17, the gain field and PMCm, the wrist signa
 stochastic draw of the move and the percept that varies between looks."""
 import pytest
 import torch
-from support_ch6 import item_rows, assert_supervised_rate
+from support_ch6 import assert_looks_vary, assert_supervised_rate, item_rows
 
 from neuroimagery.experiments import exp4
 from neuroimagery.nn.functional import gain_field, softmax_probabilities, softmax_select
@@ -115,11 +115,5 @@ def test_x4_13_the_move_is_a_stochastic_draw(trained4):
 
 
 def test_x4_14_the_percept_varies_between_looks(trained4):
-    e, m = trained4.e, trained4.model
-    looks = trained4.looks(e.train_set)
-    differ = float((looks[0] != looks[1]).any(-1).float().mean())
-    labels = trained4.bank(e.train_set).angle_labels(e.ppc.angles)
-    x = looks[1].unsqueeze(0).expand(m.participants, -1, -1)
-    acc = [float((m.posture(som, x) == labels).float().mean()) for som in (m.c16, m.c17)]
-    print(f"X4.14 items whose two looks differ {differ:.3f}; C16 / C17 right on fresh looks {acc}")
-    assert differ >= 0.5 and min(acc) >= 0.95
+    m = trained4.model
+    assert_looks_vary(trained4, (m.c16, m.c17), trained4.e.ppc.angles, lambda out: out, "X4.14")
