@@ -477,9 +477,9 @@ def situation_views(e: Exp5Config) -> dict:
 
 
 def report(cfg, run, summary) -> None:
-    from . import exp5_figures as figs
+    from .exp5_report import write_report
 
-    figs.write_report(cfg, run, summary)
+    write_report(cfg, run, summary)
 
 
 def pool_runs(run_dirs: list) -> tuple:

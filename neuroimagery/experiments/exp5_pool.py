@@ -29,7 +29,7 @@ from ..analysis.robots import ROBOT_EFFECTS_INTRO, ROBOT_EQUIVALENCE
 from ..analysis.tables import read_whole_csv
 from ..errors import UserInputError
 from .exp5_config import POOL_FREE_KEYS, Exp5Config, dotted, from_dict, nest
-from .exp5_figures import group_table
+from .exp5_report import group_table
 from .exp5_summary import STRATEGIES, group_rates, summarise
 
 
