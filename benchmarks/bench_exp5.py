@@ -34,7 +34,7 @@ def main(argv=None) -> int:
     check_size("--repetitions", args.repetitions, 100, args.allow_large)
 
     from neuroimagery import memory
-    from neuroimagery.experiments import exp5, exp5_config
+    from neuroimagery.experiments import exp5, exp5_config, exp5_task
 
     kw = {}
     if args.standin:
@@ -44,7 +44,7 @@ def main(argv=None) -> int:
     totals: dict[str, float] = {}
     individuals = 0
     t_load, c_load = time.perf_counter(), time.process_time()
-    env = exp5._task_environment(e)  # the world is built once per worker process and reused by its tasks
+    env = exp5_task._task_environment(e)  # the world is built once per worker process and reused by its tasks
     world_timing = getattr(getattr(env, "world", None), "timing", None)  # pybullet's own share, all phases
     world0 = dict(world_timing or {})
     t_load, c_load = time.perf_counter() - t_load, time.process_time() - c_load

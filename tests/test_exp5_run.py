@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from conftest import make_cfg  # noqa: E402
 from support_runs import reused_run  # noqa: E402
 
-from neuroimagery.experiments import exp5, exp5_config, exp5_summary  # noqa: E402
+from neuroimagery.experiments import exp5, exp5_config, exp5_summary, exp5_task  # noqa: E402
 from neuroimagery.models.tool_use import Result  # noqa: E402
 
 STANDIN = "support_tool_env:StandInToolEnv"
@@ -150,7 +150,7 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
     R.evaluate(compose(*args), out_dir=tmp_path / "a")
     full = R.evaluate(compose(*args, "experiment.brain.eta=0.01"), out_dir=tmp_path / "b")  # acquires again
     assert full["cost"]["libraries_reused"] == 0
-    monkeypatch.setattr(exp5, "acquire_skills", lambda *a, **k: pytest.fail("a stored library was acquired again"))
+    monkeypatch.setattr(exp5_task, "acquire_skills", lambda *a, **k: pytest.fail("a stored library was acquired again"))
     reused = R.evaluate(compose(*args, "experiment.brain.eta=0.01", f"experiment.engine.reuse_libraries={tmp_path / 'a'}"),
                         out_dir=tmp_path / "c")
     assert reused["cost"]["libraries_reused"] == reused["cost"]["tasks"] == 2
