@@ -28,6 +28,7 @@ from .forms import Form, register
 from .functional import (as_batched, check_participants, check_tensor, checks_enabled, gain_field,
                          participants_weight, transfer)
 from .learning import learn_sequence, run_plain
+from .readout import Readouts
 from .rules import STEP_BOUND, Rule
 
 
@@ -40,7 +41,7 @@ def _applies_in_place(rule: Rule) -> bool:
     return False
 
 
-class Connection(nn.Module):
+class Connection(Readouts, nn.Module):
     """Base class: a weight buffer ``(P, out, in)``, a transfer function, and learning rules.
 
     ``name`` appears in error messages and training-curve tags; without one a connection is named
@@ -77,15 +78,22 @@ class Connection(nn.Module):
         shared, in the input's dtype; an error naming the connection if the participants differ."""
         return participants_weight(f"connection {self.name!r}", self.weight, xb, given)
 
-    def net(self, x: torch.Tensor) -> torch.Tensor:
-        """Weighted sum ``W x`` before the transfer function, in ``x``'s dtype."""
-        xb, squeeze = as_batched(x, self.n_in, f"input of connection {self.name!r}")
-        y = torch.bmm(xb, self._weight_for(xb, x.shape).transpose(1, 2))
+    block_kind = "connection"
+
+    def net(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
+        """Weighted sum ``W x`` before the transfer function, in ``x``'s dtype. The input's shape is
+        checked once per configuration, its values at every call unless ``checked`` (the caller
+        has checked the batch: the fast path of a model's inner loop)."""
+        xb, squeeze = self.batched(x, self.n_in, checked)
+        w = self.weight
+        if w.shape[0] == 1 and xb.shape[0] != 1:
+            w = w.expand(xb.shape[0], *w.shape[1:])
+        y = torch.bmm(xb, (w if w.dtype == xb.dtype else w.to(xb.dtype)).transpose(1, 2))
         return y[0] if squeeze and x.dim() == 2 else (y[0, 0] if squeeze else y)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
         """``F(W x)`` (eq. 4.4)."""
-        return self.F(self.net(x))
+        return self.F(self.net(x, checked=checked))
 
     @torch.no_grad()
     def learn(self, pre, post=None, return_delta: bool = False, *, sequence: bool = False, batch: int = 1,
@@ -133,6 +141,11 @@ class Connection(nn.Module):
             raise FloatingPointError(f"connection {self.name!r}: learning produced non-finite weights")
         self.weight.add_(total)
         return total
+
+    @torch.no_grad()
+    def fill_weights_(self, value: float) -> None:
+        """Set every weight to ``value`` (e.g. back to a zero start), in place."""
+        self.weight.fill_(float(value))
 
     def _check_needs(self, post, kw) -> None:
         """One error naming the connection and the activity a rule needs and was not given."""
@@ -252,8 +265,8 @@ class OneToOne(Connection):
             raise ValueError("OneToOne is a fixed element-wise gain; it has no learning rule")
         super().__init__(n, n, torch.full((participants, 1, n), float(value)), transfer_fn, (), name)
 
-    def net(self, x: torch.Tensor) -> torch.Tensor:
-        xb, squeeze = as_batched(x, self.n_in, f"input of connection {self.name!r}")
+    def net(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
+        xb, squeeze = self.batched(x, self.n_in, checked)
         y = xb * self._weight_for(xb, x.shape)
         return y[0] if squeeze and x.dim() == 2 else (y[0, 0] if squeeze else y)
 
