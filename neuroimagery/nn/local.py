@@ -23,6 +23,7 @@ from typing import Sequence
 import torch
 
 from . import forms, local_kernel, seeding
+from .change import as_change
 from .connections import Connection
 from .forms import Form, register
 from .functional import check_floating
@@ -214,4 +215,4 @@ class Restricted(Form):
     def run(self, conn, rule, call) -> None:
         W = torch.stack([conn.dense(p) for p in range(conn.participants)])
         kw = {k: v for k, v in call.kw.items() if v is not None}
-        call.out.add_(conn.restrict(rule.delta(W, pre=call.pre, post=call.post, **kw)))
+        call.out.add_(conn.restrict(as_change(W, rule.delta(W, pre=call.pre, post=call.post, **kw)).tensor()))

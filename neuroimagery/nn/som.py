@@ -33,6 +33,7 @@ from . import monitor, seeding
 from .functional import (as_batched, check_floating, check_rate, check_tensor, checks_enabled, grid_coords,
                          participants_weight, squared_norms)
 from . import forms
+from .change import as_change
 from .readout import Readouts
 from .rules import Kohonen, SupervisedKohonen
 
@@ -213,8 +214,10 @@ class SOM(Readouts, nn.Module):
                 raise ValueError(f"SOM {self.name!r} is supervised: step() needs the winner")
             winner = self.bmu(xb)[:, 0]
         if self.training:
-            d = self.rule.delta(self.weight, pre=xb, bmu=winner, grid=self.grid, t=self.steps)
-            self.weight.add_(d)
+            # the rule computes the change (the Kohonen contract of every rule: delta at the weights),
+            # the map applies it
+            change = self.rule.delta(self.weight, pre=xb, bmu=winner, grid=self.grid, t=self.steps)
+            as_change(self.weight, change).apply_(self.weight)
             self.steps += 1
         return winner
 
