@@ -40,10 +40,6 @@ class Readouts:
             self._table_cache = (key, self.weight.transpose(1, 2).contiguous())
         return self._table_cache[1]
 
-    def drop_tables(self) -> None:
-        """Forget the transposed weights (they are made again when next needed)."""
-        self._table_cache = None
-
     def batched(self, x: torch.Tensor, n: int, checked: bool = False) -> tuple[torch.Tensor, bool]:
         """``x`` as ``(P, B, n)`` and whether to squeeze the participant axis again: shape, dtype
         and participants checked once per configuration, the values unless ``checked`` (the
