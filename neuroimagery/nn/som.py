@@ -37,6 +37,7 @@ from .change import as_change
 from .readout import Readouts
 from .rules import Kohonen, SupervisedKohonen
 
+NORM_ROWS = 256  # prototypes squared and summed at a time by SOM.prototype_norms (the temporary stays small)
 ORDER_STREAM = 1  # stream of participant_generators(seed, P, stream) a SOM built from a seed draws fit() orders from
 
 
@@ -161,7 +162,13 @@ class SOM(Readouts, nn.Module):
         cache = getattr(self, "_norms", {})
         if key not in cache:
             cache = {k: v for k, v in cache.items() if k[0] == key[0]}
-            cache[key] = squared_norms(self.weight[..., lo:hi])
+            w = self.weight[..., lo:hi]  # a view: each row's sum over its own inputs, NORM_ROWS rows at a time
+            norms = w.new_empty(w.shape[:-1])
+            for p in range(w.shape[0]):
+                for a in range(0, w.shape[1], NORM_ROWS):
+                    block = w[p, a:a + NORM_ROWS]
+                    norms[p, a:a + NORM_ROWS] = (block * block).sum(-1)
+            cache[key] = norms
             self._norms = cache
         return cache[key]
 
