@@ -10,7 +10,7 @@ def test_hebbian_outstar_by_hand():
     W = torch.tensor([[[0.1, 0.2], [0.3, 0.4], [0.0, 0.5]]])  # (P=1, out=3, in=2)
     x = torch.tensor([[[1.0, 0.5]]])
     y = torch.tensor([[[1.0, 0.0, 0.2]]])
-    d = Hebbian(0.5, "outstar").delta(W, pre=x, post=y)
+    d = Hebbian(0.5, "outstar").delta(W, pre=x, post=y).tensor()
     expected = torch.tensor([[[0.5 * 1.0 * (1.0 - 0.1), 0.5 * 0.5 * (1.0 - 0.2)],
                               [0.5 * 1.0 * (0.0 - 0.3), 0.5 * 0.5 * (0.0 - 0.4)],
                               [0.5 * 1.0 * (0.2 - 0.0), 0.5 * 0.5 * (0.2 - 0.5)]]])
@@ -22,7 +22,7 @@ def test_hebbian_instar_by_hand():
     W = torch.tensor([[[0.1, 0.2], [0.3, 0.4]]])
     x = torch.tensor([[[1.0, 0.5]]])
     y = torch.tensor([[[0.0, 2.0]]])
-    d = Hebbian(0.1, "instar").delta(W, pre=x, post=y)
+    d = Hebbian(0.1, "instar").delta(W, pre=x, post=y).tensor()
     expected = torch.tensor([[[0.0, 0.0], [0.1 * 2 * (1.0 - 0.3), 0.1 * 2 * (0.5 - 0.4)]]])
     assert torch.allclose(d, expected)
 
@@ -41,7 +41,7 @@ def test_delta_rule_by_hand():
     x = torch.tensor([[[1.0, 0.0, 2.0]]])
     a = torch.tensor([[[0.5, 0.0]]])
     t = torch.tensor([[[1.0, -1.0]]])
-    d = Delta(0.1).delta(W, pre=x, post=a, target=t)
+    d = Delta(0.1).delta(W, pre=x, post=a, target=t).tensor()
     expected = 0.1 * torch.tensor([[[0.5, 0.0, 1.0], [-1.0, 0.0, -2.0]]])
     assert torch.allclose(d, expected)
 
@@ -62,7 +62,7 @@ def test_kohonen_step_by_hand():
     W = torch.tensor([[[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]])
     x = torch.tensor([[[1.0, 0.0]]])
     rule = Kohonen(eta=0.5, sigma=1.0, iterations=10, eta_final=0.5, sigma_final=1.0)
-    d = rule.delta(W, pre=x, bmu=torch.tensor([1]), grid=grid, t=0)
+    d = rule.delta(W, pre=x, bmu=torch.tensor([1]), grid=grid, t=0).tensor()
     import math
     th = [math.exp(-0.5), 1.0, math.exp(-0.5)]
     expected = torch.stack([0.5 * th[k] * (x[0, 0] - W[0, k]) for k in range(3)]).unsqueeze(0)
@@ -84,7 +84,7 @@ def test_supervised_kohonen_forces_winner_and_normalises():
     W = torch.tensor([[[0.5, 0.5], [0.2, 0.8]]])
     x = torch.tensor([[[1.0, 0.0]]])
     rule = SupervisedKohonen(eta=0.5, sigma=0.01)  # neighbourhood reaches the winner only
-    d = rule.delta(W, pre=x, bmu=torch.tensor([1]), grid=grid)
+    d = rule.delta(W, pre=x, bmu=torch.tensor([1]), grid=grid).tensor()
     new = W + d
     # winner 1 moves halfway to x: (0.6, 0.4), already sums to 1; unit 0 unchanged
     assert torch.allclose(new, torch.tensor([[[0.5, 0.5], [0.6, 0.4]]]))
@@ -100,7 +100,7 @@ def test_qlearning_by_hand(form, expected_err):
     x_prev = torch.tensor([[[1.0, 0.0]]])
     x_next = torch.tensor([[[0.0, 1.0]]])
     rule = QLearning(eta=0.1, gamma=0.8, form=form)
-    d = rule.delta(W, pre=x_prev, action=torch.tensor([[1]]), reward=torch.tensor([[1.0]]), next_pre=x_next)
+    d = rule.delta(W, pre=x_prev, action=torch.tensor([[1]]), reward=torch.tensor([[1.0]]), next_pre=x_next).tensor()
     expected = torch.zeros_like(W)
     expected[0, 1, 0] = 0.1 * expected_err
     assert torch.allclose(d, expected)
@@ -110,7 +110,7 @@ def test_qlearning_terminal_has_no_bootstrap():
     W = torch.tensor([[[0.0, 1.0], [0.5, 2.0]]])
     rule = QLearning(eta=1.0, gamma=0.8)
     d = rule.delta(W, pre=torch.tensor([[[1.0, 0.0]]]), action=torch.tensor([[1]]), reward=torch.tensor([[1.0]]),
-                   next_pre=torch.tensor([[[0.0, 1.0]]]), done=torch.tensor([[True]]))
+                   next_pre=torch.tensor([[[0.0, 1.0]]]), done=torch.tensor([[True]])).tensor()
     assert d[0, 1, 0].item() == pytest.approx(1.0 - 0.5)
 
 

@@ -31,18 +31,18 @@ def test_gated_hebbian_equals_repeated_plain_steps_on_the_gated_unit(binary):
     plain = _plain_outstar(w0, x, y, eta, k)
     assert torch.allclose(c.weight[0, 2], plain[0, 2], atol=1e-6)  # the gated unit: k plain steps
     assert torch.equal(c.weight[0, [0, 1, 3, 4]], w0[0, [0, 1, 3, 4]])  # the others keep their weights
-    # delta() gives the same change as the in-place path
+    # the change delta() computes, added densely, equals the one the connection applied in place
     d = GatedHebbian(eta).delta(w0.clone(), x.reshape(1, 1, -1), y.reshape(1, 1, -1), gate=gate, repeats=k)
-    assert torch.allclose(w0 + d, c.weight, atol=1e-6)
+    assert torch.equal(w0, w0.clone()) and torch.allclose(w0 + d, c.weight, atol=1e-6)
 
 
 def test_gated_hebbian_refuses_bad_gates_and_batches():
     rule = GatedHebbian(0.1)
     w = torch.zeros(1, 2, 3)
     with pytest.raises(ValueError, match="gate"):
-        rule.apply_(w, torch.ones(1, 1, 3), torch.ones(1, 1, 2), gate=torch.full((1, 2), 0.5))
+        rule.delta(w, torch.ones(1, 1, 3), torch.ones(1, 1, 2), gate=torch.full((1, 2), 0.5))
     with pytest.raises(ValueError, match="one pattern"):
-        rule.apply_(w, torch.ones(1, 2, 3), torch.ones(1, 2, 2))
+        rule.delta(w, torch.ones(1, 2, 3), torch.ones(1, 2, 2))
 
 
 def _eq_7_1_by_hand(w, x0, unit, reward, x1, done, eta, gamma, sign):
@@ -82,7 +82,7 @@ def test_q_learning_batch_changes_are_computed_at_the_same_weights():
     for reduction in ("sum", "mean"):
         rule = QLearning(0.1, 0.8, reduction=reduction)
         w = w0.clone()
-        rule.apply_(w, pre, **kw)
+        rule.delta(w, pre, **kw).apply_(w)  # the change applied in place, as a connection does
         assert torch.allclose(w, w0 + rule.delta(w0, pre, **kw), atol=1e-6)
 
 
@@ -99,14 +99,14 @@ def test_gated_hebbian_and_q_learning_learn_on_meta_and_agree_off_host(monkeypat
     w0 = torch.rand(1, 3, 8, generator=g)
     y, gate = torch.tensor([[[0.0, 0.4, 0.0]]]), torch.tensor([[0.0, 1.0, 0.0]])
     host, off = w0.clone(), w0.clone()
-    GatedHebbian(0.2).apply_(host, x, y, gate=gate, repeats=4)
+    GatedHebbian(0.2).delta(host, x, y, gate=gate, repeats=4).apply_(host)
     monkeypatch.setattr(rules, "_on_host", lambda w: False)
-    GatedHebbian(0.2).apply_(off, x, y, gate=gate, repeats=4)
+    GatedHebbian(0.2).delta(off, x, y, gate=gate, repeats=4).apply_(off)
     assert torch.allclose(host, off, atol=1e-6)
     q_host, q_off = w0.clone(), w0.clone()
     kw = dict(action=torch.tensor([[2]]), reward=torch.tensor([[1.0]]), next_pre=x.clone())
     monkeypatch.undo()
-    QLearning(0.1).apply_(q_host, x, **kw)
+    QLearning(0.1).delta(q_host, x, **kw).apply_(q_host)
     monkeypatch.setattr(rules, "_on_host", lambda w: False)
-    QLearning(0.1).apply_(q_off, x, **kw)
+    QLearning(0.1).delta(q_off, x, **kw).apply_(q_off)
     assert torch.allclose(q_host, q_off, atol=1e-6)

@@ -85,13 +85,13 @@ class Rotation3D(nn.Module):
 
     @property
     def participants(self) -> int:
-        return self.fm[0].weight.shape[0]
+        return self.fm[0].participants
 
     def describe(self) -> dict:
         """Sizes of the network (for the report)."""
         return {"side": self.side, "receptive_radius": self.radius, "offsets": self.fm[0].K, "moves": len(self.fm),
                 "cube_voxels": round(self.cube_voxels, 4), "fill_offsets": self.fill.K,
-                "fm_mb_per_participant": round(sum(c.weight[0].numel() for c in self.fm) * 4 / 1e6, 2)}
+                "fm_mb_per_participant": round(sum(c.weights_per_participant for c in self.fm) * 4 / 1e6, 2)}
 
     # ------------------------------------------------------------------ stage 1: the image
     def encode(self, occ: torch.Tensor) -> torch.Tensor:
@@ -152,7 +152,8 @@ class Rotation3D(nn.Module):
         conn.train()
         for _ in range(self.p.search.iterations):
             conn.learn(samples)
-        W = conn.weight
+        basis = torch.eye(3, dtype=samples.dtype).expand(samples.shape[0], 3, 3)
+        W = conn.net(basis).transpose(1, 2)  # the learnt rows: the connection's response to each input axis
         return W / W.norm(dim=-1, keepdim=True).clamp_min(1e-12)
 
     def coarse_points(self, maps: torch.Tensor):

@@ -30,7 +30,8 @@ from torch import nn
 
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM, population_cover
 from ..nn.functional import gain_field, softmax_select
-from ..nn.binary import binary_matmul, binary_matmul_rows, pack_bits, popcount, unique_rows, unpack_bits
+from ..nn.binary import pack_bits, popcount, unique_rows, unpack_bits
+from ..nn.readout import binary_rows
 from ..vision.reflection import principal_axis_flip, reflection_index
 from .recording import sample_indices
 from ..nn.decision import Decision, full_match_gain, smallest_deciding_gain
@@ -123,12 +124,11 @@ class RotationEmbodied(nn.Module):
         self.register_buffer("identical_evidence", torch.zeros(P, 2))
         # PMCd's leak per participant (set by calibrate() after training; rule R2 of docs/choices.md)
         self.register_buffer("leak", torch.full((P,), float(p.lca.k)))
-        self._tables: list[torch.Tensor] | None = None
         self.fm_sequence: dict | None = None  # the forward models' training sequence (fit_forward_models)
 
     @property
     def participants(self) -> int:
-        return self.c16.weight.shape[0]
+        return self.c16.participants
 
     # ------------------------------------------------------------------ learning
     def fit_forward_models(self, X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, batch: int,
@@ -168,7 +168,6 @@ class RotationEmbodied(nn.Module):
         gain rule at each k); ``mirror`` is not read. An explicit ``lca.input_gain`` or the ``full`` rule gives the gain in closed
         form; ``fixed`` keeps ``lca.k``."""
         p, P = self.p, self.participants
-        self.freeze()
         x = maps.unsqueeze(0).expand(P, -1, -1)
         pairs = self.pair_evidence(x, x)
         self.identical_pairs = pairs  # (P, N, 2): each image against itself (rule R1)
@@ -229,23 +228,9 @@ class RotationEmbodied(nn.Module):
             return self.flipped(target, self.posture(self.c17, target))
         return self.flipped_image(target)
 
-    def train(self, mode: bool = True):
-        """``eval()`` caches the transposed forward-model weights of the binary fast path; ``train()``
-        drops the cache."""
-        super().train(mode)
-        if mode:
-            self._tables = None
-        else:
-            self.freeze()
-        return self
-
-    def freeze(self) -> None:
-        """Cache the transposed forward-model weights used by the binary fast path."""
-        self._tables = [c.weight.transpose(1, 2).contiguous() for c in self.fm]
-
     def posture(self, som: SOM, x: torch.Tensor) -> torch.Tensor:
         """Winning wrist-posture unit of an image (eq. 6.14: argmax of ``W x``) -> long ``(P, B)``."""
-        return torch.bmm(x, som.weight.transpose(1, 2)).argmax(-1)
+        return som.net(x).argmax(-1)
 
     def ppcp_code(self, j: torch.Tensor, proprioception: str = "none", uniforms: torch.Tensor | None = None) -> torch.Tensor:
         """PPCp ``(R, units)`` for winners ``j`` ``(R,)``: the eq. 6.14 bump, plus noise
@@ -288,8 +273,6 @@ class RotationEmbodied(nn.Module):
         A POCl/s/r unit fires when its PMCm unit (1) plus its forward-model input exceeds 1.5,
         i.e. when the prediction exceeds 0.5; only the selected map can fire.
         """
-        if self._tables is None:
-            self.freeze()
         out = torch.zeros_like(x)
         for m in range(3):
             sel = move == m
@@ -297,7 +280,7 @@ class RotationEmbodied(nn.Module):
                 sel = sel & active
             if not bool(sel.any()):
                 continue
-            pred = binary_matmul(self._tables[m], x * sel.unsqueeze(-1))
+            pred = self.fm[m].net_binary(x * sel.unsqueeze(-1))
             out = torch.where(sel.unsqueeze(-1), (pred + 1.0 > 1.5).float(), out)
         return out
 
@@ -351,12 +334,8 @@ class RotationEmbodied(nn.Module):
             check_proprioception(prop)
             if len(gens) != target.shape[0]:
                 raise ValueError(f"{len(gens)} generators for {target.shape[0]} participants")
-        if self._tables is None:
-            self.freeze()
         P, B, n = target.shape
         C, nu, Q = len(conditions), len(p.ppc.angles), P * B
-        fm_table = torch.stack(self._tables, 1).reshape(P * 3, n, n)  # group = participant * 3 + move
-        c16_table = self.c16.weight.transpose(1, 2).contiguous()  # (P, n, units)
         part = torch.arange(P).repeat_interleave(B)  # participant of each base row
         # ---- target side (PFCt, PPCt, PFCft): shared by every condition. The binary maps of the
         # step loop are packed rows (nn.binary): overlaps are bit counts, and a forward-model
@@ -395,9 +374,9 @@ class RotationEmbodied(nn.Module):
             """POCp (packed), what it covers (packed) and its C16 activation potentials PPCpA (eq. 6.14)
             for the forward models ``group`` (participant * 3 + move), once per distinct pair."""
             g, words, inv = unique_rows(group, poci_w)
-            pocp = binary_matmul_rows(fm_table, g, unpack_bits(words, n)) + 1.0 > 1.5
+            pocp = binary_rows(self.fm, g, unpack_bits(words, n)) + 1.0 > 1.5  # group = participant * 3 + move
             cover = population_cover(pocp.float(), self.size, reach) > 0.5 if reach > 0 else pocp
-            return pack_bits(pocp)[inv], pack_bits(cover)[inv], binary_matmul_rows(c16_table, g // 3, pocp)[inv]
+            return pack_bits(pocp)[inv], pack_bits(cover)[inv], self.c16.net_binary(pocp, g // 3)[inv]
 
         # ---- step 1: the "still" forward model on every trial, identical in every condition
         still = torch.ones(Q, dtype=torch.long)

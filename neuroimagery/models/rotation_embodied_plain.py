@@ -18,7 +18,6 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
     p, (P, B, _) = model.p, target.shape
     nu = len(p.ppc.angles)
     gain = model.input_gain  # PMCd's input gain per participant (fixed after training)
-    fm = [c.weight for c in model.fm]  # C1-C3 (P, n, n): Ml, Ms, Mr
     ppct_unit = model.posture(model.c17, target)  # PPCt winner (eq. 6.14), (P, B)
     if p.flip_axis == "ppct":
         flipped = model.flipped(target, ppct_unit)
@@ -31,7 +30,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
 
     def predict(m: int, pi: int, x: torch.Tensor) -> torch.Tensor:
         """POCl/s/r: PMCm unit (1) + forward-model input > 1.5 (Table 6.2)."""
-        return ((fm[m][pi] @ x) + 1.0 > 1.5).float()
+        return (model.fm[m].net_of(pi, x) + 1.0 > 1.5).float()  # C1-C3: Ml, Ms, Mr
 
     def decide(pi: int, b: int, pocp: torch.Tensor, y):
         """PFCtm, PFCfm (the target units POCp covers), the evidence and ``lca.cycles`` cycles of PMCd (eq. 6.12-6.13)."""
@@ -48,7 +47,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
             if bool(d.decided[0]):
                 out["answer"][pi, b], out["decided"][pi, b] = int(d.winner[0]), True
             else:
-                trials.append([pi, b, pocp, d.state, model.c16.weight[pi] @ pocp])
+                trials.append([pi, b, pocp, d.state, model.c16.net_of(pi, pocp)])
     for _ in range(p.selection.max_steps - 1):
         if not trials:
             break
@@ -76,7 +75,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators, pr
             if bool(d.decided[0]):
                 out["answer"][pi, b], out["decided"][pi, b] = int(d.winner[0]), True
             else:
-                still_live.append([pi, b, pocp, d.state, model.c16.weight[pi] @ pocp])
+                still_live.append([pi, b, pocp, d.state, model.c16.net_of(pi, pocp)])
         trials = still_live
     for pi, g in enumerate(generators):  # a time-out answers at random
         coin = torch.rand(B, generator=g)

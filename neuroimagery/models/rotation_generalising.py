@@ -27,7 +27,6 @@ from torch import nn
 
 from ..nn import AllToAll, Delta, SOM, population_cover
 from ..nn.functional import gain_field, softmax_probabilities, softmax_select
-from ..nn.binary import binary_matmul, sparse_matmul
 from ..bounds import Rule, bounded, check_declared
 from .params import ForwardModelParams, PostureMapParams, SelectionParams
 from .recording import sample_indices
@@ -135,11 +134,10 @@ class RotationGeneralising(nn.Module):
         self.c2, self.c3 = posture_maps(p.init_high, p.posture, n, nu, generators, ("C2", "C3"))
         # M1_1 -> M1_2 hard-wired masks: lower-left -> n1, diagonal -> n2, upper-right -> n3
         self.register_buffer("m1_masks", triangle_weights(nu))
-        self._table: torch.Tensor | None = None
 
     @property
     def participants(self) -> int:
-        return self.c2.weight.shape[0]
+        return self.c2.participants
 
     def fit_forward_model(self, X: torch.Tensor, Y: torch.Tensor, batch: int, progress=None) -> None:
         """C6 by the delta rule (eq. 6.4) in mini-batches of ``batch`` on the pairs ``X`` ``(P, N, 3n)``
@@ -152,18 +150,6 @@ class RotationGeneralising(nn.Module):
         their posture units; ``progress`` optionally wraps the list of maps."""
         self.train()
         fit_posture_soms([self.c2, self.c3], maps, labels, generators, self.p.posture, progress)
-
-    def train(self, mode: bool = True):
-        """``eval()`` caches the transposed C6 weights of the binary fast path; ``train()`` drops it."""
-        super().train(mode)
-        if mode:
-            self._table = None
-        else:
-            self.freeze()
-        return self
-
-    def freeze(self) -> None:
-        self._table = self.c6.weight.transpose(1, 2).contiguous()
 
     def posture(self, som: SOM, x: torch.Tensor) -> torch.Tensor:
         """Graded posture code (eq. 6.5-6.6): a Gaussian of each unit's distance to the image,
@@ -237,8 +223,6 @@ class RotationGeneralising(nn.Module):
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
         """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; PP_2 = the linear
         output (``fm.pp2=graded``, rule R6) or the output > ``fm.threshold`` (``binary``)."""
-        if self._table is None:
-            self.freeze()
         P, B, n = x.shape
         sel = torch.ones(P, B, dtype=torch.bool) if active is None else active
         full = torch.zeros(P, B, 3 * n)
@@ -246,9 +230,9 @@ class RotationGeneralising(nn.Module):
             s = ((move == m) & sel).unsqueeze(-1)
             full[..., m * n:(m + 1) * n] = x * s
         if self.p.fm.pp2 == "binary":
-            out = (binary_matmul(self._table, full) > self.p.fm.threshold).float()
+            out = (self.c6.net_binary(full) > self.p.fm.threshold).float()
         else:
-            out = sparse_matmul(self._table, full)
+            out = self.c6.net_sparse(full)
         return torch.where(sel.unsqueeze(-1), out, x)
 
     @torch.no_grad()

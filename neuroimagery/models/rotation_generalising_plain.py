@@ -14,7 +14,7 @@ def posture_code(model, som, pi: int, x: torch.Tensor) -> torch.Tensor:
     """Participant ``pi``'s graded posture code of image ``x`` (eq. 6.5-6.6): a Gaussian of each
     unit's squared distance to the image, measured from the best unit's."""
     xs = som.rule.scale_input(x)  # the image as the map sees it (sum 1 by default)
-    d = ((xs - som.weight[pi]) ** 2).sum(-1)
+    d = som.distances_of(pi, x)
     d = d - d.min()
     if getattr(som.rule, "input_scale", "raw") == "sum":
         d = d / (xs * xs).sum().clamp_min(1e-12)  # in units of the image's squared norm
@@ -28,7 +28,6 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators) ->
     nu = len(p.posture.angles)
     out = {"answer": torch.zeros(P, B, dtype=torch.long), "rotation_steps": torch.zeros(P, B, dtype=torch.long),
            "rotation_deg": torch.zeros(P, B)}
-    w6 = model.c6.weight  # (P, n, 3n)
     pp2 = [[rotated[pi, b].clone() for b in range(B)] for pi in range(P)]  # PP_2 starts with the seen image
     done = [[False] * B for _ in range(P)]
     for _ in range(p.selection.max_steps + 1):
@@ -50,7 +49,7 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators) ->
                     continue
                 pp1 = torch.zeros(3 * n)
                 pp1[move * n:(move + 1) * n] = x  # the image in the PP_1 map of the move
-                a = w6[pi] @ pp1  # C6 (PP_2): graded (rule R6) or thresholded
+                a = model.c6.net_of(pi, pp1)  # C6 (PP_2): graded (rule R6) or thresholded
                 pp2[pi][b] = a if p.fm.pp2 == "graded" else (a > p.fm.threshold).float()
                 out["rotation_deg"][pi, b] += model.step_angles[move]
                 out["rotation_steps"][pi, b] += 1

@@ -32,7 +32,6 @@ from torch import nn
 
 from ..nn.learning import IndexedRows
 from ..nn.row_cache import RowCache, distinct_rows
-from ..nn.functional import squared_norms
 from ..nn.som import fit_together
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 from ..nn.functional import intra_op_threads
@@ -141,12 +140,11 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         """
         ss = self.ss_code(obj, angle)  # (K, 3100)
         pm = self.pmc1_code(torch.tensor(ANGLES))  # (7, 3100)
-        w = self.m11.weight
-        A = torch.einsum("pui,ki->pku", w[..., :3100], ss)  # (P, K, U)
-        Bm = torch.einsum("pui,ki->pku", w[..., 3100:], pm)  # (P, 7, U)
-        nrm = squared_norms(w).unsqueeze(1)  # (P, 1, U)
+        A = self.m11.part_products(ss, 0, 3100)  # (P, K, U)
+        Bm = self.m11.part_products(pm, 3100)  # (P, 7, U)
+        nrm = self.m11.prototype_norms().unsqueeze(1)  # (P, 1, U)
         ns, npm = (ss * ss).sum(-1), (pm * pm).sum(-1)
-        P, n_pm = w.shape[0], pm.shape[0]
+        P, n_pm = self.m11.participants, pm.shape[0]
         pi = torch.arange(P)
 
         def winners(key: torch.Tensor) -> tuple[torch.Tensor]:  # key (P, L) = ss_index * 7 + des_index
@@ -297,7 +295,7 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         desired = col_angle[pm.reshape(P, B, 31, 100).amax(-2).argmax(-1)]
         desired = ang[(desired.unsqueeze(-1) - ang).abs().argmin(-1)]
         # current posture of the seen object: C2 read backwards (image -> posture)
-        s0 = distinct_rows(lambda x: torch.bmm(x, self.c2.weight), pp0).reshape(P, B, 31, 100)
+        s0 = distinct_rows(self.c2.net_reverse, pp0).reshape(P, B, 31, 100)
         col = s0.amax(-2).argmax(-1)
         row = s0.gather(-1, col[..., None, None].expand(P, B, 31, 1)).squeeze(-1).argmax(-1)
         obj = (row >= 15).long()
@@ -373,7 +371,7 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         condition): the SS codes (the 14 trained postures, then every (object, column) field
         winner), the M1_1 winner table of :meth:`m11_table` over them, and :class:`RowCache` s of
         C9 / C10 by M1_1 winner and of C2 by SS code."""
-        key = tuple((w.data_ptr(), w._version) for w in (self.m11.weight, self.c9.weight, self.c10.weight, self.c2.weight))
+        key = tuple(b.weights_version() for b in (self.m11, self.c9, self.c10, self.c2))
         if getattr(self, "_lookup_cache", (None,))[0] != key:
             ang = torch.tensor(ANGLES)
             col_angle = self.ss.coords[:100, 1]

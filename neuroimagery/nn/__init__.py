@@ -1,8 +1,8 @@
 """Building blocks: population-coded maps, connections, local learning rules, SOMs and decision
 dynamics. No block knows which experiment uses it.
 
-Importing the package registers every form of the rules (:mod:`.forms`)."""
-from . import hebbian_closed_form, som_factored, som_online, som_repeated, som_windowed  # noqa: F401  (register forms)
+The forms of the rules are registered where they are defined; :mod:`.forms` loads those modules
+itself before its first lookup."""
 from .connections import AllToAll, Connection, GainField, HardWired, OneToOne
 from .decision import Decision, DynamicField, LeakyCompetingAccumulator
 from .delta import Delta

@@ -8,8 +8,10 @@ participant, for :class:`AllToAll`; ``(1, out, in)`` shared by all participants 
 again, so a connection drops into an ordinary torch model: its forward is differentiable with
 respect to its input, while the weights themselves never require grad.
 
-Learning: ``conn.learn(pre=..., post=..., ...)`` asks each attached rule for a change (computed at
-the same weights) and adds their sum in place under ``torch.no_grad()``; it does nothing while the
+Learning: ``conn.learn(pre=..., post=..., ...)`` asks each attached rule for its change
+(``rule.delta``, a :class:`~.change.Change` computed at the same weights) and applies them in
+place under ``torch.no_grad()`` (one rule's structured change touching only what it changes,
+several rules' changes summed); it does nothing while the
 module is in ``eval()`` mode (warning once per connection) or has no rule. Of the classes here only :class:`AllToAll` takes rules:
 :class:`HardWired` has none, and :class:`OneToOne` (a fixed element-wise gain) refuses them with a
 ``ValueError``. :class:`GainField` has no weights.
@@ -24,23 +26,16 @@ import torch
 from torch import nn
 
 from . import seeding
+from .change import Dense, as_change
 from .forms import Form, register
 from .functional import (as_batched, check_participants, check_tensor, checks_enabled, gain_field,
                          participants_weight, transfer)
 from .learning import learn_sequence, run_plain
+from .readout import Readouts
 from .rules import STEP_BOUND, Rule
 
 
-def _applies_in_place(rule: Rule) -> bool:
-    """True if the most derived class defining ``delta`` or ``apply_`` defines ``apply_``
-    (a subclass that overrides only ``delta`` keeps the general path)."""
-    for klass in type(rule).__mro__:
-        if "delta" in vars(klass) or "apply_" in vars(klass):
-            return "apply_" in vars(klass)
-    return False
-
-
-class Connection(nn.Module):
+class Connection(Readouts, nn.Module):
     """Base class: a weight buffer ``(P, out, in)``, a transfer function, and learning rules.
 
     ``name`` appears in error messages and training-curve tags; without one a connection is named
@@ -77,15 +72,22 @@ class Connection(nn.Module):
         shared, in the input's dtype; an error naming the connection if the participants differ."""
         return participants_weight(f"connection {self.name!r}", self.weight, xb, given)
 
-    def net(self, x: torch.Tensor) -> torch.Tensor:
-        """Weighted sum ``W x`` before the transfer function, in ``x``'s dtype."""
-        xb, squeeze = as_batched(x, self.n_in, f"input of connection {self.name!r}")
-        y = torch.bmm(xb, self._weight_for(xb, x.shape).transpose(1, 2))
+    block_kind = "connection"
+
+    def net(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
+        """Weighted sum ``W x`` before the transfer function, in ``x``'s dtype. The input's shape is
+        checked once per configuration, its values at every call unless ``checked`` (the caller
+        has checked the batch: the fast path of a model's inner loop)."""
+        xb, squeeze = self.batched(x, self.n_in, checked)
+        w = self.weight
+        if w.shape[0] == 1 and xb.shape[0] != 1:
+            w = w.expand(xb.shape[0], *w.shape[1:])
+        y = torch.bmm(xb, (w if w.dtype == xb.dtype else w.to(xb.dtype)).transpose(1, 2))
         return y[0] if squeeze and x.dim() == 2 else (y[0, 0] if squeeze else y)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
         """``F(W x)`` (eq. 4.4)."""
-        return self.F(self.net(x))
+        return self.F(self.net(x, checked=checked))
 
     @torch.no_grad()
     def learn(self, pre, post=None, return_delta: bool = False, *, sequence: bool = False, batch: int = 1,
@@ -93,9 +95,9 @@ class Connection(nn.Module):
         """Apply every rule's change in place (only in ``train()`` mode).
 
         One step (default): ``pre`` ``(P, B, in)``, ``post`` ``(P, B, out)``; the ``B`` patterns'
-        changes are computed at the same weights. With a single rule that can update in place
-        (Hebbian, Delta) the change is never formed and ``None`` is returned, unless
-        ``return_delta`` asks for it.
+        changes are computed at the same weights. A single rule's structured change (Hebbian, Delta,
+        GatedHebbian, QLearning) is applied in place without forming the dense change, and
+        ``None`` is returned, unless ``return_delta`` asks for it.
 
         ``sequence=True``: ``pre``, ``post`` (and ``target``) are sequences of ``T`` steps,
         ``(T, n)`` shared by every participant, ``(P, T, n)``, or
@@ -123,16 +125,23 @@ class Connection(nn.Module):
                 kw[key] = self._activity(kw[key], self.n_out, key)
         if not self.warned_step and checks_enabled(pre_b):
             self._check_step(pre_b, post)
-        if len(self.rules) == 1 and _applies_in_place(self.rules[0]) and not return_delta:
-            # one rule: let it update the weights in place (same numbers, fewer passes over memory);
-            # the inputs were checked finite (while value checks run)
-            self.rules[0].apply_(self.weight, pre=pre_b, post=post, **kw)
+        # every rule's change at the same weights (:mod:`.change`), then applied here
+        changes = [as_change(self.weight, rule.delta(self.weight, pre=pre_b, post=post, **kw)) for rule in self.rules]
+        if len(changes) == 1 and not return_delta and not isinstance(changes[0], Dense):
+            # one structured change: added in place, only what it changes touched (the inputs were
+            # checked finite while value checks run)
+            changes[0].apply_(self.weight)
             return None
-        total = sum(rule.delta(self.weight, pre=pre_b, post=post, **kw) for rule in self.rules)
+        total = sum(c.tensor() for c in changes)
         if checks_enabled(total) and not torch.isfinite(total).all():
             raise FloatingPointError(f"connection {self.name!r}: learning produced non-finite weights")
         self.weight.add_(total)
         return total
+
+    @torch.no_grad()
+    def fill_weights_(self, value: float) -> None:
+        """Set every weight to ``value`` (e.g. back to a zero start), in place."""
+        self.weight.fill_(float(value))
 
     def _check_needs(self, post, kw) -> None:
         """One error naming the connection and the activity a rule needs and was not given."""
@@ -252,8 +261,8 @@ class OneToOne(Connection):
             raise ValueError("OneToOne is a fixed element-wise gain; it has no learning rule")
         super().__init__(n, n, torch.full((participants, 1, n), float(value)), transfer_fn, (), name)
 
-    def net(self, x: torch.Tensor) -> torch.Tensor:
-        xb, squeeze = as_batched(x, self.n_in, f"input of connection {self.name!r}")
+    def net(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
+        xb, squeeze = self.batched(x, self.n_in, checked)
         y = xb * self._weight_for(xb, x.shape)
         return y[0] if squeeze and x.dim() == 2 else (y[0, 0] if squeeze else y)
 

@@ -7,7 +7,7 @@ same change on other weight layouts and inputs, each registered for the rule and
 (:mod:`.forms`), each tested against the dense rule:
 
 * :class:`Delta` itself on a dense :class:`~.connections.Connection` (``(P, out, in)`` weights):
-  one product per step (:meth:`Delta.apply_`);
+  one product per step (an :class:`~.change.Outer` change);
 * ``delta_binary`` (a connection over a sequence): 0/1 inputs in mini-batches on the CPU, only the
   weight columns of the active inputs read and written (:func:`delta_binary`);
 * ``index``, ``sparse``, ``dense`` (a :class:`~.local.LocalConnection`, ``(P, n, K)`` weights):
@@ -21,6 +21,7 @@ from __future__ import annotations
 import torch
 
 from . import local_kernel, monitor
+from .change import Outer
 from .connections import Connection
 from .forms import Form, register
 from .functional import check_rate
@@ -61,12 +62,9 @@ class Delta(Rule):
         """The rule's error, target minus actual output: ``y - a``."""
         return target - post
 
-    def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, target: torch.Tensor, **_) -> torch.Tensor:
-        return torch.bmm(self.error(post, target).transpose(1, 2), pre).mul_(self.rate(pre.shape[1]))
-
-    def apply_(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, target: torch.Tensor, **_) -> None:
-        """``weight += delta(...)`` accumulated straight into the weights."""
-        weight.baddbmm_(self.error(post, target).transpose(1, 2), pre, alpha=self.rate(pre.shape[1]))
+    def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, target: torch.Tensor, **_) -> Outer:
+        """``rate (y - a)^T x``, an outer product accumulated straight into the weights when applied."""
+        return Outer(weight, None, self.error(post, target), pre, self.rate(pre.shape[1]))
 
     def extra_repr(self) -> str:
         return f"eta={self.eta}"

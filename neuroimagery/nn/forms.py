@@ -14,15 +14,34 @@ learner's forms (a :class:`~.local.LocalConnection` does not inherit the dense c
 among them, those registered for any class of the rule's MRO, by ``priority`` (lowest first),
 then registration order. A form checks the exact rule it implements in :meth:`Form.why_not`.
 
-Where the forms live: :mod:`.delta` (the delta rule and its binary-sequence and local index /
+Where the forms live (:data:`DEFINED_IN`, the registry's own list): :mod:`.connections` (the
+plain step-by-step form), :mod:`.delta` (the delta rule and its binary-sequence and local index /
 sparse / dense forms), :mod:`.hebbian_closed_form` (the outstar Hebbian closed forms),
 :mod:`.local` (any rule restricted to local receptive fields), :mod:`.som_online`,
-:mod:`.som_factored`, :mod:`.som_windowed`, :mod:`.som_repeated` (the online Kohonen rule).
-Importing :mod:`neuroimagery.nn` registers them all.
+:mod:`.som_factored`, :mod:`.som_windowed`, :mod:`.som_repeated` (the online Kohonen rule). Each
+registers its forms with ``@register`` where it defines them; the registry loads these modules,
+in this order, before its first lookup, so which forms a learner has never depends on what else
+was imported.
 """
 from __future__ import annotations
 
+import importlib
 from typing import Any
+
+# the modules that define forms, loaded in this order before the first lookup (the order of
+# registration breaks ties of priority)
+DEFINED_IN = ("connections", "hebbian_closed_form", "delta", "som_factored", "som_online", "som_repeated",
+              "som_windowed", "local")
+_loaded = False
+
+
+def load() -> None:
+    """Load every module of :data:`DEFINED_IN` (once): their ``@register`` s fill the registry."""
+    global _loaded
+    if not _loaded:
+        _loaded = True
+        for module in DEFINED_IN:
+            importlib.import_module(f"{__package__}.{module}")
 
 
 class Form:
@@ -90,6 +109,7 @@ def register(rules: type | tuple[type, ...], learner: type):
 
 
 def _owner(learner) -> dict[type, list[Form]]:
+    load()
     for klass in type(learner).__mro__:
         if klass in _FORMS:
             return _FORMS[klass]
@@ -137,6 +157,7 @@ def choose(learner, rule, call, method: str = "auto") -> Form | None:
 def factor_form(factors: dict) -> Form:
     """The form that recorded ``factors`` (by their ``kind``)."""
     kind = factors.get("kind") if isinstance(factors, dict) else None
+    load()
     if kind not in _KINDS:
         raise ValueError(f"unknown factor kind {kind!r} (known: {sorted(_KINDS)})")
     return _KINDS[kind]

@@ -23,6 +23,7 @@ from typing import Sequence
 import torch
 
 from . import forms, local_kernel, seeding
+from .change import as_change
 from .connections import Connection
 from .forms import Form, register
 from .functional import check_floating
@@ -81,8 +82,9 @@ class LocalConnection(Connection):
         self.register_buffer("coords", coords, persistent=False)
 
     # ------------------------------------------------------------------ products
-    def net(self, x: torch.Tensor) -> torch.Tensor:
-        """``W x`` for any input ``(P, B, n)``: gathers each output's receptive field."""
+    def net(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
+        """``W x`` for any input ``(P, B, n)``: gathers each output's receptive field (its shape is
+        checked at every call; ``checked`` is accepted for the interface of :meth:`Connection.net`)."""
         if x.dim() != 3 or x.shape[-1] != self.n_in or x.shape[0] != self.participants:
             raise ValueError(f"connection {self.name!r}: input must be ({self.participants}, B, {self.n_in}), got {tuple(x.shape)}")
         check_floating(f"input of connection {self.name!r}", x)
@@ -117,6 +119,12 @@ class LocalConnection(Connection):
             w = torch.where(o < n, w * x[r, i].unsqueeze(1).to(w.dtype), torch.zeros_like(w))
             out.index_add_(0, (r.unsqueeze(1) * (n + 1) + o).reshape(-1), w.reshape(-1))
         return out.view(N, n + 1)[:, :n]
+
+    def transposed(self, *_, **__) -> torch.Tensor:
+        raise TypeError(f"connection {self.name!r} stores receptive fields (P, n, K), not a dense W^T: "
+                        "use net, net_binary or net_rows")
+
+    net_sparse = net_of = net_reverse = incoming = transposed
 
     def net_rows(self, x: torch.Tensor, group: torch.Tensor) -> torch.Tensor:
         """``W x`` for any input rows ``(N, n)``, row r using participant ``group[r]`` (the sparse
@@ -207,4 +215,4 @@ class Restricted(Form):
     def run(self, conn, rule, call) -> None:
         W = torch.stack([conn.dense(p) for p in range(conn.participants)])
         kw = {k: v for k, v in call.kw.items() if v is not None}
-        call.out.add_(conn.restrict(rule.delta(W, pre=call.pre, post=call.post, **kw)))
+        call.out.add_(conn.restrict(as_change(W, rule.delta(W, pre=call.pre, post=call.post, **kw)).tensor()))

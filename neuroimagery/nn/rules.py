@@ -1,8 +1,9 @@
 """Local, autograd-free learning rules.
 
-A rule only *computes* a weight change from the activity it is given; the connection that owns
-the weights applies it in place (see :meth:`neuroimagery.nn.connections.Connection.learn`). Several
-rules on one connection therefore do not depend on their order.
+A rule only *computes* a weight change from the activity it is given, ``delta(weight, pre=...,
+**activity) -> Change`` (:mod:`.change`); the learner that owns the weights (a connection, a SOM)
+applies it in place (:meth:`neuroimagery.nn.connections.Connection.learn`, :meth:`.som.SOM.step`).
+Several rules on one connection therefore do not depend on their order.
 
 The delta rule, with its registered forms, is in :mod:`.delta`.
 
@@ -15,6 +16,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from .change import Change, Dense, Outer, RowSteps, Rows
 from .functional import check_rate
 
 
@@ -39,7 +41,8 @@ STEP_BOUND = 2.0  # the largest step gain (see Rule.step_gain) at which a step s
 
 
 class Rule(nn.Module):
-    """Base class: ``delta(weight, **activity) -> change`` with the weight's shape.
+    """Base class: ``delta(weight, **activity) -> change`` (a :class:`~.change.Change`, or a tensor
+    of the weight's shape), computed at ``weight`` without changing it; the learner applies it.
 
     ``needs`` names the activity a step cannot do without (a connection refuses a step that lacks
     one, naming it). :meth:`step_gain` is the factor a step multiplies what it corrects by, minus
@@ -48,7 +51,7 @@ class Rule(nn.Module):
 
     needs: tuple[str, ...] = ()
 
-    def delta(self, weight: torch.Tensor, **kw) -> torch.Tensor:  # pragma: no cover - interface
+    def delta(self, weight: torch.Tensor, **kw) -> Change:  # pragma: no cover - interface
         raise NotImplementedError
 
     def step_gain(self, pre: torch.Tensor, post: torch.Tensor | None) -> torch.Tensor | None:
@@ -95,22 +98,15 @@ class Hebbian(Rule):
     def gain_formula(self) -> str:
         return f"eta * max_i sum_b a_i (eta={self.eta}, reduction={self.reduction!r}, a the {'input' if self.form == 'outstar' else 'output'})"
 
-    def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, **_) -> torch.Tensor:
+    def delta(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, **_) -> Outer:
+        """``-eta w_ji sum_b a_i + eta sum_b y_j x_i``: a decay and an outer product (applied in two
+        passes over the weights, the change never formed)."""
         scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta
         if self.form == "outstar":
-            d = weight * (-scale * pre.sum(1).unsqueeze(1))  # -eta w_ji sum_b x_i
+            shrink = scale * pre.sum(1).unsqueeze(1)  # eta sum_b x_i
         else:
-            d = weight * (-scale * post.sum(1).unsqueeze(2))  # -eta w_ji sum_b y_j
-        return d.baddbmm_(post.transpose(1, 2), pre, alpha=scale)  # + eta sum_b y_j x_i, fused
-
-    def apply_(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor, **_) -> None:
-        """``weight += delta(...)`` without forming the change: two passes over the weights."""
-        scale = self.eta / pre.shape[1] if self.reduction == "mean" else self.eta
-        if self.form == "outstar":
-            weight.mul_(1.0 - scale * pre.sum(1).unsqueeze(1))
-        else:
-            weight.mul_(1.0 - scale * post.sum(1).unsqueeze(2))
-        weight.baddbmm_(post.transpose(1, 2), pre, alpha=scale)
+            shrink = scale * post.sum(1).unsqueeze(2)  # eta sum_b y_j
+        return Outer(weight, shrink, post, pre, scale)
 
     def extra_repr(self) -> str:
         return f"eta={self.eta}, form={self.form!r}"
@@ -123,8 +119,8 @@ class GatedHebbian(Hebbian):
     (one goal) at a time and the other units keep what they learnt. ``repeats`` = ``k`` is the
     change of ``k`` identical online steps ``w <- w + eta x (y - w)``. With binary input (a
     colour-filtered map) they have a closed form, ``w <- y + (1 - eta)^k (w - y)`` where ``x = 1``
-    (weights of inactive inputs do not move); :meth:`apply_` uses it, other inputs take the ``k``
-    steps one by one. One pattern per participant (``B = 1``). Weights ``(P, out, in)``.
+    (weights of inactive inputs do not move); :meth:`delta` gives the new values of the gated rows
+    by it (a :class:`~.change.Rows` change), other inputs take the ``k`` steps one by one. One pattern per participant (``B = 1``). Weights ``(P, out, in)``.
     """
 
     def __init__(self, eta: float) -> None:
@@ -139,33 +135,34 @@ class GatedHebbian(Hebbian):
         if gate is not None and not bool(((gate == 0) | (gate == 1)).all()):
             raise ValueError("GatedHebbian: gate must be 0/1")
 
-    def delta(self, weight, pre, post, gate=None, repeats: int = 1, **kw):
-        """The change ``repeats`` steps make (computed on a copy by :meth:`apply_`)."""
-        new = weight.clone()
-        self.apply_(new, pre, post, gate=gate, repeats=repeats)
-        return new - weight
-
-    def apply_(self, weight, pre, post, gate=None, repeats: int = 1, **_) -> None:
+    def delta(self, weight, pre, post, gate=None, repeats: int = 1, **_) -> Change:
+        """The change ``repeats`` steps make: the new values of the gated rows (on the CPU; the
+        weights of inactive binary inputs do not move), else the dense change of ``k`` steps."""
         if int(repeats) < 1:
-            return
+            return Rows(weight, [])
         if not _on_host(weight):  # on a device, on meta or while compiling: k plain steps, no value reads
             g = (torch.ones_like(post) if gate is None else gate.unsqueeze(1).to(post.dtype)).transpose(1, 2)
+            new = weight.clone()
             for _ in range(int(repeats)):
-                weight.add_(self.eta * g * pre * (post.transpose(1, 2) - weight))
-            return
+                new.add_(self.eta * g * pre * (post.transpose(1, 2) - new))
+            return Dense(weight, new - weight)
         self._check(pre, gate, repeats)
+        rows = []
         for p in range(weight.shape[0]):
             x, y = pre[p, 0], post[p, 0]
-            rows = range(weight.shape[1]) if gate is None else torch.nonzero(gate[p]).flatten().tolist()
+            units = range(weight.shape[1]) if gate is None else torch.nonzero(gate[p]).flatten().tolist()
             binary = bool(((x == 0) | (x == 1)).all())
             on = x > 0
-            for j in rows:
-                row, target = weight[p, j], y[j]
+            for j in units:
+                target = y[j]
                 if binary:  # k steps in closed form on the active inputs
-                    row[on] = target + (1.0 - self.eta) ** int(repeats) * (row[on] - target)
+                    rows.append((p, j, on, target + (1.0 - self.eta) ** int(repeats) * (weight[p, j, on] - target)))
                 else:
+                    row = weight[p, j].clone()
                     for _ in range(int(repeats)):
                         row.add_(self.eta * x * (target - row))
+                    rows.append((p, j, None, row))
+        return Rows(weight, rows)
 
     def extra_repr(self) -> str:
         return f"eta={self.eta}, gated outstar"
@@ -206,13 +203,16 @@ class Kohonen(Rule):
         theta = torch.exp(-d2 / (2.0 * sigma**2))
         return torch.where(theta < self.cutoff, torch.zeros_like(theta), theta)
 
+    needs = ("bmu", "grid")
+
     def delta(self, weight: torch.Tensor, pre: torch.Tensor, bmu: torch.Tensor, grid: torch.Tensor,
-              t: int | torch.Tensor = 0, **_) -> torch.Tensor:
-        """``pre`` ``(P, 1, in)`` (one pattern per participant), ``bmu`` ``(P,)``; ``t`` the step (a
-        0-dim tensor on the weights' device keeps the step on the device)."""
+              t: int | torch.Tensor = 0, **_) -> Dense:
+        """``pre`` ``(P, 1, in)`` (one pattern per participant), ``bmu`` ``(P,)`` the winners and
+        ``grid`` ``(units, D)`` their coordinates (a SOM passes its own); ``t`` the step (a 0-dim
+        tensor on the weights' device keeps the step on the device)."""
         eta, sigma = self.schedule(t)
         h = eta * self.neighbourhood(grid, bmu, sigma)  # (P, units)
-        return h.unsqueeze(-1) * (pre[:, 0].unsqueeze(1) - weight)
+        return Dense(weight, h.unsqueeze(-1) * (pre[:, 0].unsqueeze(1) - weight))
 
     def extra_repr(self) -> str:
         return f"eta={self.eta0}->{self.eta1}, sigma={self.sigma0}->{self.sigma1}, iterations={self.iterations}"
@@ -257,11 +257,11 @@ class SupervisedKohonen(Kohonen):
         return x / x.sum(-1, keepdim=True).clamp_min(1e-12)
 
     def delta(self, weight: torch.Tensor, pre: torch.Tensor, bmu: torch.Tensor, grid: torch.Tensor,
-              t: int | torch.Tensor = 0, **_) -> torch.Tensor:
-        new = weight + super().delta(weight, pre, bmu, grid, t)
+              t: int | torch.Tensor = 0, **_) -> Dense:
+        new = weight + super().delta(weight, pre, bmu, grid, t).tensor()
         if self.normalise:
             new = new / new.sum(-1, keepdim=True).clamp_min(1e-12)
-        return new - weight
+        return Dense(weight, new - weight)
 
 
 class QLearning(Rule):
@@ -291,27 +291,12 @@ class QLearning(Rule):
         self.reduction = check_reduction(reduction)
 
     def delta(self, weight: torch.Tensor, pre: torch.Tensor, action: torch.Tensor, reward: torch.Tensor,
-              next_pre: torch.Tensor, done: torch.Tensor | None = None, **_) -> torch.Tensor:
-        q_prev = torch.einsum("pai,pbi->pba", weight, pre)
-        q_win = q_prev.gather(-1, action.unsqueeze(-1)).squeeze(-1)  # (P, B)
-        q_max = torch.einsum("pai,pbi->pba", weight, next_pre).max(-1).values
-        if done is not None:
-            q_max = torch.where(done, torch.zeros_like(q_max), q_max)
-        reward = torch.as_tensor(reward, dtype=weight.dtype, device=weight.device)
-        sign = 1.0 if self.form == "standard" else -1.0
-        err = reward + sign * self.gamma * q_max - q_win  # (P, B)
-        onehot = torch.nn.functional.one_hot(action, weight.shape[1]).to(weight.dtype)  # (P, B, A)
-        d = torch.einsum("pba,pb,pbi->pai", onehot, err, pre)
-        return self.eta * _reduce(d, self.reduction, pre.shape[1])
-
-    def apply_(self, weight: torch.Tensor, pre: torch.Tensor, action: torch.Tensor, reward: torch.Tensor,
-               next_pre: torch.Tensor, done: torch.Tensor | None = None, **_) -> None:
-        """``weight += delta(...)`` row by row: only the chosen action's weights are touched, and
-        the temporal-difference error of each pattern (at the same weights) is formed in float64
-        (CPU; elsewhere the change of :meth:`delta`)."""
-        if not _on_host(weight):  # on a device, on meta or while compiling: the change as delta() forms it
-            weight.add_(self.delta(weight, pre, action, reward, next_pre, done))
-            return
+              next_pre: torch.Tensor, done: torch.Tensor | None = None, **_) -> Change:
+        """Only the chosen action's weights change: on the CPU one row step per pattern, the
+        temporal-difference error of each (at the same weights) formed in float64; elsewhere the
+        dense change, formed with tensor operations only."""
+        if not _on_host(weight):  # on a device, on meta or while compiling
+            return Dense(weight, self._dense(weight, pre, action, reward, next_pre, done))
         P, B = pre.shape[:2]
         sign = 1.0 if self.form == "standard" else -1.0
         scale = self.eta / B if self.reduction == "mean" else self.eta
@@ -323,9 +308,21 @@ class QLearning(Rule):
                 ended = done is not None and bool(torch.as_tensor(done)[p, b])
                 q_max = 0.0 if ended else float((weight[p] @ next_pre[p, b]).max())
                 r = float(torch.as_tensor(reward, dtype=torch.float64).broadcast_to((P, B))[p, b])
-                steps.append((p, a, b, r + sign * self.gamma * q_max - q_win))
-        for p, a, b, err in steps:
-            weight[p, a].add_(pre[p, b], alpha=scale * err)
+                steps.append((p, a, pre[p, b], scale * (r + sign * self.gamma * q_max - q_win)))
+        return RowSteps(weight, steps)
+
+    def _dense(self, weight, pre, action, reward, next_pre, done) -> torch.Tensor:
+        q_prev = torch.einsum("pai,pbi->pba", weight, pre)
+        q_win = q_prev.gather(-1, action.unsqueeze(-1)).squeeze(-1)  # (P, B)
+        q_max = torch.einsum("pai,pbi->pba", weight, next_pre).max(-1).values
+        if done is not None:
+            q_max = torch.where(done, torch.zeros_like(q_max), q_max)
+        reward = torch.as_tensor(reward, dtype=weight.dtype, device=weight.device)
+        sign = 1.0 if self.form == "standard" else -1.0
+        err = reward + sign * self.gamma * q_max - q_win  # (P, B)
+        onehot = torch.nn.functional.one_hot(action, weight.shape[1]).to(weight.dtype)  # (P, B, A)
+        d = torch.einsum("pba,pb,pbi->pai", onehot, err, pre)
+        return self.eta * _reduce(d, self.reduction, pre.shape[1])
 
     def extra_repr(self) -> str:
         return f"eta={self.eta}, gamma={self.gamma}, form={self.form!r}"
@@ -359,11 +356,8 @@ class Sanger(Rule):
         scale = self.eta
         if self.normalise:
             sq = (torch.einsum("pb,pbn->p", w, pre * pre) / total.view(P)).clamp_min(1e-12)
-            return d * (scale / sq).view(P, 1, 1)
-        return d * scale
-
-    def apply_(self, weight: torch.Tensor, pre: torch.Tensor, post: torch.Tensor | None = None, **kw) -> None:
-        weight.add_(self.delta(weight, pre, post, **kw))
+            return Dense(weight, d * (scale / sq).view(P, 1, 1))
+        return Dense(weight, d * scale)
 
     def extra_repr(self) -> str:
         return f"eta={self.eta}, normalise={self.normalise}"

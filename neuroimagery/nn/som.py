@@ -33,12 +33,15 @@ from . import monitor, seeding
 from .functional import (as_batched, check_floating, check_rate, check_tensor, checks_enabled, grid_coords,
                          participants_weight, squared_norms)
 from . import forms
+from .change import as_change
+from .readout import Readouts
 from .rules import Kohonen, SupervisedKohonen
 
+NORM_ROWS = 256  # prototypes squared and summed at a time by SOM.prototype_norms (the temporary stays small)
 ORDER_STREAM = 1  # stream of participant_generators(seed, P, stream) a SOM built from a seed draws fit() orders from
 
 
-class SOM(nn.Module):
+class SOM(Readouts, nn.Module):
     """A (supervised) Kohonen map with max-normalised read-out.
 
     Args:
@@ -103,32 +106,103 @@ class SOM(nn.Module):
         return self.weight.shape[0]
 
     # ------------------------------------------------------------------ read-out
-    def distances(self, x: torch.Tensor) -> torch.Tensor:
-        """Squared Euclidean distance of every input ``(P, B, in)`` to every unit -> ``(P, B, units)``."""
-        xb, _ = as_batched(x, self.n_in, f"input of SOM {self.name!r}")
+    block_kind = "SOM"
+
+    def _weight_for(self, xb: torch.Tensor, given) -> torch.Tensor:
+        return participants_weight(f"SOM {self.name!r}", self.weight, xb, given)
+
+    def distances(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
+        """Squared Euclidean distance of every input ``(P, B, in)`` to every unit -> ``(P, B, units)``
+        (the input scaled as the rule sees it; ``checked``: see :meth:`net`)."""
+        xb, _ = self.batched(x, self.n_in, checked)
         xb = self.rule.scale_input(xb)
-        w = participants_weight(f"SOM {self.name!r}", self.weight, xb, x.shape)
+        w = self._weight_for(xb, x.shape)
         d = squared_norms(w).unsqueeze(1) - 2 * torch.bmm(xb, w.transpose(1, 2)) + (xb * xb).sum(-1, keepdim=True)
         return d.clamp_min(0)
 
-    def bmu(self, x: torch.Tensor) -> torch.Tensor:
+    def bmu(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
         """Best-matching unit (Euclidean) of each input -> long ``(P, B)``."""
-        return self.distances(x).argmin(-1)
+        return self.distances(x, checked=checked).argmin(-1)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def net(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
+        """``W x`` ``(P, B, units)`` of the input as given (eq. 4.4: no input scaling, no
+        normalisation), e.g. for the unit of the largest product. Shapes are checked once per
+        configuration, values at every call unless ``checked`` (the caller checked the batch)."""
+        xb, squeeze = self.batched(x, self.n_in, checked)
+        y = torch.bmm(xb, self._weight_for(xb, x.shape).transpose(1, 2))
+        return (y[0] if x.dim() == 2 else y[0, 0]) if squeeze else y
+
+    def forward(self, x: torch.Tensor, *, checked: bool = False) -> torch.Tensor:
         """Max-normalised read-out (eq. 4.4 + 4.6), shape ``(P, B, *shape)`` (or without P for 2-D input)."""
-        xb, squeeze = as_batched(x, self.n_in, f"input of SOM {self.name!r}")
+        xb, squeeze = self.batched(x, self.n_in, checked)
         xb = self.rule.scale_input(xb)
         if self.readout == "dot":
-            y = torch.bmm(xb, participants_weight(f"SOM {self.name!r}", self.weight, xb, x.shape).transpose(1, 2))
+            y = torch.bmm(xb, self._weight_for(xb, x.shape).transpose(1, 2))
         else:
-            d = self.distances(xb).sqrt()
+            d = self.distances(xb, checked=True).sqrt()
             y = d.max(-1, keepdim=True).values - d
         y = y / y.max(-1, keepdim=True).values.clamp_min(1e-12)
         y = y.reshape(*y.shape[:-1], *self.shape)
         if squeeze:
             return y[0] if x.dim() == 2 else y[0, 0]
         return y
+
+    def distances_of(self, participant: int, x: torch.Tensor) -> torch.Tensor:
+        """Participant ``participant``'s squared distances ``(units,)`` of one pattern ``x`` ``(in,)``
+        (scaled as the rule sees it) to every prototype, summed directly, ``sum_i (x_i - w_ki)^2``
+        (the plain form of :meth:`distances`)."""
+        check_tensor(f"input of SOM {self.name!r}", x, (self.n_in,))
+        return ((self.rule.scale_input(x) - self.weight[participant]) ** 2).sum(-1)
+
+    def prototype_norms(self, lo: int = 0, hi: int | None = None) -> torch.Tensor:
+        """Squared norms ``(P, units)`` of the prototypes' inputs ``lo..hi`` (all by default), made
+        once per version of the weights."""
+        hi = self.n_in if hi is None else hi
+        key = (self.weights_version(), lo, hi)
+        cache = getattr(self, "_norms", {})
+        if key not in cache:
+            cache = {k: v for k, v in cache.items() if k[0] == key[0]}
+            w = self.weight[..., lo:hi]  # a view: each row's sum over its own inputs, NORM_ROWS rows at a time
+            norms = w.new_empty(w.shape[:-1])
+            for p in range(w.shape[0]):
+                for a in range(0, w.shape[1], NORM_ROWS):
+                    block = w[p, a:a + NORM_ROWS]
+                    norms[p, a:a + NORM_ROWS] = (block * block).sum(-1)
+            cache[key] = norms
+            self._norms = cache
+        return cache[key]
+
+    def part_products(self, codes: torch.Tensor, lo: int = 0, hi: int | None = None) -> torch.Tensor:
+        """``W[:, :, lo:hi] c`` ``(P, K, units)`` of each code ``c`` of ``codes`` ``(K, hi - lo)``,
+        shared by every participant: the products of the inputs ``lo..hi`` alone (a distance to
+        an input made of parts is a sum of such products)."""
+        hi = self.n_in if hi is None else hi
+        check_tensor(f"codes of SOM {self.name!r}", codes, (hi - lo,))
+        if codes.dim() != 2:
+            raise ValueError(f"SOM {self.name!r}: codes must be (K, {hi - lo}), got {tuple(codes.shape)}")
+        return torch.einsum("pui,ki->pku", self.weight[..., lo:hi], codes)
+
+    def part_distances(self, x: torch.Tensor, lo: int = 0, hi: int | None = None, participant: int = 0,
+                       *, checked: bool = False) -> torch.Tensor:
+        """``|w_k[lo:hi]|^2 - 2 w_k[lo:hi] . x`` ``(units,)`` of participant ``participant`` for one
+        pattern ``x`` ``(hi - lo,)``: the squared distance of ``x`` to inputs ``lo..hi`` of each
+        prototype up to ``x``'s own norm (the same nearest unit), the norms made once per version
+        of the weights. ``checked``: the caller has checked ``x``'s values."""
+        hi = self.n_in if hi is None else hi
+        if x.shape != (hi - lo,):
+            raise ValueError(f"SOM {self.name!r}: a pattern of inputs {lo}..{hi} must have shape ({hi - lo},), "
+                             f"got {tuple(x.shape)}")
+        if not checked:
+            check_tensor(f"pattern of SOM {self.name!r}", x)
+        return self.prototype_norms(lo, hi)[participant] - 2.0 * (self.weight[participant, :, lo:hi] @ x)
+
+    def prototypes(self, units: torch.Tensor, lo: int = 0, hi: int | None = None) -> torch.Tensor:
+        """A copy of inputs ``lo..hi`` of the prototypes of ``units`` ``(P, ...)`` (one unit index
+        per participant row) -> ``(P, ..., hi - lo)``."""
+        hi = self.n_in if hi is None else hi
+        units = torch.as_tensor(units, dtype=torch.long)
+        p = torch.arange(self.participants).reshape(-1, *([1] * (units.dim() - 1)))
+        return self.weight[p, units, lo:hi].clone()
 
     # ------------------------------------------------------------------ learning
     @torch.no_grad()
@@ -147,8 +221,10 @@ class SOM(nn.Module):
                 raise ValueError(f"SOM {self.name!r} is supervised: step() needs the winner")
             winner = self.bmu(xb)[:, 0]
         if self.training:
-            d = self.rule.delta(self.weight, pre=xb, bmu=winner, grid=self.grid, t=self.steps)
-            self.weight.add_(d)
+            # the rule computes the change (the Kohonen contract of every rule: delta at the weights),
+            # the map applies it
+            change = self.rule.delta(self.weight, pre=xb, bmu=winner, grid=self.grid, t=self.steps)
+            as_change(self.weight, change).apply_(self.weight)
             self.steps += 1
         return winner
 

@@ -67,8 +67,6 @@ class ToolUseBrain(nn.Module):
         # the initial situations practised in (Fig. 7.5 B: every posture, success or not)
         self.register_buffer("practised", torch.zeros(N_POSTURES, self.n_pc))
         self.register_buffer("practised_seen", torch.zeros(N_POSTURES, dtype=torch.bool))
-        self._b_norms: torch.Tensor | None = None  # cache of C3's input-side prototype norms
-        self._s_norms: torch.Tensor | None = None  # cache of the norms of their situation parts
 
     @classmethod
     def from_params(cls, image_shape: tuple[int, int], params: BrainParams, n_dmps: int = 10,
@@ -84,23 +82,22 @@ class ToolUseBrain(nn.Module):
     def flat(image: torch.Tensor) -> torch.Tensor:
         return image.reshape(1, -1).float()
 
-    # The read-outs and updates below work on the weight rows directly (``weight[0]`` is the one
-    # participant's matrix): the same numbers as going through ``AllToAll`` / ``BidirectionalSOM``
-    # (the tests compare them), without the generic shape and finiteness checks over the
-    # 153 600-unit PC map that dominated the cost of a run.
+    # The read-outs below go through the blocks' fast path (``checked=True``): the PC image is a
+    # binary colour-filtered map made by the eye, so its values are not checked again at every
+    # read of the 153 600-unit map; the blocks check its shape once.
     def affordance(self, image: torch.Tensor) -> torch.Tensor:
         """C1: mean weight over the active PC units -> (n_dmps,) in [0, 1]."""
         x = self.flat(image)[0]
-        return (self.c1.weight[0] @ x) / x.sum().clamp_min(1.0)
+        return self.c1.net(x, checked=True) / x.sum().clamp_min(1.0)
 
     def distal_goals(self, image: torch.Tensor) -> torch.Tensor:
         """C2 -> HIP activity (6,) in [0, 1]: which goals this situation is known to afford."""
         x = self.flat(image)[0]
-        return (self.c2.weight[0] @ x) / x.sum().clamp_min(1.0)
+        return self.c2.net(x, checked=True) / x.sum().clamp_min(1.0)
 
     def q_values(self, image: torch.Tensor) -> torch.Tensor:
         """C4 -> (n_dmps,) action values."""
-        return self.c4.weight[0] @ self.flat(image)[0]
+        return self.c4.net(self.flat(image)[0], checked=True)
 
     def pmc(self, image: torch.Tensor) -> torch.Tensor:
         """PMC activity: affordance (C1) plus learnt action value (C4), Fig. 7.6."""
@@ -110,20 +107,6 @@ class ToolUseBrain(nn.Module):
         code = torch.zeros(1, self.n_dmps)
         code[0, unit] = self.c3_action_gain
         return torch.cat([self.flat(image), code], dim=1)
-
-    def _c3_b_norms(self) -> torch.Tensor:
-        """Squared norms of C3's input-side prototypes (cached until C3 learns again)."""
-        if getattr(self, "_b_norms", None) is None:
-            w = self.c3.som.weight[0, :, self.n_pc:]
-            self._b_norms = (w * w).sum(-1)
-        return self._b_norms
-
-    def _c3_s_norms(self) -> torch.Tensor:
-        """Squared norms of the situation parts of C3's input-side prototypes (cached)."""
-        if getattr(self, "_s_norms", None) is None:
-            w = self.c3.som.weight[0, :, self.n_pc: 2 * self.n_pc]
-            self._s_norms = (w * w).sum(-1)
-        return self._s_norms
 
     def recall_unit(self, image: torch.Tensor, unit: int) -> int:
         """The C3 unit that answers "what if I do primitive ``unit`` in situation ``image``".
@@ -136,17 +119,19 @@ class ToolUseBrain(nn.Module):
         input side [situation, gain * primitive code] is nearest (the primitive's code dominates,
         so any situation where the primitive ever succeeded can answer).
         """
-        w = self.c3.som.weight[0]
+        som = self.c3.som  # inputs: [outcome image, situation image, gain * primitive code]
         if self.c3_recall == "joint":
             b = self._c3_b(image, unit)[0]
-            return int((self._c3_b_norms() - 2.0 * (w[:, self.n_pc:] @ b)).argmin())
-        if self.c3_recall == "practised":  # rows: the practised initial situations
-            rows, norms, known, per_situation = self.practised, (self.practised ** 2).sum(-1), self.practised_seen, 1
-        else:  # rows: the situation parts of C3's trained prototypes
-            rows, norms, known, per_situation = w[:, self.n_pc: 2 * self.n_pc], self._c3_s_norms(), self.c3_trained, self.n_dmps
-        if not bool(known.any()):
+            return int(som.part_distances(b, self.n_pc, checked=True).argmin())
+        if not bool((self.practised_seen if self.c3_recall == "practised" else self.c3_trained).any()):
             return unit
-        d = norms - 2.0 * (rows @ self.flat(image)[0])  # squared distance up to the image's own norm
+        x = self.flat(image)[0]
+        if self.c3_recall == "practised":  # rows: the practised initial situations
+            known, per_situation = self.practised_seen, 1
+            d = (self.practised ** 2).sum(-1) - 2.0 * (self.practised @ x)  # squared distance up to the image's own norm
+        else:  # rows: the situation parts of C3's trained prototypes
+            known, per_situation = self.c3_trained, self.n_dmps
+            d = som.part_distances(x, self.n_pc, 2 * self.n_pc, checked=True)
         d = torch.where(known, d, torch.full_like(d, float("inf")))
         return int(d.argmin()) // per_situation * self.n_dmps + int(unit)
 
@@ -159,8 +144,8 @@ class ToolUseBrain(nn.Module):
         winner = self.recall_unit(image, unit)
         if not bool(self.c3_trained[winner]):
             return image.reshape(2, *self.image_shape).float().clone()
-        w = self.c3.som.weight[0]
-        return w[winner, : self.n_pc].reshape(2, *self.image_shape).clamp(0.0, 1.0)
+        outcome = self.c3.som.prototypes(torch.tensor([winner]), 0, self.n_pc)[0]
+        return outcome.reshape(2, *self.image_shape).clamp(0.0, 1.0)
 
     def maps(self, skills: dict[str, int]) -> dict[str, torch.Tensor]:
         """The learnt weights as images, for TensorBoard: one (H, 2W) map per connection and unit,
@@ -179,21 +164,21 @@ class ToolUseBrain(nn.Module):
 
         out = {}
         for name, unit in skills.items():
-            out[f"C1/{name}"] = side_by_side(self.c1.weight[0, unit])
-            out[f"C4/{name}"] = side_by_side(self.c4.weight[0, unit])
+            out[f"C1/{name}"] = side_by_side(self.c1.incoming(unit))
+            out[f"C4/{name}"] = side_by_side(self.c4.incoming(unit))
         for k in range(self.n_goals):
-            out[f"C2/{EVENTS[k] if k < len(EVENTS) else k}"] = side_by_side(self.c2.weight[0, k])
-        w = self.c3.som.weight[0]
+            out[f"C2/{EVENTS[k] if k < len(EVENTS) else k}"] = side_by_side(self.c2.incoming(k))
         for name, unit in skills.items():
             for posture in range(1, N_POSTURES + 1):
                 label = (posture - 1) * self.n_dmps + unit
                 if bool(self.c3_trained[label]):
-                    out[f"C3/posture-{posture}/{name}"] = side_by_side(w[label, : self.n_pc].clamp(0.0, 1.0))
+                    outcome = self.c3.som.prototypes(torch.tensor([label]), 0, self.n_pc)[0]
+                    out[f"C3/posture-{posture}/{name}"] = side_by_side(outcome.clamp(0.0, 1.0))
         return out
 
     def reset_c4(self) -> None:
         """Forget all action values (C4 back to its zero start): a fresh individual's C4."""
-        self.c4.weight.zero_()
+        self.c4.fill_weights_(0.0)
 
     # --- learning (Fig. 7.5 and 7.6)
     def _train_outstar(self, conn: AllToAll, image: torch.Tensor, unit: int, signal: float, times: int) -> None:
@@ -230,7 +215,6 @@ class ToolUseBrain(nn.Module):
         # of those online steps (nn.som_repeated) while the neighbourhood is the winner alone
         self.c3.fit(a, b, labels=torch.tensor([[label]]), iterations=times,
                     order=torch.zeros(1, times, dtype=torch.long))
-        self._b_norms = self._s_norms = None
         self.c3_trained[label] = True
 
     def q_update(self, x0: torch.Tensor, unit: int, reward: float, x1: torch.Tensor, done: bool) -> None:
