@@ -227,13 +227,43 @@ def sample_figure(steps: list, trial: dict, test: str, cond: str, side: int, pat
         row_labels=[f"step {i + 1}: {_move_name(st['PMCm'])}" for i, st in enumerate(steps)])
 
 
+WRIST_NOTE = ("Wrist conditions (Exp 4's, carried over): the wrist signal, the rotation it has done about the line of "
+              "sight (relative, as in Wexler et al. 1998), joins PPCp, on the value the mental rotation has reached "
+              "(`match`) or on its opposite (`mismatch`); as in Exp 4, a congruent signal is expected to shorten and an "
+              "incongruent one to lengthen the RT (rows 'match minus none' and 'mismatch minus none' above; the "
+              "measures beside Shepard & Metzler use `none`).")
+DIFFERENCES = [
+    "One view gives a surface; the completion map fills in hidden cubes only as far as chains taught it, so depth "
+    "pairs, whose two views show different faces, start from less alike images than picture-plane pairs.",
+    "The transform turns about the camera axes in steps of a fixed size; the last step leaves up to half a step, and "
+    "the chained steps blur the image, which the mismatch cluster must tolerate.",
+    "RT is counted in accumulator cycles; Shepard & Metzler's seconds include encoding and response time.",
+]
+
+
 def report(cfg, run, summary) -> None:
-    t, h = summary["tests"], summary["headline"]
     e = cfg.experiment
     r = Report("Experiment 6: 3-D mental rotation of Shepard-Metzler objects")
     r.p(f"{summary['participants']} simulated participants; preset `{cfg.preset}`; objects seen by the iCub's "
         f"{e.eye} eye (pybullet, colour + depth). RT in accumulator cycles (10 per rotation step of {e.step_deg:g} deg). "
         + reproducibility_note(cfg.seed))
+    _beside_humans(r, summary)
+    r.h("Effects, the participant as the unit")
+    r.effects(summary.get("effects", []))
+    if set(e.conditions) - {"none"}:
+        r.p(WRIST_NOTE)
+    _all_tests(r, summary["tests"])
+    _stages(r, e, summary)
+    r.h("Why the numbers differ from the human data")
+    r.bullets(DIFFERENCES)
+    r.h("Figures")
+    for p in sorted(run.figures.glob("*.png")):
+        r.figure(p, caption(p.stem), root=run.root)
+    r.write(run.report_path)
+
+
+def _beside_humans(r: Report, summary: dict) -> None:
+    t, h = summary["tests"], summary["headline"]
     r.h("Beside Shepard & Metzler (1971)")
     bound = next((x["bound"] for x in summary.get("effects", []) if x["effect"] == SLOPE_LABEL), None)
     r.p("Human values: mean RT of correct 'same' answers linear in the angle, r about 0.97 for both kinds of "
@@ -258,14 +288,9 @@ def report(cfg, run, summary) -> None:
                                                        for k, v in h["rt_r"].items()), ">= 0.9", _yes(g["rt_r_at_least_0.9"])],
              ["same pairs answered 'same'", f"{100 * h['same_yes_rate']:.1f} %", "-", "-"],
              ["trials decided within 20 steps", f"{100 * h['decided_rate']:.1f} %", "-", "-"]])
-    r.h("Effects, the participant as the unit")
-    r.effects(summary.get("effects", []))
-    if set(e.conditions) - {"none"}:
-        r.p("Wrist conditions (Exp 4's, carried over): the wrist signal, the rotation it has done about the line of "
-            "sight (relative, as in Wexler et al. 1998), joins PPCp, on the value the mental rotation has reached (`match`) "
-            "or on its opposite (`mismatch`); as in Exp 4, a "
-            "congruent signal is expected to shorten and an incongruent one to lengthen the RT (rows 'match "
-            "minus none' and 'mismatch minus none' above; the measures beside Shepard & Metzler use `none`).")
+
+
+def _all_tests(r: Report, t: dict) -> None:
     r.h("All tests")
     r.table(["test", "trials", "correct", "rotated to the target", "RT mean", "RT slope/deg (all)", "rt_r (all)", "mirror 'different'"],
             [[k, v["n_trials"], f"{100 * v['correct_rate']:.1f} %", f"{100 * v['rotation_success_rate']:.1f} %",
@@ -274,6 +299,9 @@ def report(cfg, run, summary) -> None:
     angles = sorted({int(a) for v in t.values() for a in v["same_pairs"]["correct"]["rt_by_angle"]})
     r.table(["test"] + [str(a) for a in angles],
             [[k] + [v["same_pairs"]["correct"]["rt_by_angle"].get(str(a), "-") for a in angles] for k, v in t.items()])
+
+
+def _stages(r: Report, e, summary: dict) -> None:
     r.h("The model: each stage against its contract (docs/contracts.md)")
     gr, st = summary["grid"], summary["stages"]
     r.bullets([
@@ -298,18 +326,6 @@ def report(cfg, run, summary) -> None:
         f"objects' pairs and {100 * st['confirm']['held_out']:.0f} % of held-out chains' pairs on their side (contract >= 90 % each).",
         "The rotation required, each step and the answer come from the two images alone (no trial label reaches the model).",
     ])
-    r.h("Why the numbers differ from the human data")
-    r.bullets([
-        "One view gives a surface; the completion map fills in hidden cubes only as far as chains taught it, so depth "
-        "pairs, whose two views show different faces, start from less alike images than picture-plane pairs.",
-        "The transform turns about the camera axes in steps of a fixed size; the last step leaves up to half a step, and "
-        "the chained steps blur the image, which the mismatch cluster must tolerate.",
-        "RT is counted in accumulator cycles; Shepard & Metzler's seconds include encoding and response time.",
-    ])
-    r.h("Figures")
-    for p in sorted(run.figures.glob("*.png")):
-        r.figure(p, caption(p.stem), root=run.root)
-    r.write(run.report_path)
 
 
 def _yes(v) -> str:
