@@ -117,51 +117,62 @@ def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
     the untrained group; reactive and planning children within 25 points of each other in every group.
     """
     rate = group_rates(summary["groups"])
-    out = []
-    tol = CLAIM_TOL
+    out: list[dict] = []
 
     def claim(what, value, holds):
         out.append(dict(claim=what, value=value, holds=bool(holds)))
 
-    def pct(xs):
-        return ", ".join(f"{100 * x:.0f} %" for x in xs)
-
-    young = [i for i, a in enumerate(e.hp1_ages) if a < 18]
     for strat in STRATEGIES:
-        behind = [rate.get(("hp1", k, "behind", strat)) for k in e.hp1_levels]
-        far = [rate.get(("hp1", k, "far", strat)) for k in e.hp1_levels]
-        if None not in behind:
-            claim(f"HP1 tool behind high at every age ({strat})", pct(behind), min(behind) >= 0.75 - tol)
-        if None in far:
-            continue
-        claim(f"HP1 tool far near zero at {e.hp1_ages[0]} months ({strat})", pct(far[:1]), far[0] <= 0.15 + tol)
-        if None not in behind and young:
-            claim(f"HP1 tool far low before 18 months against tool behind ({strat})",
-                  f"{pct([far[i] for i in young])} against >= {100 * min(behind):.0f} %",
-                  max(far[i] for i in young) < min(behind) - tol)
-        old = [i for i in range(len(far)) if i not in young]
-        if young and old:
-            before, after = np.mean([far[i] for i in young]), np.mean([far[i] for i in old])
-            claim(f"HP1 tool far appears from 18 months ({strat})",
-                  f"{100 * before:.0f} % before, {100 * after:.0f} % after", after - before >= 0.10 - tol)
-        rho = summary["checks"].get(f"hp1_far_spearman_{strat}")
-        claim(f"HP1 tool far rises with skills, Spearman rho >= 0.8 ({strat})",
-              f"{pct(far)}; rho {rho:.2f}" if rho is not None else pct(far), rho is not None and rho >= 0.8 - tol)
+        _hp1_claims(claim, rate, summary, e, strat)
     for strat in STRATEGIES:
         for sit in e.situations:
             hp2 = [rate.get(("hp2", t, sit, strat)) for t in e.hp2_trials]
             if None in hp2 or len(hp2) < 2:
                 continue
             trained = float(np.mean(hp2[1:]))
-            claim(f"HP2 tool {sit} improves with training ({strat})", f"{pct(hp2)}; trained mean {100 * trained:.0f} %",
-                  trained > hp2[0] + tol)
+            claim(f"HP2 tool {sit} improves with training ({strat})", f"{_pct(hp2)}; trained mean {100 * trained:.0f} %",
+                  trained > hp2[0] + CLAIM_TOL)
     diff = summary["checks"].get("reactive_planning_max_abs_diff")
     if diff is not None:
         claim("reactive and planning children alike (largest difference <= 25 points)", f"{100 * diff:.0f} points",
-              diff <= 0.25 + tol)
-    # the mechanism (Table 7.1, Fig. 7.8): no retrieving pull from posture 4, skills that carry over
-    # to it, and the tool-far successes of the oldest robots made by moving first, then pulling
-    m = summary.get("mechanism", {})
+              diff <= 0.25 + CLAIM_TOL)
+    _mechanism_claims(claim, summary.get("mechanism", {}), e)
+    return out
+
+
+def _pct(xs) -> str:
+    return ", ".join(f"{100 * x:.0f} %" for x in xs)
+
+
+def _hp1_claims(claim, rate: dict, summary: dict, e: Exp5Config, strat: str) -> None:
+    """HP1's claims for one strategy: tool behind high, tool far near zero at first, low before 18
+    months, appearing from 18 months and rising with the skills."""
+    tol = CLAIM_TOL
+    young = [i for i, a in enumerate(e.hp1_ages) if a < 18]
+    behind = [rate.get(("hp1", k, "behind", strat)) for k in e.hp1_levels]
+    far = [rate.get(("hp1", k, "far", strat)) for k in e.hp1_levels]
+    if None not in behind:
+        claim(f"HP1 tool behind high at every age ({strat})", _pct(behind), min(behind) >= 0.75 - tol)
+    if None in far:
+        return
+    claim(f"HP1 tool far near zero at {e.hp1_ages[0]} months ({strat})", _pct(far[:1]), far[0] <= 0.15 + tol)
+    if None not in behind and young:
+        claim(f"HP1 tool far low before 18 months against tool behind ({strat})",
+              f"{_pct([far[i] for i in young])} against >= {100 * min(behind):.0f} %",
+              max(far[i] for i in young) < min(behind) - tol)
+    old = [i for i in range(len(far)) if i not in young]
+    if young and old:
+        before, after = np.mean([far[i] for i in young]), np.mean([far[i] for i in old])
+        claim(f"HP1 tool far appears from 18 months ({strat})",
+              f"{100 * before:.0f} % before, {100 * after:.0f} % after", after - before >= 0.10 - tol)
+    rho = summary["checks"].get(f"hp1_far_spearman_{strat}")
+    claim(f"HP1 tool far rises with skills, Spearman rho >= 0.8 ({strat})",
+          f"{_pct(far)}; rho {rho:.2f}" if rho is not None else _pct(far), rho is not None and rho >= 0.8 - tol)
+
+
+def _mechanism_claims(claim, m: dict, e: Exp5Config) -> None:
+    """The mechanism (Table 7.1, Fig. 7.8): no retrieving pull from posture 4, skills that carry over
+    to it, and the tool-far successes of the oldest robots made by moving first, then pulling."""
     sp, ca, mp = m.get("far_single_pull"), m.get("far_interaction_from_4"), m.get("oldest_far_moves_then_pull")
     if sp and sp["share"] is not None:
         claim("from posture 4 a learnt pull alone retrieves for under 5 % of the robots",
@@ -171,8 +182,7 @@ def thesis_claims(summary: dict, e: Exp5Config) -> list[dict]:
               f"{ca['carry_over']} of {ca['robots']}", ca["share"] > 0.5)
     if mp and mp["share"] is not None:
         claim(f"at {e.hp1_ages[-1]} months at least half of the tool-far successes move first, then pull",
-              f"{mp['moves_then_pull']} of {mp['successes']}", mp["share"] >= 0.5 - tol)
-    return out
+              f"{mp['moves_then_pull']} of {mp['successes']}", mp["share"] >= 0.5 - CLAIM_TOL)
 
 
 ROUTES = ("pull", "moves_then_pull", "other")
