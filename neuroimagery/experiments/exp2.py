@@ -107,10 +107,29 @@ def run_test(cfg, model, sset, test, condition, record=0):
 
 @auto_threads
 def evaluate(cfg, run, trained) -> dict:
-    from ..vision.stimulus_sets import get_stimulus_set
-
     model = trained
     model.eval()
+    df, frames = _all_trials(cfg, model)
+    run.write_csv("trials.csv", df)
+    tests = summarise_trials(df)
+    base = df[(df["test"] == "all") & (df["condition"] == "none")]
+    tests["all/none"]["rt_by_pair_type"] = {k: round(float(g["rt"].mean()), 3) for k, g in base.groupby("pair_type")}
+    tests["all/none"]["rotation_failures"] = base[~base["rotated_ok"]].groupby("participant").size().to_dict()
+    summary = _summary(df, base, tests)
+    shown = _sample_trials(run, base, frames)
+    shown["fig5_8a_rt"] = figures.rt_by_disparity(base, run.figures / "fig5_8a_rt.png", groups=("pair_type",),
+                                                  ylabel="RT (cycles = ms)", title="RT by object pair (AA, AB, BA, BB)")
+    shown["fig5_8b_rt"] = figures.rt_by_disparity(df[df["test"] == "all"], run.figures / "fig5_8b_rt.png",
+                                                  groups=("condition",), ylabel="RT (cycles = ms)",
+                                                  title="RT by proprioception condition")
+    return record_figures_and_scalars(run, summary, shown, tests, "exp2")
+
+
+def _all_trials(cfg, model):
+    """Every test's trials (set L in each proprioception condition, then a stimulus folder's own
+    set), and the recorded frames of the first trials without proprioception."""
+    from ..vision.stimulus_sets import get_stimulus_set
+
     rows, frames = [], None
     custom = stimulus_set(cfg) if cfg.stimuli.kind == "folder" else None
     pairs = lambda sset: (len(objects_of(sset)) * len(ANGLES)) ** 2  # noqa: E731  (every item against every item)
@@ -123,58 +142,60 @@ def evaluate(cfg, run, trained) -> dict:
     if custom is not None:
         r, _ = run_test(cfg, model, custom, "custom", "none")
         rows += r
-    df = trials_frame(rows)
-    run.write_csv("trials.csv", df)
-    tests = summarise_trials(df)
-    base = df[(df["test"] == "all") & (df["condition"] == "none")]
-    mis = df[(df["test"] == "all") & (df["condition"] == "mismatch")]
-    mat = df[(df["test"] == "all") & (df["condition"] == "match")]
-    tests["all/none"]["rt_by_pair_type"] = {k: round(float(g["rt"].mean()), 3) for k, g in base.groupby("pair_type")}
-    tests["all/none"]["rotation_failures"] = base[~base["rotated_ok"]].groupby("participant").size().to_dict()
+    return trials_frame(rows), frames
+
+
+def _paired(a, b) -> dict:
+    """Paired t-test over the same (participant, pair) trials in two conditions."""
     from scipy import stats
 
-    def paired(a, b):
-        """Paired t-test over the same (participant, pair) trials in two conditions."""
-        t = stats.ttest_rel(a["rt"].values, b["rt"].values)
-        return {"mean_a": round(float(a["rt"].mean()), 3), "mean_b": round(float(b["rt"].mean()), 3),
-                "diff": round(float(a["rt"].mean() - b["rt"].mean()), 3), "t": round(float(t.statistic), 4),
-                "p": float(t.pvalue), "n_pairs": int(len(a))}
+    t = stats.ttest_rel(a["rt"].values, b["rt"].values)
+    return {"mean_a": round(float(a["rt"].mean()), 3), "mean_b": round(float(b["rt"].mean()), 3),
+            "diff": round(float(a["rt"].mean() - b["rt"].mean()), 3), "t": round(float(t.statistic), 4),
+            "p": float(t.pvalue), "n_pairs": int(len(a))}
 
+
+def _summary(df, base, tests: dict) -> dict:
+    from scipy import stats
+
+    mis = df[(df["test"] == "all") & (df["condition"] == "mismatch")]
+    mat = df[(df["test"] == "all") & (df["condition"] == "match")]
     f = stats.f_oneway(*[g["rt"].values for _, g in base.groupby("pair_type")])
     # the participants evaluated: with checkpoint=DIR those of the loaded model, not cfg.participants
-    summary = {"experiment": "exp2", "participants": int(df["participant"].nunique()), "tests": tests,
-               "proprioception": {"rt_mismatch_vs_none_paired": paired(mis, base),
-                                  "rt_match_vs_none_paired": paired(mat, base),
-                                  "rt_mismatch_vs_none": compare_rt(mis["rt"], base["rt"]),
-                                  "rt_match_vs_none": compare_rt(mat["rt"], base["rt"]),
-                                  "correct_mismatch_vs_none": compare_rates(mis["correct"], base["correct"])},
-               "object_type_anova": {"F": round(float(f.statistic), 4) if np.isfinite(f.statistic) else None,
-                                     "p": float(f.pvalue) if np.isfinite(f.pvalue) else None},
-               "targets": TARGETS, "effects": effects(df)}
+    return {"experiment": "exp2", "participants": int(df["participant"].nunique()), "tests": tests,
+            "proprioception": {"rt_mismatch_vs_none_paired": _paired(mis, base),
+                               "rt_match_vs_none_paired": _paired(mat, base),
+                               "rt_mismatch_vs_none": compare_rt(mis["rt"], base["rt"]),
+                               "rt_match_vs_none": compare_rt(mat["rt"], base["rt"]),
+                               "correct_mismatch_vs_none": compare_rates(mis["correct"], base["correct"])},
+            "object_type_anova": {"F": round(float(f.statistic), 4) if np.isfinite(f.statistic) else None,
+                                  "p": float(f.pvalue) if np.isfinite(f.pvalue) else None},
+            "targets": TARGETS, "effects": effects(df)}
+
+
+# the maps of a sample trial's figure (Fig. 5.7) and the shape of a map a frame lacks
+SAMPLE_MAPS = {"PP": (32, 32), "SS": (31, 100), "M1_1": (64, 64), "PFC_1": (32, 32), "PFC_2": (64, 64), "PMC_2": (10, 20)}
+
+
+def _sample_trials(run, base, frames) -> dict:
+    """Fig. 5.7a/b: participant 0's first trial rotated in three steps or more, and its first failed rotation."""
     shown = {}
     b0 = base[base["participant"] == 0].reset_index(drop=True)
     succ = b0.index[b0["rotated_ok"] & (b0["rotation_steps"] >= 3)]
     fail = b0.index[~b0["rotated_ok"]]
     for tag, idx in (("fig5_7a_success", succ), ("fig5_7b_failure", fail)):
-        if len(idx):
-            k = int(idx[0])
-            row = b0.loc[k]
-            fr = frames[k]
-            keys = ["PP", "SS", "M1_1", "PFC_1", "PFC_2", "PMC_2"]
-            shp = {"PP": (32, 32), "SS": (31, 100), "M1_1": (64, 64), "PFC_1": (32, 32), "PFC_2": (64, 64), "PMC_2": (10, 20)}
-            panels = [{kk: to_np(f_[kk]) if kk in f_ else np.zeros(shp[kk]) for kk in keys} for f_ in fr]
-            title = (f"{row['rotated_object']} {row['rotated_angle']:.0f} -> {row['target_object']} "
-                     f"{row['target_angle']:.0f}: {row['rotation_steps']} steps, answer {row['answer']}")
-            shown[tag] = figures.map_panels(panels, run.figures / f"{tag}.png", title,
-                                            [f"step {i + 1}" for i in range(len(fr) - 1)] + ["match/answer"])
-            for i, f_ in enumerate(fr):
-                run.logger.maps(f_, step=i, prefix=f"exp2/{tag}/")
-    shown["fig5_8a_rt"] = figures.rt_by_disparity(base, run.figures / "fig5_8a_rt.png", groups=("pair_type",),
-                                                  ylabel="RT (cycles = ms)", title="RT by object pair (AA, AB, BA, BB)")
-    shown["fig5_8b_rt"] = figures.rt_by_disparity(df[df["test"] == "all"], run.figures / "fig5_8b_rt.png",
-                                                  groups=("condition",), ylabel="RT (cycles = ms)",
-                                                  title="RT by proprioception condition")
-    return record_figures_and_scalars(run, summary, shown, tests, "exp2")
+        if not len(idx):
+            continue
+        k = int(idx[0])
+        row, fr = b0.loc[k], frames[k]
+        panels = [{kk: to_np(f_[kk]) if kk in f_ else np.zeros(shp) for kk, shp in SAMPLE_MAPS.items()} for f_ in fr]
+        title = (f"{row['rotated_object']} {row['rotated_angle']:.0f} -> {row['target_object']} "
+                 f"{row['target_angle']:.0f}: {row['rotation_steps']} steps, answer {row['answer']}")
+        shown[tag] = figures.map_panels(panels, run.figures / f"{tag}.png", title,
+                                        [f"step {i + 1}" for i in range(len(fr) - 1)] + ["match/answer"])
+        for i, f_ in enumerate(fr):
+            run.logger.maps(f_, step=i, prefix=f"exp2/{tag}/")
+    return shown
 
 
 def effects(df) -> list[dict]:
