@@ -282,44 +282,63 @@ def check_rules(kind: str, ms: list[ObjectMeasures],
     """
     if kind not in KINDS:
         raise ValueError(f"unknown kind of rules {kind!r}; kinds: {', '.join(KINDS)}")
-    f2 = lambda x: f"{x:.2f}"  # noqa: E731
     checks = []
     if kind in ("axis", "features"):
-        checks += [
-            _per_object("clear main axis", f"elongation >= {ELONGATION_CLEAR}", ms,
-                        lambda m: f2(m.elongation), lambda m: m.elongation >= ELONGATION_CLEAR),
-            _per_object("clear axis in the edge map", f"axis strength >= {AXIS_CLEAR} in every view",
-                        ms, lambda m: f2(m.axis_min), lambda m: m.axis_min >= AXIS_CLEAR),
-            _per_object("mirrors differ in major parts", f"mirror IoU <= {MIRROR_MAJOR}", ms,
-                        lambda m: f2(m.mirror_iou), lambda m: m.mirror_iou <= MIRROR_MAJOR),
-        ]
+        checks += _axis_rules(ms)
     if kind == "features":
-        if not training:
-            raise ValueError("the features rules need the training set's measures")
-        most = max(t.corners for t in training)
-        checks.append(_per_object("more features", f"corners >= {most} + {MORE_CORNERS}", ms,
-                                  lambda m: str(m.corners), lambda m: m.corners >= most + MORE_CORNERS))
-        mean, ref = np.mean([m.elongation for m in ms]), np.mean([t.elongation for t in training])
-        checks.append(Check("axis as clear as the training set's",
-                            f"mean elongation >= {AS_CLEAR} x {ref:.2f}",
-                            [("mean", f2(mean), bool(mean >= AS_CLEAR * ref))]))
+        checks += _features_rules(ms, training)
     if kind == "square":
-        checks += [
-            _per_object("no strong axis", f"elongation <= {ELONGATION_WEAK}", ms,
-                        lambda m: f2(m.elongation), lambda m: m.elongation <= ELONGATION_WEAK),
-            _per_object("no axis in the edge map", f"axis strength <= {AXIS_WEAK} in every view",
-                        ms, lambda m: f2(m.axis_max), lambda m: m.axis_max <= AXIS_WEAK),
-            _per_object("square-like", f"fill >= {SQUARE_FILL}, sides <= {SQUARE_SIDES}", ms,
-                        lambda m: f"{m.fill:.2f}/{m.sides:.2f}",
-                        lambda m: m.fill >= SQUARE_FILL and m.sides <= SQUARE_SIDES),
-            _per_object("mirrors differ in small details", f"mirror IoU >= {MIRROR_SMALL}", ms,
-                        lambda m: f2(m.mirror_iou), lambda m: m.mirror_iou >= MIRROR_SMALL),
-        ]
-    checks += [
-        _per_object("chiral", f"mirror IoU <= {CHIRAL}", ms, lambda m: f2(m.mirror_iou),
+        checks += _square_rules(ms)
+    return checks + _shared_rules(ms, pairs_are_mirrors)
+
+
+def _f2(x) -> str:
+    return f"{x:.2f}"
+
+
+def _axis_rules(ms: list[ObjectMeasures]) -> list[Check]:
+    return [
+        _per_object("clear main axis", f"elongation >= {ELONGATION_CLEAR}", ms,
+                    lambda m: _f2(m.elongation), lambda m: m.elongation >= ELONGATION_CLEAR),
+        _per_object("clear axis in the edge map", f"axis strength >= {AXIS_CLEAR} in every view",
+                    ms, lambda m: _f2(m.axis_min), lambda m: m.axis_min >= AXIS_CLEAR),
+        _per_object("mirrors differ in major parts", f"mirror IoU <= {MIRROR_MAJOR}", ms,
+                    lambda m: _f2(m.mirror_iou), lambda m: m.mirror_iou <= MIRROR_MAJOR),
+    ]
+
+
+def _features_rules(ms: list[ObjectMeasures], training: Optional[list[ObjectMeasures]]) -> list[Check]:
+    if not training:
+        raise ValueError("the features rules need the training set's measures")
+    most = max(t.corners for t in training)
+    mean, ref = np.mean([m.elongation for m in ms]), np.mean([t.elongation for t in training])
+    return [_per_object("more features", f"corners >= {most} + {MORE_CORNERS}", ms,
+                        lambda m: str(m.corners), lambda m: m.corners >= most + MORE_CORNERS),
+            Check("axis as clear as the training set's", f"mean elongation >= {AS_CLEAR} x {ref:.2f}",
+                  [("mean", _f2(mean), bool(mean >= AS_CLEAR * ref))])]
+
+
+def _square_rules(ms: list[ObjectMeasures]) -> list[Check]:
+    return [
+        _per_object("no strong axis", f"elongation <= {ELONGATION_WEAK}", ms,
+                    lambda m: _f2(m.elongation), lambda m: m.elongation <= ELONGATION_WEAK),
+        _per_object("no axis in the edge map", f"axis strength <= {AXIS_WEAK} in every view",
+                    ms, lambda m: _f2(m.axis_max), lambda m: m.axis_max <= AXIS_WEAK),
+        _per_object("square-like", f"fill >= {SQUARE_FILL}, sides <= {SQUARE_SIDES}", ms,
+                    lambda m: f"{m.fill:.2f}/{m.sides:.2f}",
+                    lambda m: m.fill >= SQUARE_FILL and m.sides <= SQUARE_SIDES),
+        _per_object("mirrors differ in small details", f"mirror IoU >= {MIRROR_SMALL}", ms,
+                    lambda m: _f2(m.mirror_iou), lambda m: m.mirror_iou >= MIRROR_SMALL),
+    ]
+
+
+def _shared_rules(ms: list[ObjectMeasures], pairs_are_mirrors: bool) -> list[Check]:
+    """The rules of every kind: chiral, asymmetric, one piece, connected edges, distinct objects."""
+    checks = [
+        _per_object("chiral", f"mirror IoU <= {CHIRAL}", ms, lambda m: _f2(m.mirror_iou),
                     lambda m: m.mirror_iou <= CHIRAL),
         _per_object("no rotational symmetry", f"symmetry IoU <= {SYMMETRY}", ms,
-                    lambda m: f2(m.symmetry_iou), lambda m: m.symmetry_iou <= SYMMETRY),
+                    lambda m: _f2(m.symmetry_iou), lambda m: m.symmetry_iou <= SYMMETRY),
         _per_object("one piece", "one 4-connected region", ms, lambda m: str(m.pieces),
                     lambda m: m.pieces == 1),
         _per_object("edge map connected", "one 8-connected component in every view", ms,
