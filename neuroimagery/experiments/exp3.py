@@ -49,15 +49,19 @@ CONFIG = Exp3Config
 INPUTS = ("vision", "stimuli")
 CHECKPOINTS = ("exp3",)
 # read only by the tests: a trained model (forward model C6, posture maps C2/C3) does not depend on them
-TEST_KEYS = ("fm.threshold", "fm.pp2", "recog_set", "gen1_set", "gen2_set", "m1_sigma", "m1_readout", "m1_centre_sigma",
+TEST_KEYS = ("fm.threshold", "fm.pp2", "fm.feedback", "recog_set", "gen1_set", "gen2_set", "m1_sigma", "m1_readout", "m1_centre_sigma", "m1_centre_width",
              "match_threshold", "match_tolerance", "selection.max_steps", "posture.code_sigma", "quick.objects", "percept.looks", "selection.tau")
 
 
 def ineffective_keys(cfg) -> dict[str, str]:
     e, out = cfg.experiment, {}
     out["m1_centre_sigma" if e.m1_readout == "pattern" else "m1_sigma"] = f"not read with m1_readout={e.m1_readout}"
+    if e.m1_readout == "pattern":
+        out["m1_centre_width"] = "not read with m1_readout=pattern"
     if e.fm.pp2 == "graded":
         out["fm.threshold"] = "not read with fm.pp2=graded"
+    else:
+        out["fm.feedback"] = "not read with fm.pp2=binary"
     if cfg.stimuli.kind == "folder":
         out.update({k: "stimuli=folder tests the user's folder only" for k in ("gen1_set", "gen2_set")})
     if cfg.preset == "quick":

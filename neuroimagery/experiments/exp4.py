@@ -56,7 +56,7 @@ CONFIG = Exp4Config
 INPUTS = ("vision", "stimuli")
 CHECKPOINTS = ("exp4",)
 # read only by the tests: a trained model (forward models, posture maps C16/C17) does not depend on them
-TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "posture.tau", "ppc.sigma", "selection.tau",
+TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "posture.tau", "ppc.sigma", "selection.tau", "pmcm_scale",
              "selection.max_steps", "ppc.proprio_gain",
              "ppc.proprio_stage", "ppc.noise_amplitude", "noise_tests", "quick.objects", "percept.looks")
 

@@ -211,10 +211,21 @@ class RotationEmbodied(nn.Module):
         return Decision(*(v.reshape(P, B, *v.shape[1:]) for v in (d.winner, d.cycles, d.decided, d.state)))
 
     def pmcm_input(self, ppcc: torch.Tensor) -> torch.Tensor:
-        """PMCm's input AM (eq. 6.10) as the share of PPCc's activity ``(..., units^2)`` that reaches
-        each of Ml, Ms, Mr (docs/choices.md, rule R3), so that eq. 6.11's input lies in [0, 1]."""
+        """PMCm's input AM (eq. 6.10) from PPCc ``(..., units^2)``, scaled by rule R3 (docs/choices.md):
+        ``pmcm_scale='fixed'`` divides eq. 6.10 by one constant, PPCc's total activity when PPCt and
+        PPCp are the eq. 6.14 bump on the same most central unit, so that eq. 6.11's input lies in
+        [0, 1] for the bumps and keeps eq. 6.10 linear; ``'share'`` divides by each row's own total."""
         am = self.c20(ppcc)
-        return am / am.sum(-1, keepdim=True).clamp_min(1e-12)
+        if self.p.pmcm_scale == "share":
+            return am / am.sum(-1, keepdim=True).clamp_min(1e-12)
+        return am / self.pmcm_full_total()
+
+    def pmcm_full_total(self) -> float:
+        """The largest total activity of PPCc (eq. 6.9) with PPCt and PPCp the eq. 6.14 bump on the
+        same unit: ``max_j (sum_i bump_j(i))^2`` over the map's units (the most central unit's)."""
+        nu = len(self.p.ppc.angles)
+        bumps = self.ppc.encode(torch.arange(nu, dtype=torch.float32))  # (nu, nu)
+        return float((bumps.sum(-1) ** 2).max())
 
     def overlap(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
         """PFCtm (PFCfm) summed: the target units covered by ``image`` read as a population code of

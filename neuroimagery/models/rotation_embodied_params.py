@@ -84,6 +84,12 @@ class EmbodiedParams:
     match_tolerance: int = bounded(1, ge=0)
     # --- action selection (PMCm, eq. 6.10-6.11) and decision (PMCd, eq. 6.12-6.13) ----------
     selection: SelectionParams = dc_field(default_factory=SelectionParams)  # softmax (thesis 0.1), steps (thesis 20)
+    # the scale of PMCm's input AM (eq. 6.10) before the softmax of eq. 6.11 (docs/choices.md, rule R3): 'fixed'
+    # (default) = eq. 6.10 divided by one constant, the total activity PPCc holds when PPCt and PPCp are the
+    # eq. 6.14 bump on the same most central unit (the largest total the bumps give), the same for every trial |
+    # 'share' = divided by each trial's own PPCc total (the share of its activity reaching each unit; the former
+    # default, under which bumps cut by the map's end units give sharper draws)
+    pmcm_scale: str = bounded("fixed", choices=("fixed", "share"))
     lca: EmbodiedLcaParams = dc_field(default_factory=EmbodiedLcaParams)
 
     RULES = (Rule("fm.dot_inner", lambda c: c.fm.dot_inner <= c.map_size - 2, "must lie in [1, map_size - 2]",

@@ -42,6 +42,10 @@ class GeneralisingForwardModel(ForwardModelParams):
     # what PP_2 holds (docs/choices.md, rule R6): 'graded' (default) = C6's output, the delta rule's actual output
     # (eq. 6.4, linear: no threshold, no clipping), fed back to PP_1 as it is | 'binary' = that output > threshold
     pp2: str = bounded("graded", choices=("graded", "binary"))
+    # what the feedback PP_2 -> PP_1 passes with pp2=graded (docs/choices.md, rule R8): 'cut' (default) = PP_2's
+    # activity cut to [0, 1], the range of PP_1's units (a population-code unit responds between 0 and its
+    # maximum, 1 for the edge units of V1 that drive PP_1 at the start) | 'linear' = PP_2 as it is (R6's first form)
+    feedback: str = bounded("cut", choices=("cut", "linear"))
     threshold: float = bounded(0.5, gt=0)  # with pp2=binary: a PP_2 unit is on when its C6 input exceeds this (not given)
 
 
@@ -90,6 +94,12 @@ class GeneralisingParams:
     # posture units, so that a centre one unit off the diagonal selects a turn (n2 falls to ~0.3, the softmax
     # picks the turn ~87 % of the time) and a centre on the diagonal selects n2 (the turns fall to ~0.004)
     m1_centre_sigma: float = bounded(0.5, gt=0)
+    # how wide the Gaussian of the 'centre' readout is (docs/choices.md, rule R7): 'spread' (default) = the
+    # units' width m1_centre_sigma combined with the spread of the M1_1 activity across the diagonal,
+    # sqrt(sigma^2 + var), var the activity-weighted variance of (SS unit - PMC_1 unit), as a Gaussian-tuned
+    # unit responds to a spread population input (a less certain code gives a less certain M1_2, 6.1.3) |
+    # 'fixed' = m1_centre_sigma alone (the centre of the activity only; the former default)
+    m1_centre_width: str = bounded("spread", choices=("spread", "fixed"))
     # how far a PP_2 unit reaches when C8 subtracts it from PFC_2: 1 (default) = PP_2 read as a population code
     # whose units respond over their 3x3 neighbourhood (contract X3.8: an exact rotation of a same image leaves
     # <= 5 % of the target uncovered); 0 = the literal one-to-one reading, under which a resampled 45-deg
@@ -177,12 +187,19 @@ class RotationGeneralising(nn.Module):
         rescales trained weights), width ``m1_sigma``. Spread-out activity then favours the
         6-unit triangles over the 4-unit diagonal, so flat codes keep the rotation going.
 
+        With ``m1_centre_width='spread'`` (rule R7) the width of the ``centre`` comparison is
+        ``sqrt(m1_centre_sigma^2 + var)``, ``var`` the activity-weighted variance of (column - row) of
+        M1_1: the response of a unit of Gaussian tuning to an input spread with that variance, so
+        that less certain SS / PMC_1 codes give a less certain M1_2 (thesis 6.1.3).
+
         Either way the Gaussian is centred on the nearest unit (its activity is 1), as in the
         posture code of eq. 6.5-6.6.
         """
         if self.p.m1_readout == "centre":
             d2 = (self.m1_centre(m11).unsqueeze(-1) - self.m1_centre(self.m1_masks)) ** 2  # (P, B, 3)
             sigma = self.p.m1_centre_sigma
+            if self.p.m1_centre_width == "spread":  # rule R7: the code's own spread widens the comparison
+                sigma = (sigma ** 2 + self.m1_spread(m11)).sqrt().unsqueeze(-1)
         else:
             w = self.m1_masks / self.m1_masks.norm(dim=-1, keepdim=True)
             m = m11 / m11.norm(dim=-1, keepdim=True).clamp_min(1e-12)
@@ -211,6 +228,16 @@ class RotationGeneralising(nn.Module):
         offset = (k.view(1, -1) - k.view(-1, 1)).reshape(-1)  # column - row of each unit
         return (m11 * offset).sum(-1) / m11.sum(-1).clamp_min(1e-12)
 
+    def m1_spread(self, m11: torch.Tensor) -> torch.Tensor:
+        """Activity-weighted variance of (column - row) of M1_1 patterns ``(..., nu*nu)``, in squared
+        posture units: how spread the activity is across the diagonal (0 for a single cell)."""
+        nu = int(round(m11.shape[-1] ** 0.5))
+        k = torch.arange(nu, dtype=m11.dtype)
+        offset = (k.view(1, -1) - k.view(-1, 1)).reshape(-1)
+        w = m11 / m11.sum(-1, keepdim=True).clamp_min(1e-12)
+        mean = (w * offset).sum(-1, keepdim=True)
+        return (w * (offset - mean) ** 2).sum(-1)
+
     def uncovered(self, pfc1: torch.Tensor, pp2: torch.Tensor) -> torch.Tensor:
         """PFC_2: target units not covered by the imagined image (C7 +1, C8 -1, rectified).
 
@@ -221,9 +248,13 @@ class RotationGeneralising(nn.Module):
         return (pfc1 - population_cover(pp2, self.size, self.p.match_tolerance)).clamp_min(0.0)
 
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
-        """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``; PP_2 = the linear
-        output (``fm.pp2=graded``, rule R6) or the output > ``fm.threshold`` (``binary``)."""
+        """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``, cut to [0, 1] on the
+        way from PP_2 with ``fm.feedback=cut`` (rule R8); PP_2 = the linear output (``fm.pp2=graded``,
+        rule R6) or the output > ``fm.threshold`` (``binary``)."""
         P, B, n = x.shape
+        x_in = x  # a row that does not step keeps PP_2 as it is
+        if self.p.fm.pp2 == "graded" and self.p.fm.feedback == "cut":
+            x = x.clamp(0.0, 1.0)  # a binary edge map (the first step) passes unchanged
         sel = torch.ones(P, B, dtype=torch.bool) if active is None else active
         full = torch.zeros(P, B, 3 * n)
         for m in range(3):
@@ -233,7 +264,7 @@ class RotationGeneralising(nn.Module):
             out = (self.c6.net_binary(full) > self.p.fm.threshold).float()
         else:
             out = self.c6.net_sparse(full)
-        return torch.where(sel.unsqueeze(-1), out, x)
+        return torch.where(sel.unsqueeze(-1), out, x_in)
 
     @torch.no_grad()
     def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record=0, **_) -> dict:
