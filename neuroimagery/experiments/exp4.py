@@ -346,6 +346,28 @@ def report(cfg, run, summary) -> None:
     r.chance_warning(summary)
     r.p(f"{summary['participants']} simulated participants; preset `{cfg.preset}`; vision `{cfg.vision.kind}`. "
         "RT in accumulator cycles (10 per rotation step). " + reproducibility_note(cfg.seed))
+    _headline(r, t)
+    _rt_by_steps(r, cfg, summary)
+    r.h("Effects, the participant as the unit")
+    r.effects(summary.get("effects", []))
+    _statistics(r, summary)
+    r.h("Forward models trained on three dots, applied to the test shapes")
+    r.table(["set", "IoU after 1 step", "2 steps", "3 steps"],
+            [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
+    e = cfg.experiment
+    if cfg.stimuli.kind == "folder":
+        r.user_stimuli(summary, cfg.stimuli.path, f"It replaces the Recog set (`recog_set` = {e.recog_set}); the "
+                       "Gen1 and Gen2 tests are not run.",
+                       f"The forward models are trained on three-dot images and the posture maps C16/C17 on "
+                       f"`train_set` = {e.train_set}, as in every run. All conditions (none, match, mismatch, each "
+                       "with and without noise) run on your shapes.")
+    _differences(r, cfg, t)
+    r.h("Figures")
+    r.figures(run.root, run.figures.glob("*.png"))
+    r.write(run.report_path)
+
+
+def _headline(r: Report, t: dict) -> None:
     rows = [(f"{k} correct rate", t.get(k, {}).get("correct_rate"), v, True) for k, v in THESIS.items() if k in t]
     rows += [(f"{k} RT-disparity r", t[k]["rt_r"], None, False) for k in ("recog/none", "gen1/none", "gen2/none", "custom/none") if k in t]
     r.h("Headline figures")
@@ -358,6 +380,9 @@ def report(cfg, run, summary) -> None:
             [[k, v["n_trials"], f"{100 * v['correct_rate']:.1f} %", f"{100 * v.get('time_out_rate', 0.0):.1f} %",
               f"{100 * v['rotation_success_rate']:.1f} %",
               v["rt_mean"], v["rt_slope_per_deg"], v["rt_r"]] for k, v in t.items()])
+
+
+def _rt_by_steps(r: Report, cfg, summary: dict) -> None:
     r.h("RT against the number of rotation steps (thesis: slightly above 10 n)")
     req = summary.get("rt_by_required_steps", {})
     tests_req = [k for k in req if k != "all"]
@@ -370,8 +395,9 @@ def report(cfg, run, summary) -> None:
     r.table(["n", "10 n", "RT, n steps required"] + [f"required, {k}" for k in tests_req] + ["RT, n steps made"],
             [[n, 10 * n, dash(req.get("all", {}), n)] + [dash(req[k], n) for k in tests_req]
              + [dash(summary["rt_by_rotation_steps"], n)] for n in ns])
-    r.h("Effects, the participant as the unit")
-    r.effects(summary.get("effects", []))
+
+
+def _statistics(r: Report, summary: dict) -> None:
     r.h("Embodiment statistics (trials as samples)")
     r.table(["comparison", "RT a", "RT b", "RT p (Welch)", "correct a", "correct b", "correct p"],
             [[k, v["rt"]["mean_a"], v["rt"]["mean_b"], fmt_p(v["rt"]["p"]),
@@ -387,16 +413,10 @@ def report(cfg, run, summary) -> None:
              "correct p (Holm)"],
             [[k, dsp, v.get("n", "-"), v["rt_a"], v["rt_b"], fmt_p(v["rt_p"]), fmt_p(v.get("rt_p_holm")), v["correct_a"],
               v["correct_b"], fmt_p(v["correct_p"]), fmt_p(v.get("correct_p_holm"))] for k, dsp, v in by])
-    r.h("Forward models trained on three dots, applied to the test shapes")
-    r.table(["set", "IoU after 1 step", "2 steps", "3 steps"],
-            [[k, v["1"], v["2"], v["3"]] for k, v in summary["forward_model_iou"].items()])
+
+
+def _differences(r: Report, cfg, t: dict) -> None:
     e = cfg.experiment
-    if cfg.stimuli.kind == "folder":
-        r.user_stimuli(summary, cfg.stimuli.path, f"It replaces the Recog set (`recog_set` = {e.recog_set}); the "
-                       "Gen1 and Gen2 tests are not run.",
-                       f"The forward models are trained on three-dot images and the posture maps C16/C17 on "
-                       f"`train_set` = {e.train_set}, as in every run. All conditions (none, match, mismatch, each "
-                       "with and without noise) run on your shapes.")
     r.h("Why the numbers differ")
     r.p("Where this run's errors are: " + pc.error_split(t) + ".")
     first = ("The shapes of sets A, B and C are drawn to the design rules of docs/stimuli.md (the thesis's figures "
@@ -419,6 +439,3 @@ def report(cfg, run, summary) -> None:
         "docs/choices.md gives the rule behind every constant the thesis does not state and the measured "
         "effect of every departure from the thesis.",
     ])
-    r.h("Figures")
-    r.figures(run.root, run.figures.glob("*.png"))
-    r.write(run.report_path)
