@@ -29,11 +29,10 @@ import torch
 from torch import nn
 
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM, population_cover
-from ..nn.functional import gain_field, softmax_select
-from ..nn.binary import pack_bits, popcount, unique_rows, unpack_bits
-from ..nn.readout import binary_rows
+from ..nn.functional import softmax_select
+from ..nn.binary import pack_bits, unique_rows, unpack_bits
 from ..vision.reflection import principal_axis_flip, reflection_index
-from .recording import sample_indices
+from .rotation_embodied_trials import FusedTrials
 from ..nn.decision import Decision, full_match_gain, smallest_deciding_gain
 from .pmcd_leak import leak_by_rule
 from .posture_ch6 import fit_posture_soms, posture_maps, posture_order  # noqa: F401  (re-exported)
@@ -332,131 +331,13 @@ class RotationEmbodied(nn.Module):
     def run_conditions(self, target: torch.Tensor, rotated: torch.Tensor, conditions, record=0,
                        flipped: torch.Tensor | None = None) -> list[dict]:
         """Run the same trials ``(P, B, n)`` under several conditions ``[(proprioception, noise,
-        generators), ...]``; returns one result dict per condition (see :meth:`run`).
-
-        The first step (always "still") and everything about the target do not depend on the
-        condition, so they are computed once. After that the trials are kept as a flat list of
-        (condition, participant, trial) rows and only undecided rows are carried to the next step.
-        Each condition draws its random numbers from its own generators, one ``(B,)`` draw per
-        participant and step, so a result does not depend on what else is in the batch.
-        """
-        p = self.p
+        generators), ...]``; returns one result dict per condition (see :meth:`run`), computed as one
+        batch (:class:`~neuroimagery.models.rotation_embodied_trials.FusedTrials`)."""
         for prop, _, gens in conditions:
             check_proprioception(prop)
             if len(gens) != target.shape[0]:
                 raise ValueError(f"{len(gens)} generators for {target.shape[0]} participants")
-        P, B, n = target.shape
-        C, nu, Q = len(conditions), len(p.ppc.angles), P * B
-        part = torch.arange(P).repeat_interleave(B)  # participant of each base row
-        # ---- target side (PFCt, PPCt, PFCft): shared by every condition. The binary maps of the
-        # step loop are packed rows (nn.binary): overlaps are bit counts, and a forward-model
-        # prediction is computed once per distinct (participant, move, image) of a step.
-        pfct = target.reshape(Q, n)
-        ppct_unit = self.posture(self.c17, target)
-        ppct = self.ppc.encode(ppct_unit.float()).reshape(Q, nu)
-        if flipped is None:
-            flipped = self.flipped(target, ppct_unit) if p.flip_axis == "ppct" else self.flipped_image(target)
-        reach = int(p.match_tolerance)
-        pfcft = flipped.reshape(Q, n)
-        pfct_w, pfcft_w = pack_bits(pfct), pack_bits(pfcft)
-        t_count = pfct.sum(-1).clamp_min(1.0)
-        step_deg = torch.tensor(self.step_angles)
-        # ---- results, (C, Q)
-        winner = torch.full((C, Q), -1, dtype=torch.long)
-        rt = torch.zeros(C, Q, dtype=torch.long)
-        steps = torch.zeros(C, Q, dtype=torch.long)
-        rotations = torch.zeros(C, Q, dtype=torch.long)
-        angle = torch.zeros(C, Q)
-        shown = sample_indices(record, B)
-        histories: list[list[list[dict]]] = [[[] for _ in shown] for _ in range(C)]
-        rec = list(zip(shown, range(len(shown))))  # (flat row q of participant 0, history slot)
-
-        gain = self.input_gain[part]  # (Q,) per participant
-        unpack = lambda w: unpack_bits(w, n).float()  # noqa: E731  (a recorded map)
-
-        def evidence(rows_q, cover_w):
-            """PFCtm / PFCfm: the target (flipped target) units that POCp covers, read as a population
-            code of reach ``match_tolerance`` (one-to-one inputs above 1.5 at reach 0)."""
-            tm, fm = pfct_w[rows_q] & cover_w, pfcft_w[rows_q] & cover_w
-            ev = torch.stack([popcount(tm).float(), popcount(fm).float()], -1) / t_count[rows_q].unsqueeze(-1)
-            return gain[rows_q].unsqueeze(-1) * ev, tm, fm
-
-        def predict(group, poci_w):
-            """POCp (packed), what it covers (packed) and its C16 activation potentials PPCpA (eq. 6.14)
-            for the forward models ``group`` (participant * 3 + move), once per distinct pair."""
-            g, words, inv = unique_rows(group, poci_w)
-            pocp = binary_rows(self.fm, g, unpack_bits(words, n)) + 1.0 > 1.5  # group = participant * 3 + move
-            cover = population_cover(pocp.float(), self.size, reach) > 0.5 if reach > 0 else pocp
-            return pack_bits(pocp)[inv], pack_bits(cover)[inv], self.c16.net_binary(pocp, g // 3)[inv]
-
-        # ---- step 1: the "still" forward model on every trial, identical in every condition
-        still = torch.ones(Q, dtype=torch.long)
-        pocp0, cover0, score0 = predict(part * 3 + 1, pack_bits(rotated.reshape(Q, n)))
-        ev0, tm0, fm0 = evidence(torch.arange(Q), cover0)
-        leak = self.leak[part]  # (Q,) per participant
-        dec = self.pmcd(ev0, p.lca.cycles, state=self.pmcd.initial_state((Q,)), leak=leak)
-        steps += 1
-        rt += dec.cycles
-        winner[:] = torch.where(dec.decided, dec.winner, winner[0])
-        if rec:
-            for c in range(C):
-                for q, k in rec:
-                    histories[c][k].append(self._snapshot(pfct[q], pfcft[q], rotated.reshape(Q, n)[q], unpack(pocp0[q]), ppct[q], None,
-                                                          still[q], unpack(tm0[q]), unpack(fm0[q]), dec.state[q]))
-        # ---- condition rows of the undecided trials
-        live_q = (~dec.decided).nonzero().squeeze(-1)
-        cond = torch.arange(C).repeat_interleave(live_q.numel())
-        q = live_q.repeat(C)
-        poci, score, y = pocp0[q], score0[q], dec.state[q]
-        for s in range(p.selection.max_steps - 1):
-            if q.numel() == 0:
-                break
-            # next movement from the wrist postures (eq. 6.9-6.11), per condition
-            move = torch.empty_like(q)
-            for c, (prop, noisy, gens) in enumerate(conditions):
-                sel = cond == c
-                draws_noise = [torch.rand(B, nu, generator=g) for g in gens] if noisy else None
-                draws_sel = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q)
-                draws_win = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q) if p.posture.tau > 0 else None
-                if not bool(sel.any()):
-                    continue
-                qc = q[sel]
-                jc = self.posture_winner(score[sel], None if draws_win is None else draws_win[qc])
-                ppcp = self.ppcp_code(jc, prop, torch.stack(draws_noise).reshape(Q, nu)[qc] if noisy else None)
-                ppcc = gain_field(ppct[qc], ppcp)  # rows PPCt, columns PPCp
-                am = self.pmcm_input(ppcc.reshape(-1, nu * nu))
-                move[sel] = softmax_select(am, p.selection.tau, uniforms=draws_sel[qc])
-                if rec:
-                    self._note_ppc(histories[c], rec, qc, ppcp, ppcc)
-            # forward model, overlap, accumulator on the live rows
-            pocp, cover, score = predict(part[q] * 3 + move, poci)
-            ev, tm, fm = evidence(q, cover)
-            dec = self.pmcd(ev, p.lca.cycles, state=y, leak=leak[q])
-            angle[cond, q] += step_deg[move]
-            rotations[cond, q] += (move != 1).long()
-            steps[cond, q] += 1
-            rt[cond, q] += dec.cycles
-            winner[cond, q] = torch.where(dec.decided, dec.winner, winner[cond, q])
-            if rec:
-                for c in range(C):
-                    for qq, k in rec:
-                        hit = ((cond == c) & (q == qq)).nonzero()
-                        if hit.numel():
-                            i = int(hit[0])
-                            histories[c][k].append(self._snapshot(pfct[qq], pfcft[qq], unpack(poci[i]), unpack(pocp[i]), ppct[qq], None,
-                                                                  move[i], unpack(tm[i]), unpack(fm[i]), dec.state[i]))
-            keep = ~dec.decided
-            q, cond, poci, score, y = q[keep], cond[keep], pocp[keep], score[keep], dec.state[keep]
-        outs = []
-        for c, (_, _, gens) in enumerate(conditions):
-            coin = torch.stack([torch.rand(B, generator=g) for g in gens]).reshape(Q)  # time-out: a random answer
-            timeout = winner[c] < 0
-            answer = torch.where(timeout, (coin < 0.5).long(), winner[c])
-            shape = (P, B)
-            outs.append({"answer": answer.reshape(shape), "rt": rt[c].reshape(shape), "rotation_steps": (steps[c] - 1).reshape(shape),
-                         "rotations": rotations[c].reshape(shape), "rotation_deg": angle[c].reshape(shape),
-                         "decided": (~timeout).reshape(shape), "history": histories[c]})
-        return outs
+        return FusedTrials(self, target, rotated, conditions, record, flipped).run()
 
     def _snapshot(self, pfct, pfcft, poci, pocp, ppct, ppcp, move, tm, fm, y) -> dict:
         """One step of a sample trial's maps, copied: a view would keep the whole batch's tensor
