@@ -5,6 +5,9 @@ kept to test the fast drive against (docs/robot.md).
 """
 from __future__ import annotations
 
+import dataclasses
+import time
+
 import numpy as np
 import torch
 
@@ -53,3 +56,31 @@ def simulate_constraint(world, poses: np.ndarray, posture: int, q0: torch.Tensor
                        final_toy_yaw=start_yaw)
     disp = (final[0] - float(start[0]), final[1] - float(start[1]))
     return Outcome(tuple(fired), first, disp, step, final, False, final_toy_yaw=world.toy_yaw(), off_table=off_table)
+
+
+def rollout_constraint(world, traj: torch.Tensor, plan: dict, posture: int, watched, use_filter: bool,
+                       t0: float) -> list[Outcome]:
+    """The rollouts of ``world`` (a ``ToolWorld`` on this drive) of ``traj`` (N, T, 7) from ``posture``;
+    ``plan``: its ``_plan`` of them; ``t0``: when the call began (the tensor time)."""
+    N, T = traj.shape[:2]
+    arm = plan["arm_step"]
+    if world._table_collides:  # to the commanded poses, the table stopping the rake (table_contact="lift")
+        with torch.no_grad():
+            poses_t = world.kin.rake_pose(traj)
+            near = world.near_toy(traj, poses=poses_t) if use_filter else torch.ones(N, dtype=torch.bool)
+        near, poses = near.numpy(), poses_t.double().numpy()
+    else:  # to the poses the table rule lets the rake take (``_plan``)
+        near = (world._gaps(plan["pts"], world.cfg.toy_xy, plan["sweep"]).min(axis=-1) < world.cfg.filter_margin
+                if use_filter else np.ones(N, dtype=bool))
+        poses = plan["poses"]
+    world.timing["tensor_s"] += time.perf_counter() - t0
+    outcomes = []
+    for n in range(N):
+        if not bool(near[n]):
+            outcomes.append(dataclasses.replace(world._skipped(T), arm_step=int(arm[n, T - 1])))
+            continue
+        t1 = time.perf_counter()
+        out = simulate_constraint(world, poses[n], posture, traj[n, 0], watched)
+        outcomes.append(dataclasses.replace(out, arm_step=int(arm[n, out.stop_step])))
+        world.timing["physics_s"] += time.perf_counter() - t1
+    return outcomes

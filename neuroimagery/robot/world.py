@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -36,11 +37,17 @@ import torch
 from neuroimagery.errors import UserInputError
 from neuroimagery.native import quiet_native_output
 from neuroimagery.robot.config import WorldConfig
-from neuroimagery.robot.constraint_drive import simulate_constraint
+from neuroimagery.robot.constraint_drive import rollout_constraint
 from neuroimagery.robot.events import Outcome, latch_events, watched_indices, toy_events, toy_fate, toy_yaw_of
 from neuroimagery.robot.eye import colour_masks
 from neuroimagery.robot.kinematics import ArmKinematics
 from neuroimagery.robot import arm_yield, rake_plan
+
+# the rake's first points (``_rake_points``) lie on the handle's axis, a cylinder of this radius
+# (urdf/rake.urdf); the others lie on the plate's surface
+HANDLE_POINTS = 11
+HANDLE_RADIUS_M = 0.008
+
 
 class ToolWorld:
     """pybullet scene of rake, toy and table driven by iCub arm trajectories.
@@ -51,7 +58,6 @@ class ToolWorld:
 
     def __init__(self, config: WorldConfig | None = None, gui: bool = False) -> None:
         import pybullet
-        from pybullet_utils import bullet_client
 
         self.cfg = config or WorldConfig()
         cfg = self.cfg
@@ -72,6 +78,20 @@ class ToolWorld:
             )
         self.substeps = int(round(sub))
         self.p = pybullet
+        self._load_scene(gui)
+        self.timing = {"physics_s": 0.0, "tensor_s": 0.0, "render_s": 0.0}
+        self._reset_cache: dict[bytes, tuple] = {}
+        self._settled: dict[tuple[float, float], tuple] = {}
+        self.steps_simulated = 0  # control steps that went through the physics (kinematic drive)
+        self.steps_total = 0  # control steps of all simulated rollouts
+        self.physics_steps = 0  # pybullet steps those control steps took (kinematic drive)
+        self.reset(1)
+
+    def _load_scene(self, gui: bool) -> None:
+        """The pybullet client with table, toy and rake, their dynamics, the rake's geometry and its drive."""
+        from pybullet_utils import bullet_client
+
+        pybullet, cfg = self.p, self.cfg
         with quiet_native_output():
             self.client = bullet_client.BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         c = self.client
@@ -95,9 +115,8 @@ class ToolWorld:
         self._R_com = np.array(c.getMatrixFromQuaternion(self._rake_com_orn)).reshape(3, 3)
         pts = self._rake_points()
         self._rake_points_np = pts.double().numpy()
-        n_handle = 11  # the first points lie on the handle's axis (radius 8 mm, urdf/rake.urdf)
-        self._point_radius = np.where(np.arange(len(pts)) < n_handle, 0.008, 0.0)
-        self._point_radius_max = 0.008
+        self._point_radius = np.where(np.arange(len(pts)) < HANDLE_POINTS, HANDLE_RADIUS_M, 0.0)
+        self._point_radius_max = HANDLE_RADIUS_M
         self._geometry = rake_plan.RakeGeometry(self._rake_points_np[:, :3], self._point_radius,
                                                 self._point_radius_max, self._R_com, self._rake_com)
         # the table meets the rake through the table rule of ``_plan``: rake-table collisions are
@@ -115,13 +134,6 @@ class ToolWorld:
             m0 = c.getDynamicsInfo(self.rake, -1)[0]
             inertia = np.array(c.getDynamicsInfo(self.rake, -1)[2]) * (cfg.rake_mass / m0)
             c.changeDynamics(self.rake, -1, mass=cfg.rake_mass, localInertiaDiagonal=inertia.tolist())
-        self.timing = {"physics_s": 0.0, "tensor_s": 0.0, "render_s": 0.0}
-        self._reset_cache: dict[bytes, tuple] = {}
-        self._settled: dict[tuple[float, float], tuple] = {}
-        self.steps_simulated = 0  # control steps that went through the physics (kinematic drive)
-        self.steps_total = 0  # control steps of all simulated rollouts
-        self.physics_steps = 0  # pybullet steps those control steps took (kinematic drive)
-        self.reset(1)
 
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -298,8 +310,6 @@ class ToolWorld:
         with None it runs to the end.
         ``use_filter`` skips the physics for rollouts whose rake never comes near the toy.
         """
-        import time
-
         watched_indices(watched)  # a clear error for an unknown name
         self.initial_posture(posture)
         self.check_trajectories(trajectories)
@@ -307,28 +317,14 @@ class ToolWorld:
         traj = trajectories.detach().to(torch.float32)
         N, T = traj.shape[:2]
         plan = self._plan(traj.numpy())
-        arm = plan["arm_step"]
         if self.constraint is not None:  # reference drive: dragged by a constraint, every step simulated
-            if self._table_collides:  # to the commanded poses, the table stopping the rake (table_contact="lift")
-                with torch.no_grad():
-                    poses_t = self.kin.rake_pose(traj)
-                    near = self.near_toy(traj, poses=poses_t) if use_filter else torch.ones(N, dtype=torch.bool)
-                near, poses = near.numpy(), poses_t.double().numpy()
-            else:  # to the poses the table rule lets the rake take (``_plan``)
-                near = (self._gaps(plan["pts"], self.cfg.toy_xy, plan["sweep"]).min(axis=-1) < self.cfg.filter_margin
-                        if use_filter else np.ones(N, dtype=bool))
-                poses = plan["poses"]
-            self.timing["tensor_s"] += time.perf_counter() - t0
-            outcomes = []
-            for n in range(N):
-                if not bool(near[n]):
-                    outcomes.append(dataclasses.replace(self._skipped(T), arm_step=int(arm[n, T - 1])))
-                    continue
-                t1 = time.perf_counter()
-                out = simulate_constraint(self, poses[n], posture, traj[n, 0], watched)
-                outcomes.append(dataclasses.replace(out, arm_step=int(arm[n, out.stop_step])))
-                self.timing["physics_s"] += time.perf_counter() - t1
-            return outcomes
+            return rollout_constraint(self, traj, plan, posture, watched, use_filter, t0)
+        return self._rollout_kinematic(plan, posture, watched, use_filter, t0)
+
+    def _rollout_kinematic(self, plan: dict, posture: int, watched, use_filter: bool, t0: float) -> list[Outcome]:
+        """The default drive's rollouts: physics only for those whose rake comes near the toy."""
+        arm = plan["arm_step"]
+        N, T = arm.shape
         plan["gaps0"] = self._gaps(plan["pts"], self.cfg.toy_xy, plan["sweep"])  # toy at its start
         if use_filter:
             near = plan["gaps0"].min(axis=-1) < self.cfg.filter_margin
@@ -480,8 +476,6 @@ class ToolWorld:
         the current state is rendered.  Returns ``image`` (H, W, 3) uint8, ``toy`` and ``rake``
         (H, W) float32 masks in {0, 1} (torch tensors).
         """
-        import time
-
         if posture is not None or q is not None:
             self.reset(posture or 1, q=q, toy_xy=toy_xy, toy_yaw=toy_yaw)
         t0 = time.perf_counter()
