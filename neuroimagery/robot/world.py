@@ -377,31 +377,15 @@ class ToolWorld:
         """
         cfg, p, cid = self.cfg, self.p, self._cid
         T = len(plan["pos"])
-        self.reset(posture)
-        start_pos, start_orn = p.getBasePositionAndOrientation(self.toy, physicsClientId=cid)
-        start, start_yaw = (start_pos[0], start_pos[1]), toy_yaw_of(start_orn)
-        if math.hypot(start[0] - self.cfg.toy_xy[0], start[1] - self.cfg.toy_xy[1]) < 1e-4:
-            start = tuple(self.cfg.toy_xy)  # settled at its start (gaps to it are already known)
-        top = cfg.table_top + cfg.toy_size
-        rest_z = cfg.table_top + cfg.toy_size / 2
+        start, start_yaw, gaps = self._start(plan, posture)
         fired = [False] * 6
         first: str | None = None
         blew_up = off_table = False
         # the fastest any rake point has moved up to each control step (blow-up rule, toy_fate)
         rake_speed = rake_plan.fastest_so_far(plan["sweep"], cfg)
         watched_i = watched_indices(watched)
-        if start == tuple(self.cfg.toy_xy) and "gaps0" in plan:
-            gaps = plan["gaps0"].copy()
-        else:
-            gaps = self._gaps(plan["pts"], start, plan["sweep"])
         margin = cfg.filter_margin
-        pos_l, orn_l = plan["pos"].tolist(), plan["orn"].tolist()
-        lin_l, ang_l = plan["lin"].tolist(), plan["ang"].tolist()
-        nsub_l = plan["nsub"].tolist()
-        rake, toy = self.rake, self.toy
-        reset_pose, reset_vel, step_sim = p.resetBasePositionAndOrientation, p.resetBaseVelocity, p.stepSimulation
-        get_pose, get_vel, contacts = p.getBasePositionAndOrientation, p.getBaseVelocity, p.getContactPoints
-        v_rest = cfg.rest_speed
+        drive = [plan[k].tolist() for k in ("pos", "orn", "lin", "ang", "nsub")]
         resting = True  # the toy is still (so steps far from it cannot change anything)
         last = 0
         t = 1
@@ -413,32 +397,20 @@ class ToolWorld:
                     last = T - 1
                     break
                 t += int(ahead[0])
-            reset_pose(rake, pos_l[t - 1], orn_l[t - 1], physicsClientId=cid)
-            reset_vel(rake, lin_l[t], ang_l[t], physicsClientId=cid)
-            n = nsub_l[t]
-            self._set_physics_step(n)
-            for _ in range(n):
-                step_sim(physicsClientId=cid)
+            n = self._drive_step(drive, t)
             n_sim += 1
             n_phys += n
             last = t
-            pos = get_pose(toy, physicsClientId=cid)[0]
-            vel, avel = get_vel(toy, physicsClientId=cid)
-            fate = toy_fate(pos, vel, rake_speed[t], cfg)
+            fate, first, pos, now_resting = self._watch_toy(start, rake_speed[t], fired, first)
             if fate == "blew_up":
                 blew_up = True
                 break
-            speed = math.sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2])
-            now = toy_events(pos[0], pos[1], pos[0] - start[0], pos[1] - start[1], cfg, height=pos[2] - rest_z)
-            first = latch_events(now, fired, first, top, cfg,
-                                  lambda: contacts(rake, toy, physicsClientId=cid))
             if fate == "off_table":
                 off_table = True
                 break
             if any(fired[i] for i in watched_i):
                 break
-            was_resting = resting
-            resting = speed < v_rest and math.sqrt(avel[0] ** 2 + avel[1] ** 2 + avel[2] ** 2) < 20 * v_rest
+            was_resting, resting = resting, now_resting
             if resting and not was_resting:
                 gaps[t + 1:] = self._gaps(plan["pts"][t:], (pos[0], pos[1]), plan["sweep"][t:])[1:]
             t += 1
@@ -447,13 +419,56 @@ class ToolWorld:
         self.steps_simulated += n_sim
         self.physics_steps += n_phys
         self.steps_total += T
-        final, final_orn = get_pose(toy, physicsClientId=cid)
         if blew_up:
             return Outcome((False,) * 6, None, (0.0, 0.0), last, (float(start[0]), float(start[1])), True,
                            final_toy_yaw=start_yaw)
-        disp = (final[0] - float(start[0]), final[1] - float(start[1]))
-        return Outcome(tuple(fired), first, disp, last, (float(final[0]), float(final[1])), False,
-                       final_toy_yaw=toy_yaw_of(final_orn), off_table=off_table)
+        final, final_orn = p.getBasePositionAndOrientation(self.toy, physicsClientId=cid)
+        return Outcome(tuple(fired), first, (final[0] - float(start[0]), final[1] - float(start[1])), last,
+                       (float(final[0]), float(final[1])), False, final_toy_yaw=toy_yaw_of(final_orn),
+                       off_table=off_table)
+
+    def _watch_toy(self, start, rake_speed: float, fired: list, first):
+        """The toy after a control step: its fate (:func:`toy_fate`), the events latched into ``fired``
+        (unless it blew up), the first event, its place and whether it rests."""
+        p, cid, cfg = self.p, self._cid, self.cfg
+        pos = p.getBasePositionAndOrientation(self.toy, physicsClientId=cid)[0]
+        vel, avel = p.getBaseVelocity(self.toy, physicsClientId=cid)
+        fate = toy_fate(pos, vel, rake_speed, cfg)
+        if fate == "blew_up":
+            return fate, first, pos, False
+        now = toy_events(pos[0], pos[1], pos[0] - start[0], pos[1] - start[1], cfg,
+                         height=pos[2] - (cfg.table_top + cfg.toy_size / 2))
+        first = latch_events(now, fired, first, cfg.table_top + cfg.toy_size, cfg,
+                             lambda: p.getContactPoints(self.rake, self.toy, physicsClientId=cid))
+        speed = math.sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2])
+        v_rest = cfg.rest_speed
+        return fate, first, pos, speed < v_rest and math.sqrt(avel[0] ** 2 + avel[1] ** 2 + avel[2] ** 2) < 20 * v_rest
+
+    def _drive_step(self, drive: list, t: int) -> int:
+        """Control step ``t`` of the kinematic drive: the rake put at pose t-1 with the velocity that
+        carries it to pose t (``drive``: the plan's pos, orn, lin, ang, nsub as lists), then its
+        physics substeps; returns their number."""
+        p, cid = self.p, self._cid
+        pos_l, orn_l, lin_l, ang_l, nsub_l = drive
+        p.resetBasePositionAndOrientation(self.rake, pos_l[t - 1], orn_l[t - 1], physicsClientId=cid)
+        p.resetBaseVelocity(self.rake, lin_l[t], ang_l[t], physicsClientId=cid)
+        n = nsub_l[t]
+        self._set_physics_step(n)
+        for _ in range(n):
+            p.stepSimulation(physicsClientId=cid)
+        return n
+
+    def _start(self, plan: dict, posture: int) -> tuple[tuple, float, np.ndarray]:
+        """The scene reset at ``posture``: the toy's settled place and heading, and the rake's
+        distance to it per control step (the plan's own when the toy settled at its start)."""
+        self.reset(posture)
+        start_pos, start_orn = self.p.getBasePositionAndOrientation(self.toy, physicsClientId=self._cid)
+        start, start_yaw = (start_pos[0], start_pos[1]), toy_yaw_of(start_orn)
+        if math.hypot(start[0] - self.cfg.toy_xy[0], start[1] - self.cfg.toy_xy[1]) < 1e-4:
+            start = tuple(self.cfg.toy_xy)  # settled at its start (gaps to it are already known)
+        if start == tuple(self.cfg.toy_xy) and "gaps0" in plan:
+            return start, start_yaw, plan["gaps0"].copy()
+        return start, start_yaw, self._gaps(plan["pts"], start, plan["sweep"])
 
     # ------------------------------------------------------------------ camera
     def camera(self) -> tuple[list[float], list[float], list[float]]:
