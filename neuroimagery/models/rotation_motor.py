@@ -26,6 +26,7 @@ SS competition cycles over the rotation steps + PMC_2 cycles (1 cycle = 1 ms).
 from __future__ import annotations
 
 from dataclasses import dataclass, field as dc_field
+from types import SimpleNamespace
 
 import torch
 from torch import nn
@@ -41,6 +42,10 @@ from .params import FieldParams, SomParams
 
 ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]
 CHECKPOINT_FORMAT = "neuroimagery.exp2.factors/1"  # the compact checkpoint of MotorRotationModel.compact_state
+SS_ROWS, SS_COLS = 31, 100  # the SS (and PMC_1) grid: rows = the held object, columns = wrist angle -90..90 deg
+OBJECT_B_ROW = 15  # SS rows from this one on are object B's band
+ROTATED_WITHIN_DEG = 15.0  # a rotation reached the desired posture when it ends within this (deg)
+PEAK_FLOOR = 1e-9  # smallest peak an activity is divided by when scaled to a peak of 1
 
 
 @dataclass
@@ -287,84 +292,111 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         """
         e = self.e
         P, B, _ = pp0.shape
-        ang = torch.tensor(ANGLES)
-        col_angle = self.ss.coords[:100, 1]
         gens = participant_generators(self.seed, P, stream=10)
-        # desired posture: C1 pre-activation + C6 bias, strongest column wins
-        pm = distinct_rows(self.c1.net, pp0) + distinct_rows(self.c6.net, pfc1)
-        desired = col_angle[pm.reshape(P, B, 31, 100).amax(-2).argmax(-1)]
-        desired = ang[(desired.unsqueeze(-1) - ang).abs().argmin(-1)]
-        # current posture of the seen object: C2 read backwards (image -> posture)
-        s0 = distinct_rows(self.c2.net_reverse, pp0).reshape(P, B, 31, 100)
-        col = s0.amax(-2).argmax(-1)
-        row = s0.gather(-1, col[..., None, None].expand(P, B, 31, 1)).squeeze(-1).argmax(-1)
-        obj = (row >= 15).long()
-        cur = ang[(col_angle[col].unsqueeze(-1) - ang).abs().argmin(-1)]
-        ss_set, table, motor, image = self._lookups()
-        des_i = (desired.unsqueeze(-1) - ang).abs().argmin(-1)
-        ss_i = obj * 7 + (cur.unsqueeze(-1) - ang).abs().argmin(-1)
-        ss = ss_set[ss_i]
-        wrist = (cur.unsqueeze(-1) - ang).abs().argmin(-1)  # the actual wrist starts at the seen posture
-        pp = pp0.clone()
-        steps = torch.zeros(P, B, dtype=torch.long)
-        rt = torch.zeros(P, B, dtype=torch.long)
-        live = torch.ones(P, B, dtype=torch.bool)
-        stopped = torch.zeros(P, B, dtype=torch.bool)
+        st = self._trial_start(pp0, pfc1)
         frames = [[] for _ in range(record)]
-        for cycle in range(e.max_cycles):
-            bmu = table(ss_i, des_i)  # (P, B) M1_1 winner
-            a9, pred = motor(bmu)
+        for _ in range(e.max_cycles):
+            bmu = st.table(st.ss_i, st.des_i)  # (P, B) M1_1 winner
+            a9, pred = st.motor(bmu)
             a = a9.reshape(P, B, 10, 3, 10).sum((-3, -1)).argmax(-1)  # 0 N1, 1 N2, 2 N3
-            stopped |= live & (a == 1)
-            live = live & (a != 1)
-            if not live.any():
+            st.stopped |= st.live & (a == 1)
+            st.live = st.live & (a != 1)
+            if not st.live.any():
                 break
-            pred = pred / pred.amax(-1, keepdim=True).clamp_min(1e-9)
-            grid = pred.reshape(P, B, 31, 100)
-            prof = grid.amax(-2)
-            u0 = None
-            if condition != "none":
-                if condition == "match":  # the wrist executes the M1_2 command (N1 -1, N2 0, N3 +1 posture)
-                    wrist = torch.where(live, (wrist + a - 1).clamp(0, 6), wrist)
-                    felt = ang[wrist]
-                else:
-                    felt = ang[torch.stack([torch.randint(7, (B,), generator=g_) for g_ in gens])]
-                felt_i = obj * 7 + (felt.unsqueeze(-1) - ang).abs().argmin(-1)  # one of the 14 trained postures
-                pro = e.proprio_gain * ss_set[:14].reshape(14, 31, 100).amax(-2)[felt_i]
-                prof = prof + pro
-                u0 = e.field.h + e.field.gain * pro  # proprioception pre-activates SS
-            d = self.ss_field(e.field.gain * prof, max_cycles=e.field.max_cycles, u0=u0)
-            col = torch.where(d.decided, d.winner, prof.argmax(-1))
-            row = grid.gather(-1, col[..., None, None].expand(P, B, 31, 1)).squeeze(-1).argmax(-1)
-            new_obj = (row >= 15).long()
-            new_i = 14 + new_obj * 100 + col
-            (img,) = image(new_i)
-            img = (img / img.amax(-1, keepdim=True).clamp_min(1e-9) >= e.image_threshold).float()
-            rt += torch.where(live, d.cycles, torch.zeros_like(d.cycles))
-            ss_i = torch.where(live, new_i, ss_i)
-            ss = ss_set[ss_i]
-            obj = torch.where(live, new_obj, obj)
-            pp = torch.where(live.unsqueeze(-1), img, pp)
-            steps += live.long()
+            self._rotation_step(st, a, pred, condition, gens)
             if record:
-                m = self.som_bump(self.m11, bmu=bmu[:1, :record])
-                for k in range(record):
-                    frames[k].append({"PP": pp[0, k].reshape(32, 32).clone(), "SS": ss[0, k].reshape(31, 100).clone(),
-                                      "M1_1": m[0, k].reshape(64, 64).clone()})
-        final = col_angle[ss.reshape(P, B, 31, 100).amax(-2).argmax(-1)]
-        ok = stopped & ((final - desired).abs() < 15.0)
-        act = self.som_bump(self.pfc2, bmu=distinct_rows(lambda x: self.pfc2.bmu(x), torch.cat([pp, pfc1], -1)))
-        s = self.c5.net(act)
-        s = s / s.amax(-1, keepdim=True).clamp_min(1e-9)
-        d = self.answer_field(e.field.gain * self.pmc2.unflat(s), max_cycles=e.field.max_cycles)
-        win = torch.where(d.decided, d.winner, s.argmax(-1))
-        yes = (win % 20) < 10
-        rt += d.cycles
+                self._record_step(frames, st, bmu)
+        col_angle = self.ss.coords[:SS_COLS, 1]
+        final = col_angle[st.ss.reshape(P, B, SS_ROWS, SS_COLS).amax(-2).argmax(-1)]
+        ok = st.stopped & ((final - st.desired).abs() < ROTATED_WITHIN_DEG)
+        act, d, yes = self._answer(st.pp, pfc1)
+        st.rt += d.cycles
         for k in range(record):
-            frames[k].append({"PP": pp[0, k].reshape(32, 32), "PFC_1": pfc1[0, k].reshape(32, 32),
+            frames[k].append({"PP": st.pp[0, k].reshape(32, 32), "PFC_1": pfc1[0, k].reshape(32, 32),
                               "PFC_2": act[0, k].reshape(64, 64), "PMC_2": d.state[0, k].reshape(10, 20)})
-        return {"steps": steps, "rotated_ok": ok, "final_angle": final, "stopped": stopped, "yes": yes, "rt": rt,
-                "frames": frames}
+        return {"steps": st.steps, "rotated_ok": ok, "final_angle": final, "stopped": st.stopped, "yes": yes,
+                "rt": st.rt, "frames": frames}
+
+    def _trial_start(self, pp0, pfc1) -> SimpleNamespace:
+        """The state of a trial before the first rotation step: the desired posture (C1
+        pre-activation + C6 bias, strongest column wins), the seen object and its posture (C2 read
+        backwards, image -> posture; the actual wrist starts there), the SS code, the counters, and
+        the trial's lookups (:meth:`_lookups`)."""
+        P, B, _ = pp0.shape
+        ang = torch.tensor(ANGLES)
+        col_angle = self.ss.coords[:SS_COLS, 1]
+        pm = distinct_rows(self.c1.net, pp0) + distinct_rows(self.c6.net, pfc1)
+        desired = col_angle[pm.reshape(P, B, SS_ROWS, SS_COLS).amax(-2).argmax(-1)]
+        desired = ang[_nearest_posture(desired)]
+        s0 = distinct_rows(self.c2.net_reverse, pp0).reshape(P, B, SS_ROWS, SS_COLS)
+        col = s0.amax(-2).argmax(-1)
+        row = s0.gather(-1, col[..., None, None].expand(P, B, SS_ROWS, 1)).squeeze(-1).argmax(-1)
+        obj = (row >= OBJECT_B_ROW).long()
+        cur = ang[_nearest_posture(col_angle[col])]
+        ss_set, table, motor, image = self._lookups()
+        ss_i = obj * 7 + _nearest_posture(cur)
+        return SimpleNamespace(
+            desired=desired, des_i=_nearest_posture(desired), obj=obj, ss_i=ss_i, ss=ss_set[ss_i], wrist=_nearest_posture(cur),
+            pp=pp0.clone(), steps=torch.zeros(P, B, dtype=torch.long), rt=torch.zeros(P, B, dtype=torch.long),
+            live=torch.ones(P, B, dtype=torch.bool), stopped=torch.zeros(P, B, dtype=torch.bool),
+            ss_set=ss_set, table=table, motor=motor, image=image)
+
+    def _rotation_step(self, st: SimpleNamespace, a, pred, condition: str, gens) -> None:
+        """One rotation step of the live trials, in place on ``st``: the SS competition over the
+        forward prediction ``pred`` (and the felt posture), the image of its winner (C2)."""
+        e = self.e
+        P, B = a.shape
+        grid = _peak_normalised(pred).reshape(P, B, SS_ROWS, SS_COLS)
+        prof = grid.amax(-2)
+        u0 = None
+        if condition != "none":
+            pro = self._felt_posture(st, a, condition, gens)
+            prof = prof + pro
+            u0 = e.field.h + e.field.gain * pro  # proprioception pre-activates SS
+        d = self.ss_field(e.field.gain * prof, max_cycles=e.field.max_cycles, u0=u0)
+        col = torch.where(d.decided, d.winner, prof.argmax(-1))
+        row = grid.gather(-1, col[..., None, None].expand(P, B, SS_ROWS, 1)).squeeze(-1).argmax(-1)
+        new_obj = (row >= OBJECT_B_ROW).long()
+        new_i = 14 + new_obj * SS_COLS + col
+        (img,) = st.image(new_i)
+        img = (_peak_normalised(img) >= e.image_threshold).float()
+        live = st.live
+        st.rt += torch.where(live, d.cycles, torch.zeros_like(d.cycles))
+        st.ss_i = torch.where(live, new_i, st.ss_i)
+        st.ss = st.ss_set[st.ss_i]
+        st.obj = torch.where(live, new_obj, st.obj)
+        st.pp = torch.where(live.unsqueeze(-1), img, st.pp)
+        st.steps += live.long()
+
+    def _felt_posture(self, st: SimpleNamespace, a, condition: str, gens) -> torch.Tensor:
+        """The proprioceptive input to SS ``(P, B, 100)``: the actual wrist, which executes the M1_2
+        command ``a`` (``match``), or a random posture from each participant's generator
+        (``mismatch``), as the trained posture code at ``proprio_gain``."""
+        ang = torch.tensor(ANGLES)
+        if condition == "match":  # the wrist executes the M1_2 command (N1 -1, N2 0, N3 +1 posture)
+            st.wrist = torch.where(st.live, (st.wrist + a - 1).clamp(0, 6), st.wrist)
+            felt = ang[st.wrist]
+        else:
+            felt = ang[torch.stack([torch.randint(7, (a.shape[1],), generator=g_) for g_ in gens])]
+        felt_i = st.obj * 7 + _nearest_posture(felt)  # one of the 14 trained postures
+        return self.e.proprio_gain * st.ss_set[:14].reshape(14, SS_ROWS, SS_COLS).amax(-2)[felt_i]
+
+    def _record_step(self, frames: list, st: SimpleNamespace, bmu) -> None:
+        """A frame per recorded trial after a rotation step: PP, SS and the M1_1 cluster."""
+        record = len(frames)
+        m = self.som_bump(self.m11, bmu=bmu[:1, :record])
+        for k in range(record):
+            frames[k].append({"PP": st.pp[0, k].reshape(32, 32).clone(), "SS": st.ss[0, k].reshape(SS_ROWS, SS_COLS).clone(),
+                              "M1_1": m[0, k].reshape(64, 64).clone()})
+
+    def _answer(self, pp, pfc1):
+        """The answer to the last image ``pp`` and the target ``pfc1``: PFC_2's cluster, C5 and the
+        PMC_2 field. Returns PFC_2's activity, the field's decision and ``yes`` ``(P, B)``."""
+        act = self.som_bump(self.pfc2, bmu=distinct_rows(lambda x: self.pfc2.bmu(x), torch.cat([pp, pfc1], -1)))
+        s = _peak_normalised(self.c5.net(act))
+        d = self.answer_field(self.e.field.gain * self.pmc2.unflat(s), max_cycles=self.e.field.max_cycles)
+        win = torch.where(d.decided, d.winner, s.argmax(-1))
+        return act, d, (win % 20) < 10
 
     def _lookups(self):
         """What a trial looks up, built once per set of trained weights (and reused by every
@@ -389,3 +421,13 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         """C9 and C10 net input of the M1_1 cluster around each winner ``bmu`` ``(P, L)``."""
         m = self.som_bump(self.m11, bmu=bmu)
         return self.c9.net(m), self.c10.net(m)
+
+
+def _peak_normalised(x: torch.Tensor) -> torch.Tensor:
+    """``x`` scaled to a peak of 1 along its last axis (a peak below ``PEAK_FLOOR`` counts as it)."""
+    return x / x.amax(-1, keepdim=True).clamp_min(PEAK_FLOOR)
+
+
+def _nearest_posture(angle: torch.Tensor) -> torch.Tensor:
+    """The index in ``ANGLES`` of the posture nearest to each ``angle`` (deg)."""
+    return (angle.unsqueeze(-1) - torch.tensor(ANGLES)).abs().argmin(-1)

@@ -17,6 +17,9 @@ from .forms import Form, register
 from .rules import Kohonen, SupervisedKohonen
 from .som import SOM, curve
 
+FOLD_BELOW = 1e-12  # a unit's scale c_k below this is folded back into its factors (dimensionless)
+ROWSUM_FLOOR = 1e-300  # smallest row sum a normalised unit is divided by (dimensionless)
+
 
 @torch.no_grad()
 def fit_factored(som, X: torch.Tensor, order: torch.Tensor, labels: torch.Tensor | None, it) -> torch.Tensor:
@@ -31,61 +34,88 @@ def fit_factored(som, X: torch.Tensor, order: torch.Tensor, labels: torch.Tensor
     units inside the neighbourhood (``a_k > 0``) are touched. Norms ``|w_k|^2`` are updated in
     closed form; a unit-sum normalisation (supervised maps) only rescales ``c_k``.
     """
-    P, N, _ = X.shape
-    p = torch.arange(P, device=X.device)
-    dt = torch.float64  # the recurrences are exact in real arithmetic; float64 keeps them so
-    W0 = som.weight
-    # pattern-major layouts, so that the column of pattern s is one contiguous row
-    G = torch.bmm(X, X.transpose(1, 2)).to(dt)  # (P, N, N)
-    Q = torch.bmm(X, W0.transpose(1, 2)).to(dt)  # (P, N, U)   Q[n, k] = W0_k . x_n (+ sum_m R_km G_mn)
-    R = X.new_zeros(P, N, som.units, dtype=dt)  # R[n, k] = R_kn
-    nrm = (W0 * W0).sum(-1).to(dt)  # (P, U)
-    c = X.new_ones(P, som.units, dtype=dt)
-    rowsum = W0.sum(-1).to(dt)
-    xsum = X.sum(-1).to(dt)  # (P, N)
-    grid = som.grid.to(dt)
-    normalise = isinstance(som.rule, SupervisedKohonen) and som.rule.normalise
+    st = _FactoredState(som, X)
+    p = st.p
     winners = torch.empty_like(order)
     t0 = int(som.steps)
     watch = curve(som, order.shape[1])
     for t in it:
         s = order[:, t]
-        Gs = G[p, s]  # (P, N)
-        Ds = c * Q[p, s]  # (P, U)  w_k . x_s
-        win = (nrm - 2 * Ds).argmin(-1) if labels is None else labels[p, s]
+        Ds = st.c * st.Q[p, s]  # (P, U)  w_k . x_s
+        win = (st.nrm - 2 * Ds).argmin(-1) if labels is None else labels[p, s]
         winners[:, t] = win
         if watch is not None:  # |w_win - x_s| from the invariants
-            watch.add(t, (nrm[p, win] - 2 * Ds[p, win] + Gs[p, s]).clamp_min(0).sqrt().mean())
-        eta, sigma = som.rule.schedule(t0 + t)
-        a = float(eta) * som.rule.neighbourhood(grid, win, sigma.to(dt))  # (P, U)
-        b = 1 - a
-        nrm = b * b * nrm + 2 * a * b * Ds + a * a * Gs[p, s].unsqueeze(-1)
-        c = b * c
-        on = (a > 0).any(0).nonzero()  # units inside any participant's neighbourhood
-        lo, hi = int(on[0]), int(on[-1]) + 1  # a contiguous span of units: updated in place as a view
-        u = a[:, lo:hi] / c[:, lo:hi]  # (P, k), zero outside the neighbourhoods
-        Q[:, :, lo:hi].baddbmm_(Gs.unsqueeze(-1), u.unsqueeze(1))
-        R[p, s, lo:hi] += u
-        if normalise:
-            rowsum = b * rowsum + a * xsum[p, s].unsqueeze(-1)
-            k = 1.0 / rowsum.clamp_min(1e-300)
-            nrm = nrm * k * k
-            c = c * k
-            rowsum = torch.ones_like(rowsum)
-        small = c < 1e-12  # fold tiny scales back in before they cost precision
-        if bool(small.any()):
-            pi, ki = small.nonzero(as_tuple=True)
-            Q[pi, :, ki] *= c[pi, ki].unsqueeze(-1)
-            R[pi, :, ki] *= c[pi, ki].unsqueeze(-1)
-            c_fold = torch.ones_like(c)
-            c_fold[pi, ki] = c[pi, ki]
-            W0 = W0 * c_fold.unsqueeze(-1).to(W0.dtype)
-            c[pi, ki] = 1.0
-    # w_k = c_k W0_k + sum_n (c_k R_kn) x_n, formed once (the scaled coefficients are O(1))
-    cR = (R * c.unsqueeze(1)).to(X.dtype)  # (P, N, U)
-    som.weight.copy_(c.unsqueeze(-1).to(W0.dtype) * W0 + torch.bmm(cR.transpose(1, 2), X))
+            watch.add(t, (st.nrm[p, win] - 2 * Ds[p, win] + st.G[p, s, s]).clamp_min(0).sqrt().mean())
+        st.step(s, win, Ds, t0 + t)
+    st.form(som.weight)
     som.steps += order.shape[1]
     return winners
+
+
+class _FactoredState:
+    """The factors of :func:`fit_factored` (pattern-major ``G``, ``Q``, ``R``; per unit ``c``, the
+    norms and, for a normalised map, the row sums) over patterns ``X`` ``(P, N, in)``, in float64:
+    the recurrences are exact in real arithmetic; float64 keeps them so."""
+
+    def __init__(self, som, X: torch.Tensor):
+        P, N, _ = X.shape
+        dt = torch.float64
+        self.X, self.p = X, torch.arange(P, device=X.device)
+        self.rule = som.rule
+        self.W0 = W0 = som.weight
+        # pattern-major layouts, so that the column of pattern s is one contiguous row
+        self.G = torch.bmm(X, X.transpose(1, 2)).to(dt)  # (P, N, N)
+        self.Q = torch.bmm(X, W0.transpose(1, 2)).to(dt)  # (P, N, U)   Q[n, k] = W0_k . x_n (+ sum_m R_km G_mn)
+        self.R = X.new_zeros(P, N, som.units, dtype=dt)  # R[n, k] = R_kn
+        self.nrm = (W0 * W0).sum(-1).to(dt)  # (P, U)
+        self.c = X.new_ones(P, som.units, dtype=dt)
+        self.rowsum = W0.sum(-1).to(dt)
+        self.xsum = X.sum(-1).to(dt)  # (P, N)
+        self.grid = som.grid.to(dt)
+        self.normalise = isinstance(som.rule, SupervisedKohonen) and som.rule.normalise
+
+    def step(self, s, win, Ds, t: int) -> None:
+        """Step ``t`` of the schedule toward patterns ``s`` ``(P,)`` around ``win``; ``Ds`` the dot
+        products ``w_k . x_s``."""
+        p = self.p
+        Gs = self.G[p, s]  # (P, N)
+        eta, sigma = self.rule.schedule(t)
+        a = float(eta) * self.rule.neighbourhood(self.grid, win, sigma.to(torch.float64))  # (P, U)
+        b = 1 - a
+        self.nrm = b * b * self.nrm + 2 * a * b * Ds + a * a * Gs[p, s].unsqueeze(-1)
+        self.c = b * self.c
+        on = (a > 0).any(0).nonzero()  # units inside any participant's neighbourhood
+        lo, hi = int(on[0]), int(on[-1]) + 1  # a contiguous span of units: updated in place as a view
+        u = a[:, lo:hi] / self.c[:, lo:hi]  # (P, k), zero outside the neighbourhoods
+        self.Q[:, :, lo:hi].baddbmm_(Gs.unsqueeze(-1), u.unsqueeze(1))
+        self.R[p, s, lo:hi] += u
+        if self.normalise:
+            self.rowsum = b * self.rowsum + a * self.xsum[p, s].unsqueeze(-1)
+            k = 1.0 / self.rowsum.clamp_min(ROWSUM_FLOOR)
+            self.nrm = self.nrm * k * k
+            self.c = self.c * k
+            self.rowsum = torch.ones_like(self.rowsum)
+        self._fold_small()
+
+    def _fold_small(self) -> None:
+        """Fold scales ``c_k`` below ``FOLD_BELOW`` back into ``W0``, ``Q`` and ``R`` before they cost precision."""
+        c = self.c
+        small = c < FOLD_BELOW
+        if bool(small.any()):
+            pi, ki = small.nonzero(as_tuple=True)
+            self.Q[pi, :, ki] *= c[pi, ki].unsqueeze(-1)
+            self.R[pi, :, ki] *= c[pi, ki].unsqueeze(-1)
+            c_fold = torch.ones_like(c)
+            c_fold[pi, ki] = c[pi, ki]
+            self.W0 = self.W0 * c_fold.unsqueeze(-1).to(self.W0.dtype)
+            c[pi, ki] = 1.0
+
+    def form(self, weight: torch.Tensor) -> None:
+        """``w_k = c_k W0_k + sum_n (c_k R_kn) x_n`` into ``weight``, formed once (the scaled
+        coefficients are O(1))."""
+        c, W0, X = self.c, self.W0, self.X
+        cR = (self.R * c.unsqueeze(1)).to(X.dtype)  # (P, N, U)
+        weight.copy_(c.unsqueeze(-1).to(W0.dtype) * W0 + torch.bmm(cR.transpose(1, 2), X))
 
 
 def rates_below_one(som) -> bool:

@@ -41,6 +41,8 @@ from .rules import Kohonen, Rule, SupervisedKohonen
 from .som import SOM, curve, fit_plain
 
 CHUNK = 32  # presentations per refresh of the dot products and norms
+ROWSUM_FLOOR = 1e-12  # smallest row sum a normalised unit is divided by (dimensionless)
+F64 = torch.float64  # the precision of the maintained dot products and norms
 
 
 def supports(rule) -> bool:
@@ -80,87 +82,117 @@ def fit_online(som, X: torch.Tensor, order: torch.Tensor, labels: torch.Tensor |
     as it happens (one ``lerp_``); ``fold=True`` applies the ``chunk`` updates of a chunk at its
     end as their exact composition. Returns the winners ``(P, T)`` and advances ``som.steps``.
     """
-    rule = som.rule
     if truncate is not None and not truncate > 0:
         raise ValueError(f"truncate must be > 0 grid sigmas, got {truncate}")
     if int(chunk) < 1:
         raise ValueError(f"chunk must be >= 1, got {chunk}")
-    chunk = int(chunk)
-    W = som.weight
-    P, U, n = W.shape
-    T = order.shape[1]
-    dev, dt = W.device, W.dtype
-    f64 = torch.float64
-    p = torch.arange(P, device=dev)
-    t0 = int(som.steps)
-    eta_all, sigma_all = rule.schedule(torch.arange(t0, t0 + T, device=dev))
-    eta_all, sigma_all = eta_all.to(dt), sigma_all.to(dt)
-    axes = [torch.arange(s, dtype=dt, device=dev) for s in som.shape]
-    normalise = isinstance(rule, SupervisedKohonen) and rule.normalise
-    cutoff = float(rule.cutoff)
-    winners = torch.empty_like(order)
-    steps = range(T) if steps is None else steps
-    watch = curve(som, T)
-    if fold:
-        Hs = torch.zeros(P, chunk, U, dtype=f64, device=dev)  # per step: rate toward x_t ...
-        Bs = torch.ones(P, chunk, U, dtype=f64, device=dev)  # ... and factor on the weights
-    span = [U, 0]  # units touched in the current chunk
-    for t in steps:
-        i = t % chunk
-        if i == 0:  # refresh: dot products with the chunk's patterns, norms (and row sums)
-            idx = order[:, t:t + chunk]
-            Xc = X[p.unsqueeze(-1), idx]  # (P, K, in)
-            D = torch.bmm(Xc, W.transpose(1, 2)).to(f64)  # (P, K, U)  w_k . x_j, pattern-major
-            nrm = torch.linalg.vector_norm(W, dim=-1).to(f64).square_()  # (P, U)
-            Xd = Xc.to(f64)
-            G = torch.bmm(Xd, Xd.transpose(1, 2))  # (P, K, K)
-            if normalise:
-                rowsum = W.sum(-1).to(f64)
-                xsum = Xd.sum(-1)  # (P, K)
-            span = [U, 0]
-        dots = D[:, i]  # (P, U)
-        xx = G[:, i, i].unsqueeze(-1)
-        if labels is None:
-            win = (nrm - 2 * dots + xx).clamp_min_(0).argmin(-1)
-        else:
-            win = labels[p, order[:, t]]
-        winners[:, t] = win
-        if watch is not None:  # the training curve: |w_win - x_t| before the step
-            watch.add(t, (nrm - 2 * dots + xx).gather(-1, win.unsqueeze(-1)).clamp_min(0).sqrt().mean())
-        theta = _axis_gaussians(som.shape, win, sigma_all[t], axes, truncate)
-        if cutoff > 0:
-            theta = torch.where(theta < cutoff, torch.zeros_like(theta), theta)
-        h = eta_all[t] * theta  # (P, U), the rate applied to the weights
-        if normalise:  # the rule rescales every unit, moved or not
-            lo, hi = 0, U
+    run = _OnlineRun(som, X, order, labels, truncate, int(chunk), fold)
+    for t in range(run.T) if steps is None else steps:
+        run.step(t)
+    som.steps += run.T
+    return run.winners
+
+
+class _OnlineRun:
+    """The state of one :func:`fit_online` call: the schedule, the chunk's maintained dot products
+    ``D`` ``(P, chunk, U)``, norms, pattern Gram matrix ``G`` (and row sums of a normalised map),
+    and with ``fold`` the chunk's pending updates ``Hs``, ``Bs`` over the units ``span``."""
+
+    def __init__(self, som, X, order, labels, truncate, chunk: int, fold: bool):
+        rule, W = som.rule, som.weight
+        P, U, _ = W.shape
+        self.T = order.shape[1]
+        dev, dt = W.device, W.dtype
+        self.som, self.W, self.U, self.X, self.order, self.labels = som, W, U, X, order, labels
+        self.truncate, self.chunk, self.fold = truncate, chunk, fold
+        self.p = torch.arange(P, device=dev)
+        t0 = int(som.steps)
+        eta_all, sigma_all = rule.schedule(torch.arange(t0, t0 + self.T, device=dev))
+        self.eta_all, self.sigma_all = eta_all.to(dt), sigma_all.to(dt)
+        self.axes = [torch.arange(s, dtype=dt, device=dev) for s in som.shape]
+        self.normalise = isinstance(rule, SupervisedKohonen) and rule.normalise
+        self.cutoff = float(rule.cutoff)
+        self.winners = torch.empty_like(order)
+        self.watch = curve(som, self.T)
+        if fold:
+            self.Hs = torch.zeros(P, chunk, U, dtype=F64, device=dev)  # per step: rate toward x_t ...
+            self.Bs = torch.ones(P, chunk, U, dtype=F64, device=dev)  # ... and factor on the weights
+        self.span = [U, 0]  # units touched in the current chunk
+
+    def step(self, t: int) -> None:
+        """Presentation ``t``: its winner, the rates, the update of the moving units."""
+        i = t % self.chunk
+        if i == 0:
+            self._refresh(t)
+        dots = self.D[:, i]  # (P, U)
+        xx = self.G[:, i, i].unsqueeze(-1)
+        win = self._winner(t, dots, xx)
+        h = self._rates(t, win)
+        if self.normalise:  # the rule rescales every unit, moved or not
+            lo, hi = 0, self.U
         else:
             on = (h > 0).any(0).nonzero()
             lo, hi = (int(on[0]), int(on[-1]) + 1) if on.numel() else (0, 0)  # (0, 0): nothing moves
         if hi > lo:
-            span[0], span[1] = min(span[0], lo), max(span[1], hi)
-            hs = h[:, lo:hi]
-            a = hs.to(f64)
-            b = 1 - a
-            nrm[:, lo:hi] = b * b * nrm[:, lo:hi] + 2 * a * b * dots[:, lo:hi] + a * a * xx
-            rest = D[:, i + 1:, lo:hi]  # the chunk's later patterns
-            rest.mul_(b.unsqueeze(1)).addcmul_(G[:, i, i + 1:].unsqueeze(-1), a.unsqueeze(1))
-            if normalise:
-                k = 1.0 / (b * rowsum + a * xsum[:, i].unsqueeze(-1)).clamp_min_(1e-12)
-                nrm.mul_(k * k)
-                rest.mul_(k.unsqueeze(1))
-                rowsum.fill_(1.0)
-                a, b = a * k, b * k
-            if fold:
-                Hs[:, i, lo:hi] = a
-                Bs[:, i, lo:hi] = b
-            else:
-                W[:, lo:hi].lerp_(Xc[:, i].unsqueeze(1), hs.unsqueeze(-1))
-                if normalise:
-                    W.mul_(k.to(dt).unsqueeze(-1))
-        if fold and (i == chunk - 1 or t == T - 1):
-            _fold(W, Hs, Bs, Xc, i + 1, span)
-    som.steps += T
-    return winners
+            self._update(i, h, lo, hi, dots, xx)
+        if self.fold and (i == self.chunk - 1 or t == self.T - 1):
+            _fold(self.W, self.Hs, self.Bs, self.Xc, i + 1, self.span)
+
+    def _refresh(self, t: int) -> None:
+        """At a chunk's start: dot products with the chunk's patterns, norms (and row sums)."""
+        W = self.W
+        idx = self.order[:, t:t + self.chunk]
+        self.Xc = self.X[self.p.unsqueeze(-1), idx]  # (P, K, in)
+        self.D = torch.bmm(self.Xc, W.transpose(1, 2)).to(F64)  # (P, K, U)  w_k . x_j, pattern-major
+        self.nrm = torch.linalg.vector_norm(W, dim=-1).to(F64).square_()  # (P, U)
+        Xd = self.Xc.to(F64)
+        self.G = torch.bmm(Xd, Xd.transpose(1, 2))  # (P, K, K)
+        if self.normalise:
+            self.rowsum = W.sum(-1).to(F64)
+            self.xsum = Xd.sum(-1)  # (P, K)
+        self.span = [self.U, 0]
+
+    def _winner(self, t: int, dots, xx) -> torch.Tensor:
+        """The winner of presentation ``t`` (nearest unit, or the label), recorded with the curve."""
+        if self.labels is None:
+            win = (self.nrm - 2 * dots + xx).clamp_min_(0).argmin(-1)
+        else:
+            win = self.labels[self.p, self.order[:, t]]
+        self.winners[:, t] = win
+        if self.watch is not None:  # the training curve: |w_win - x_t| before the step
+            self.watch.add(t, (self.nrm - 2 * dots + xx).gather(-1, win.unsqueeze(-1)).clamp_min(0).sqrt().mean())
+        return win
+
+    def _rates(self, t: int, win) -> torch.Tensor:
+        """``h`` ``(P, U)``: the rate of every unit toward pattern ``t`` (the cut neighbourhood)."""
+        theta = _axis_gaussians(self.som.shape, win, self.sigma_all[t], self.axes, self.truncate)
+        if self.cutoff > 0:
+            theta = torch.where(theta < self.cutoff, torch.zeros_like(theta), theta)
+        return self.eta_all[t] * theta
+
+    def _update(self, i: int, h, lo: int, hi: int, dots, xx) -> None:
+        """Step ``i`` of the chunk on units ``lo:hi``: norms and later dot products in closed form,
+        the weights now (``fold=False``) or the pending update recorded."""
+        self.span[0], self.span[1] = min(self.span[0], lo), max(self.span[1], hi)
+        nrm, hs = self.nrm, h[:, lo:hi]
+        a = hs.to(F64)
+        b = 1 - a
+        nrm[:, lo:hi] = b * b * nrm[:, lo:hi] + 2 * a * b * dots[:, lo:hi] + a * a * xx
+        rest = self.D[:, i + 1:, lo:hi]  # the chunk's later patterns
+        rest.mul_(b.unsqueeze(1)).addcmul_(self.G[:, i, i + 1:].unsqueeze(-1), a.unsqueeze(1))
+        if self.normalise:
+            k = 1.0 / (b * self.rowsum + a * self.xsum[:, i].unsqueeze(-1)).clamp_min_(ROWSUM_FLOOR)
+            nrm.mul_(k * k)
+            rest.mul_(k.unsqueeze(1))
+            self.rowsum.fill_(1.0)
+            a, b = a * k, b * k
+        if self.fold:
+            self.Hs[:, i, lo:hi] = a
+            self.Bs[:, i, lo:hi] = b
+        else:
+            self.W[:, lo:hi].lerp_(self.Xc[:, i].unsqueeze(1), hs.unsqueeze(-1))
+            if self.normalise:
+                self.W.mul_(k.to(self.W.dtype).unsqueeze(-1))
 
 
 def _fold(W, Hs, Bs, Xc, K, span) -> None:

@@ -52,6 +52,23 @@ def fit_windowed(som, patterns: torch.Tensor, order: torch.Tensor, parts: Sequen
     return fit_windowed_many([(som, patterns, order, parts)])[0]
 
 
+def _schedule_key(m) -> tuple:
+    """What maps must share to train in one loop: grid, schedule, cutoff, steps so far, rule."""
+    r = m.rule
+    return (m.shape, r.eta0, r.eta1, r.sigma0, r.sigma1, r.iterations, r.cutoff, int(m.steps), type(r))
+
+
+def _check_trainable(soms) -> None:
+    """Refuse a map the windowed trainer cannot train (supervised, not 2-D, a rate of 1, off the CPU)."""
+    for m in soms:
+        if m.supervised or len(m.shape) != 2:
+            raise ValueError("som_fit_windowed trains unsupervised 2-D maps")
+        if max(m.rule.eta0, m.rule.eta1) >= 1:
+            raise ValueError("som_fit_windowed needs learning rates below 1")
+        if m.weight.device.type != "cpu":
+            raise ValueError(f"som_fit_windowed trains on the CPU; SOM {m.name!r} has its weights on {m.weight.device}")
+
+
 @torch.no_grad()
 def fit_windowed_many(jobs) -> list[torch.Tensor]:
     """:func:`fit_windowed` for several maps at once: ``jobs`` is a list of
@@ -61,27 +78,36 @@ def fit_windowed_many(jobs) -> list[torch.Tensor]:
     gather), so each map gets the winners and weights it would get alone. Returns the winners."""
     soms = [j[0] for j in jobs]
     s0 = soms[0]
-    sched = lambda m: (m.shape, m.rule.eta0, m.rule.eta1, m.rule.sigma0, m.rule.sigma1, m.rule.iterations,  # noqa: E731
-                       m.rule.cutoff, int(m.steps), type(m.rule))
-    for m in soms:
-        if m.supervised or len(m.shape) != 2:
-            raise ValueError("som_fit_windowed trains unsupervised 2-D maps")
-        if max(m.rule.eta0, m.rule.eta1) >= 1:
-            raise ValueError("som_fit_windowed needs learning rates below 1")
-        if m.weight.device.type != "cpu":
-            raise ValueError(f"som_fit_windowed trains on the CPU; SOM {m.name!r} has its weights on {m.weight.device}")
+    _check_trainable(soms)
     orders = [torch.as_tensor(j[2], dtype=torch.long) for j in jobs]
-    if any(sched(m) != sched(s0) for m in soms) or len({o.shape[1] for o in orders}) > 1:
+    if any(_schedule_key(m) != _schedule_key(s0) for m in soms) or len({o.shape[1] for o in orders}) > 1:
         return [fit_windowed(*j) for j in jobs]
-    rule = s0.rule
-    U = s0.units
     rows, cols = s0.shape
-    dt = torch.float64
-    # per job: patterns (P_j, N_j, in_j) in float64 and the weights' precision, distinct pieces
-    Xs, X32s, piece_ofs, pieces_all, Ks = [], [], [], [], []
-    for (som, patterns, _, parts) in jobs:
+    pieces = [_Pieces(som, patterns, parts) for (som, patterns, _, parts) in jobs]
+    V, G, nrm, gdiag, piece_of = _dot_tables(soms, pieces)
+    P, U1 = nrm.shape
+    c = torch.ones(P, U1, dtype=V.dtype)
+    f = torch.ones(P, U1, dtype=V.dtype)
+    R = torch.zeros(P, U1, G.shape[1], dtype=V.dtype)
+    offs, d2_offs = _grid_offsets(rows, cols)
+    order = torch.cat(orders)
+    winners = torch.empty_like(order)
+    from . import som_windowed_kernel as kernel
+
+    steps = kernel.run if kernel.available() else _steps_torch
+    steps(s0.rule, int(s0.steps), V, nrm, c, f, R, G, gdiag, piece_of, order, winners, offs, d2_offs, rows, cols)
+    return _form_weights(jobs, pieces, c, f, R, order.shape[1], winners)
+
+
+class _Pieces:
+    """One job's patterns ``(P_j, N_j, in_j)`` in float64 (``X``) and in the weights' precision
+    (``X32``), each participant's distinct pieces per segment (``pieces[p]``: ``(segment slice,
+    distinct rows)``), the piece of each pattern per segment (``piece_of`` ``(P_j, N_j, segments)``,
+    numbered across segments) and the largest number of pieces of a participant (``K``)."""
+
+    def __init__(self, som, patterns: torch.Tensor, parts):
         P_j = som.participants
-        X = patterns.to(dt)
+        X = patterns.to(torch.float64)
         X = X.unsqueeze(0).expand(P_j, -1, -1) if X.dim() == 2 else X
         n_in = X.shape[2]
         widths = [n_in] if parts is None else [int(w) for w in parts]
@@ -89,7 +115,8 @@ def fit_windowed_many(jobs) -> list[torch.Tensor]:
             raise ValueError(f"parts must be positive widths summing to the input size {n_in}, got {parts}")
         X32 = X.to(som.weight.dtype)
         bounds = np.cumsum([0] + widths)
-        pcs, po_all, K = [], [], 0
+        self.X, self.X32, self.pieces, self.K = X, X32, [], 0
+        of_all = []
         for p in range(P_j):
             pp, po, k0 = [], [], 0
             for b in range(len(widths)):
@@ -98,70 +125,76 @@ def fit_windowed_many(jobs) -> list[torch.Tensor]:
                 pp.append((seg, u))
                 po.append(inv + k0)
                 k0 += u.shape[0]
-            pcs.append(pp)
-            po_all.append(torch.stack(po, -1))
-            K = max(K, k0)
-        Xs.append(X)
-        X32s.append(X32)
-        pieces_all.append(pcs)
-        piece_ofs.append(torch.stack(po_all))
-        Ks.append(K)
+            self.pieces.append(pp)
+            of_all.append(torch.stack(po, -1))
+            self.K = max(self.K, k0)
+        self.piece_of = torch.stack(of_all)
+
+
+def _dot_tables(soms, pieces: list[_Pieces]):
+    """The step loop's float64 tables over all participants stacked: ``V[p, j, k] = w_k . piece_j
+    / c_k`` (piece-major; one padding unit, index U, absorbs the window cells that fall off the
+    map), ``G[p, n, j] = x_n . piece_j`` on piece j's segment, the norms ``|w_k|^2``, ``gdiag =
+    |x_n|^2`` and ``piece_of`` ``(P, N, segments)``. Returns ``V, G, nrm, gdiag, piece_of``."""
+    dt = torch.float64
+    U = soms[0].units
     P = sum(m.participants for m in soms)
-    N = max(X.shape[1] for X in Xs)
-    K = max(Ks)
-    S = max(po.shape[-1] for po in piece_ofs)
-    # V[p, j, k] = w_k . piece_j / c_k (piece-major; one padding unit, index U, absorbs the window
-    # cells that fall off the map); G[p, n, j] = x_n . piece_j on piece j's segment; gdiag = |x_n|^2
+    N = max(pc.X.shape[1] for pc in pieces)
+    K = max(pc.K for pc in pieces)
+    S = max(pc.piece_of.shape[-1] for pc in pieces)
     V = torch.zeros(P, K, U + 1, dtype=dt)
     G = torch.zeros(P, N, K, dtype=dt)
     nrm = torch.zeros(P, U + 1, dtype=dt)
     gdiag = torch.zeros(P, N, dtype=dt)
     piece_of = torch.zeros(P, N, S, dtype=torch.long)
-    order = torch.cat(orders)
     i = 0
-    for som, X, pcs, po in zip(soms, Xs, pieces_all, piece_ofs):
-        W0 = som.weight
+    for som, pc in zip(soms, pieces):
+        W0, X, n = som.weight, pc.X, pc.X.shape[1]
         for p in range(som.participants):  # one participant at a time, in the weights' precision (as the online rule)
             k0 = 0
-            for seg, u in pcs[p]:
+            for seg, u in pc.pieces[p]:
                 kb = u.shape[0]
                 V[i, k0:k0 + kb, :U] = (u @ W0[p, :, seg].T).to(dt)
-                G[i, : X.shape[1], k0:k0 + kb] = X[p, :, seg] @ u.to(dt).T
+                G[i, :n, k0:k0 + kb] = X[p, :, seg] @ u.to(dt).T
                 k0 += kb
             nrm[i, :U] = squared_norms(W0[p]).to(dt)
-            gdiag[i, : X.shape[1]] = (X[p] @ X[p].T).diagonal()
-            piece_of[i, : X.shape[1], : po.shape[-1]] = po[p]
+            gdiag[i, :n] = (X[p] @ X[p].T).diagonal()
+            piece_of[i, :n, : pc.piece_of.shape[-1]] = pc.piece_of[p]
             i += 1
-    if any(po.shape[-1] < S for po in piece_ofs):  # a job with fewer segments reads a piece column that stays zero
+    if any(pc.piece_of.shape[-1] < S for pc in pieces):  # a job with fewer segments reads a piece column that stays zero
         V = torch.cat([V, torch.zeros(P, 1, U + 1, dtype=dt)], 1)
         G = torch.cat([G, torch.zeros(P, N, 1, dtype=dt)], 2)
-        for j, po in enumerate(piece_ofs):
-            if po.shape[-1] < S:
-                first = sum(m.participants for m in soms[:j])
-                piece_of[first:first + po.shape[0], :, po.shape[-1]:] = K
-        K += 1
-    c = torch.ones(P, U + 1, dtype=dt)
-    f = torch.ones(P, U + 1, dtype=dt)
-    R = torch.zeros(P, U + 1, N, dtype=dt)
-    o = torch.arange(-(rows - 1), rows).unsqueeze(1), torch.arange(-(cols - 1), cols).unsqueeze(0)
-    offs = torch.stack(torch.broadcast_tensors(*o), -1).reshape(-1, 2)  # every grid offset
-    d2_offs = (offs**2).sum(-1).double()
-    offs, d2_offs = offs[d2_offs.argsort(stable=True)], d2_offs.sort(stable=True).values  # nearest first
-    winners = torch.empty_like(order)
-    from . import som_windowed_kernel as kernel
+        first = 0
+        for som, pc in zip(soms, pieces):
+            if pc.piece_of.shape[-1] < S:
+                piece_of[first:first + pc.piece_of.shape[0], :, pc.piece_of.shape[-1]:] = K
+            first += som.participants
+    return V, G, nrm, gdiag, piece_of
 
-    steps = kernel.run if kernel.available() else _steps_torch
-    steps(rule, int(s0.steps), V, nrm, c, f, R, G, gdiag, piece_of, order, winners, offs, d2_offs, rows, cols)
+
+def _grid_offsets(rows: int, cols: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Every grid offset ``(dr, dq)`` of a ``rows x cols`` map and its squared length (float64),
+    nearest first (a stable sort)."""
+    o = torch.arange(-(rows - 1), rows).unsqueeze(1), torch.arange(-(cols - 1), cols).unsqueeze(0)
+    offs = torch.stack(torch.broadcast_tensors(*o), -1).reshape(-1, 2)
+    d2_offs = (offs**2).sum(-1).double()
+    return offs[d2_offs.argsort(stable=True)], d2_offs.sort(stable=True).values
+
+
+def _form_weights(jobs, pieces: list[_Pieces], c, f, R, T: int, winners) -> list[torch.Tensor]:
+    """Each map's trained weights from the loop's ``c``, ``f``, ``R``, in place; its factors in
+    ``som.learnt_factors``; its steps advanced by ``T``. Returns each map's winners."""
     out, i = [], 0
-    for (som, patterns, _, _), X32 in zip(jobs, X32s):
-        W0, Nj = som.weight, X32.shape[1]
+    for (som, patterns, _, _), pc in zip(jobs, pieces):
+        W0, X32 = som.weight, pc.X32
+        U, Nj = som.units, X32.shape[1]
         scales, coefs = [], []
         for p in range(som.participants):  # w_k = c_k f_k W0_k + (c_k R_k) X: coefficients in float64, product in the weights' precision
             coefs.append((c[i, :U, None] * R[i, :U, :Nj]).to(W0.dtype))
             scales.append((c[i, :U] * f[i, :U]).to(W0.dtype))
             form_windowed_weights(W0[p], scales[-1], coefs[-1], X32[p])
             i += 1
-        som.steps += order.shape[1]
+        som.steps += T
         # what the final weights were formed from (:class:`Windowed`); not part of the state
         som.learnt_factors = {"kind": Windowed.kind, "scale": torch.stack(scales), "coef": torch.stack(coefs),
                               "patterns": X32[0].clone() if patterns.dim() == 2 else X32.clone()}

@@ -127,54 +127,70 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionPar
     unknown = [e for e in enabled if e not in EVENTS]
     if unknown:
         raise ValueError(f"unknown events {unknown}; known: {EVENTS}")
-    lib = Library([], [[0] * len(EVENTS) for _ in range(N_POSTURES)])
-    free = list(range(cfg.n_dmps))
+    run = _Acquisition(env, cfg, generator, brain, perceive, progress)
     wanted = [e for e in EVENTS if e in enabled]
-    hip_cache: dict[int, torch.Tensor] = {}
-    primitives = [env.random_primitive(generator) for _ in range(cfg.n_dmps)]  # "10 free DMPs", random
+    while wanted and run.free:
+        skill = run.acquire(wanted)
+        if skill is None:
+            run.lib.missing.extend(wanted)
+            break
+        wanted.remove(skill.event)  # the detector is disabled once its skill is acquired
+    if cfg.spare_dmps == "unmastered":
+        again = [e for e in EVENTS if e in enabled and e not in run.lib.missing]
+        while again and run.free:
+            if run.acquire(again) is None:
+                break
+    return run.lib
 
-    def mastered(e: str, p: int) -> bool:
-        if brain is not None:
-            if p not in hip_cache:
-                hip_cache[p] = brain.distal_goals(perceive(env.start(p)))
-            return bool(hip_cache[p][EVENTS.index(e)] >= cfg.hip_threshold)
-        return any(s.event == e and s.succeeds_from[p - 1] for s in lib.skills)
 
-    def acquire(events: list[str]) -> Skill | None:
+class _Acquisition:
+    """The state of one :func:`acquire_skills`: the library so far, the free DMPs and their current
+    random primitives, and the distal goals (C2 -> HIP) of each posture while C2 has not learnt."""
+
+    def __init__(self, env: Environment, cfg: AcquisitionParams, generator: torch.Generator,
+                 brain: ToolUseBrain | None, perceive: Callable[[State], torch.Tensor],
+                 progress: Callable[[str], None] | None):
+        self.env, self.cfg, self.generator = env, cfg, generator
+        self.brain, self.perceive, self.progress = brain, perceive, progress
+        self.lib = Library([], [[0] * len(EVENTS) for _ in range(N_POSTURES)])
+        self.free = list(range(cfg.n_dmps))
+        self.hip_cache: dict[int, torch.Tensor] = {}
+        self.primitives = [env.random_primitive(generator) for _ in range(cfg.n_dmps)]  # "10 free DMPs", random
+
+    def mastered(self, e: str, p: int) -> bool:
+        """Whether event ``e`` is mastered from posture ``p``: its distal goal at ``hip_threshold``
+        or above (without a brain: a skill of it succeeded from there)."""
+        if self.brain is not None:
+            if p not in self.hip_cache:
+                self.hip_cache[p] = self.brain.distal_goals(self.perceive(self.env.start(p)))
+            return bool(self.hip_cache[p][EVENTS.index(e)] >= self.cfg.hip_threshold)
+        return any(s.event == e and s.succeeds_from[p - 1] for s in self.lib.skills)
+
+    def acquire(self, events: list[str]) -> Skill | None:
+        """One skill of one of ``events``: explored (A) on free DMPs until one fires, then learnt (B)
+        and added to the library; None if the search gives up."""
+        cfg, generator, free = self.cfg, self.generator, self.free
         tried, found = 0, None
         while found is None and tried < cfg.explore_max_rollouts:
             slot = free[int(torch.randint(len(free), (1,), generator=generator))]
             budget = min(cfg.explore_patience, cfg.explore_max_rollouts - tried)
-            found, n = _explore(env, events, cfg, generator, lib, mastered, primitives[slot], budget)
+            found, n = _explore(self.env, events, cfg, generator, self.lib, self.mastered, self.primitives[slot], budget)
             tried += n
             if found is None:
-                primitives[slot] = env.random_primitive(generator)  # given back, drawn afresh
+                self.primitives[slot] = self.env.random_primitive(generator)  # given back, drawn afresh
         if found is None:
             return None
         event, theta, p0 = found
-        if progress:
-            progress(f"learning {event} on DMP {slot}")
-        skill = Skill(event, slot, theta, p0, copy=sum(s.event == event for s in lib.skills))
-        _learn_skill(env, skill, cfg, generator, brain, perceive, lib)
-        if brain is not None:
-            brain.acquired[slot] = True
-        hip_cache.clear()  # C2 has learnt
-        lib.skills.append(skill)
+        if self.progress:
+            self.progress(f"learning {event} on DMP {slot}")
+        skill = Skill(event, slot, theta, p0, copy=sum(s.event == event for s in self.lib.skills))
+        _learn_skill(self.env, skill, cfg, generator, self.brain, self.perceive, self.lib)
+        if self.brain is not None:
+            self.brain.acquired[slot] = True
+        self.hip_cache.clear()  # C2 has learnt
+        self.lib.skills.append(skill)
         free.remove(slot)
         return skill
-
-    while wanted and free:
-        skill = acquire(wanted)
-        if skill is None:
-            lib.missing.extend(wanted)
-            break
-        wanted.remove(skill.event)  # the detector is disabled once its skill is acquired
-    if cfg.spare_dmps == "unmastered":
-        again = [e for e in EVENTS if e in enabled and e not in lib.missing]
-        while again and free:
-            if acquire(again) is None:
-                break
-    return lib
 
 
 def _explore(env, events: Sequence[str], cfg: AcquisitionParams, generator, lib: Library,

@@ -78,7 +78,6 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     if strategy not in ("reactive", "planning"):
         raise ValueError(f"strategy must be 'reactive' or 'planning', got {strategy!r}")
     check_choice("planning_test", planning_test)
-    env = outcomes.env
     units = torch.tensor([s.unit for s in skills])
     by_unit = {s.unit: s for s in skills}
     done_events: tuple[str, ...] = ()
@@ -87,52 +86,86 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     if len(skills) == 0:
         return rec
     brain.train(training)
-    acting = strategy == "reactive" or (not training and planning_test == "act")
-    imagining = strategy == "planning"
+    child = _Child(brain, outcomes, posture, acting=strategy == "reactive" or (not training and planning_test == "act"),
+                   imagining=strategy == "planning", record_frames=record_frames)
     for _ in range(attempts):
-        act = brain.pmc(x0)[units]
-        active = act > active_threshold
-        if not bool(active.any()):
+        skill = _choose(brain, x0, units, by_unit, active_threshold, temperature, generator)
+        if skill is None:
             break  # nothing afforded here: the child does not move
-        act = act.masked_fill(~active, float("-inf"))
-        k = int(softmax_select(act.view(1, -1), temperature, generators=[generator])[0])
-        skill = by_unit[int(units[k])]
         done_events = done_events + (skill.name,)
-        imagined = brain.imagine(x0, skill.unit) if imagining or record_frames else None
-        if imagining and float(env.reward(imagined)) > 0:
-            rec.imagined_success = True
-        if acting:
-            # one pair of eyes (Fig. 7.6, lines 1585-1586; docs/contracts.md W12): the reward is read
-            # from the next camera image by the same reader the planning child uses on its mental image
-            r = outcomes.after(posture, done_events)
-            x1 = outcomes.perceive(r.next_state)
-            reward = float(env.reward(x1))
-        else:
-            x1 = imagined
-            reward = float(env.reward(x1))
-        rec.actions.append(skill.name)
-        rec.rewards.append(reward)
-        if record_frames:
-            rec.frames.append({"action": skill.name, "real": outcomes.image(posture, done_events),
-                               "imagined": imagined, "reward": reward})
+        x1, reward = child.perform(x0, skill, done_events, rec)
         if training:
             brain.q_update(x0, skill.unit, reward, x1, done=reward > 0)
         x0 = x1
         if reward > 0:
             break
-    if acting:
-        # analysis only: whether the toy is really in reach after the child's last move (the
-        # simulator's retrieve detector; the child itself judged from its eyes)
-        rec.success = bool(done_events) and outcomes.after(posture, done_events).retrieved
-    else:
+    child.score(rec, done_events, training)
+    brain.eval()
+    return rec
+
+
+def _choose(brain: ToolUseBrain, x0: torch.Tensor, units: torch.Tensor, by_unit: dict[int, Skill],
+            active_threshold: float, temperature: float, generator: torch.Generator) -> Skill | None:
+    """The skill whose PMC unit softmax picks among the active ones (activity from image ``x0``
+    above ``active_threshold``); None when no unit is active."""
+    act = brain.pmc(x0)[units]
+    active = act > active_threshold
+    if not bool(active.any()):
+        return None
+    act = act.masked_fill(~active, float("-inf"))
+    k = int(softmax_select(act.view(1, -1), temperature, generators=[generator])[0])
+    return by_unit[int(units[k])]
+
+
+@dataclass
+class _Child:
+    """How a child of a trial from ``posture`` moves: ``acting`` performs each primitive and looks
+    again, ``imagining`` imagines its outcome through C3 (both in a planning child's 'act' test)."""
+
+    brain: ToolUseBrain
+    outcomes: Outcomes
+    posture: int
+    acting: bool
+    imagining: bool
+    record_frames: bool
+
+    def perform(self, x0: torch.Tensor, skill: Skill, done_events: tuple[str, ...], rec: TrialRecord
+                ) -> tuple[torch.Tensor, float]:
+        """One primitive, ``skill``, from image ``x0`` (``done_events`` the primitives so far, this one
+        last), recorded in ``rec``. Returns the next image (seen or imagined) and the reward read from it."""
+        env = self.outcomes.env
+        imagined = self.brain.imagine(x0, skill.unit) if self.imagining or self.record_frames else None
+        if self.imagining and float(env.reward(imagined)) > 0:
+            rec.imagined_success = True
+        if self.acting:
+            # one pair of eyes (Fig. 7.6, lines 1585-1586; docs/contracts.md W12): the reward is read
+            # from the next camera image by the same reader the planning child uses on its mental image
+            r = self.outcomes.after(self.posture, done_events)
+            x1 = self.outcomes.perceive(r.next_state)
+        else:
+            x1 = imagined
+        reward = float(env.reward(x1))
+        rec.actions.append(skill.name)
+        rec.rewards.append(reward)
+        if self.record_frames:
+            rec.frames.append({"action": skill.name, "real": self.outcomes.image(self.posture, done_events),
+                               "imagined": imagined, "reward": reward})
+        return x1, reward
+
+    def score(self, rec: TrialRecord, done_events: tuple[str, ...], training: bool) -> None:
+        """``rec.success``: whether the toy is really retrieved after the trial (and, for a child
+        that only imagined, ``rec.imagined_success`` from its last mental image)."""
+        if self.acting:
+            # analysis only: whether the toy is really in reach after the child's last move (the
+            # simulator's retrieve detector; the child itself judged from its eyes)
+            rec.success = bool(done_events) and self.outcomes.after(self.posture, done_events).retrieved
+            return
         rec.imagined_success = bool(rec.rewards and rec.rewards[-1] > 0)
         # "plan" test: the plan is performed for real (prefixes are cached); stop once the toy is in reach
         for n in range(1, 0 if training else len(rec.actions) + 1):
-            if outcomes.after(posture, tuple(rec.actions[:n])).retrieved:
+            if self.outcomes.after(self.posture, tuple(rec.actions[:n])).retrieved:
                 rec.success = True
                 break
-    brain.eval()
-    return rec
 
 
 def run_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Skill], posture: int, strategy: str,
