@@ -5,18 +5,12 @@ its kinematics: the right arm's joint trajectory goes through batched forward ki
 (:class:`~neuroimagery.robot.kinematics.ArmKinematics`) and the fixed grasp gives the pose the rake
 must have at every control step.
 
-Rake drive (``WorldConfig.rake_drive``):
-    "kinematic" (default)  at the start of control step t the rake is put at pose t-1 with the
-        velocity that carries it to pose t; pybullet's substeps resolve rake-toy and toy-table
-        contact (a heavy rake barely yields to the 50 g toy).  The table meets the rake by
-        ``table_contact`` (``rake_plan.table_poses``: "lift", the default, raises a pose that would
-        sink vertically; "grip" turns the rake in a compliant grip, beyond its bound the table stops
-        the arm; rake-table collisions are not computed).  While the toy is at rest, control steps
-        in which no rake point comes within ``filter_margin`` of the toy (ends of the step, allowing for the
-        distance swept in it) cannot change anything and are skipped (``skip_far_steps``).
-    "constraint"  a fixed constraint of force ``rake_max_force`` drags the dynamic rake, every
-        control step simulated (the slower reference): under "lift" to the commanded poses, the
-        table stopping it by contact; under "grip" to the poses of the grip rule.
+Rake drive (``WorldConfig.rake_drive``; docs/robot.md): "kinematic" (default) puts the rake at
+pose t-1 with the velocity that carries it to pose t and lets pybullet's substeps resolve rake-toy
+and toy-table contact; the table meets the rake by ``table_contact`` (``rake_plan.table_poses``);
+control steps far from a resting toy are skipped (``skip_far_steps``). "constraint" drags a
+dynamic rake by a fixed constraint, every step simulated (the slower reference,
+:mod:`neuroimagery.robot.constraint_drive`).
 pybullet resolves the contacts; the toy moves only when pushed.
 
 Compass and events: :mod:`neuroimagery.robot.events` (south = toward the robot, -x; west = its
