@@ -143,6 +143,12 @@ def as_batched(x: torch.Tensor, n: int, name: str = "input") -> tuple[torch.Tens
     view and whether the caller should squeeze the participant axis away again.
     """
     check_tensor(name, x, (n,))
+    return as_batched_shape(x, n, name)
+
+
+def as_batched_shape(x: torch.Tensor, n: int, name: str) -> tuple[torch.Tensor, bool]:
+    """:func:`as_batched` without the check of the values (the fast path of the blocks,
+    :mod:`neuroimagery.nn.readout`, checks them once per batch)."""
     check_floating(name, x)
     if x.dim() == 1:
         return x.reshape(1, 1, n), True

@@ -20,7 +20,7 @@ from typing import Sequence
 import torch
 
 from .binary import binary_matmul, binary_matmul_rows, sparse_matmul
-from .functional import check_floating, check_participants, check_tensor, checks_enabled
+from .functional import as_batched_shape, check_floating, check_participants, check_tensor, checks_enabled
 
 
 class Readouts:
@@ -115,18 +115,6 @@ class Readouts:
     def weights_per_participant(self) -> int:
         """How many weights one participant's copy of the block holds."""
         return self.weight[0].numel()
-
-
-def as_batched_shape(x: torch.Tensor, n: int, name: str) -> tuple[torch.Tensor, bool]:
-    """:func:`~.functional.as_batched` without the value check."""
-    check_floating(name, x)
-    if x.dim() == 1:
-        return x.reshape(1, 1, n), True
-    if x.dim() == 2:
-        return x.unsqueeze(0), True
-    if x.dim() == 3:
-        return x, False
-    raise ValueError(f"{name} must have shape (n,), (B, n) or (P, B, n) with n={n}, got {tuple(x.shape)}")
 
 
 def binary_rows(blocks: Sequence[Readouts], group: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
