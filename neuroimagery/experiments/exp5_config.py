@@ -10,6 +10,7 @@ The groups the model reads are the model's own parameter dataclasses
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
@@ -53,7 +54,7 @@ class WorldParams:
     # the arm"): 'lift' = the pose lifted vertically where the command would sink it | 'grip' = the
     # rake turns in the hand by at most grip_pivot_max (rad), beyond that the table stops the arm
     table_contact: str = bounded("lift", choices=TABLE_CONTACTS)
-    grip_pivot_max: float = bounded(0.17453292519943295, ge=0, lt=1.5707963267948966)
+    grip_pivot_max: float = bounded(math.radians(10.0), ge=0, lt=math.pi / 2)
 
     RULES = (Rule("environment", lambda w: w.environment == "robot" or ":" in w.environment,
                   "must be 'robot' or 'module:Class'"),)

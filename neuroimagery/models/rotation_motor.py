@@ -43,6 +43,9 @@ from .params import FieldParams, SomParams
 ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]
 CHECKPOINT_FORMAT = "neuroimagery.exp2.factors/1"  # the compact checkpoint of MotorRotationModel.compact_state
 SS_ROWS, SS_COLS = 31, 100  # the SS (and PMC_1) grid: rows = the held object, columns = wrist angle -90..90 deg
+SS_UNITS = SS_ROWS * SS_COLS  # 3100
+PP_SIDE, M1_SIDE = 32, 64  # PP / PFC_1 maps 32 x 32; M1_1 / PFC_2 maps 64 x 64 (Table 5.1)
+PP_UNITS, M1_UNITS = PP_SIDE * PP_SIDE, M1_SIDE * M1_SIDE  # 1024, 4096
 OBJECT_B_ROW = 15  # SS rows from this one on are object B's band
 ROTATED_WITHIN_DEG = 15.0  # a rotation reached the desired posture when it ends within this (deg)
 PEAK_FLOOR = 1e-9  # smallest peak an activity is divided by when scaled to a peak of 1
@@ -94,15 +97,15 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         self.m12 = PopulationMap("M1_2", (10, 30), (0.0, 0.0), (9.0, 29.0), sigma=e.answer_sigma)
         h = Hebbian(e.hebb_eta, "outstar")
         init = (0.0, e.init_high)
-        self.c1 = AllToAll(1024, 3100, init=init, generators=g(0), rules=h, name="C1")
-        self.c6 = AllToAll(1024, 3100, init=init, generators=g(1), rules=h, name="C6")
-        self.c2 = AllToAll(3100, 1024, init=init, generators=g(2), rules=h, name="C2")
-        self.c9 = AllToAll(4096, 300, init=init, generators=g(3), rules=h, name="C9")
-        self.c10 = AllToAll(4096, 3100, init=init, generators=g(4), rules=h, name="C10")
-        self.c5 = AllToAll(4096, 200, init=init, generators=g(5), rules=h, name="C5")
+        self.c1 = AllToAll(PP_UNITS, SS_UNITS, init=init, generators=g(0), rules=h, name="C1")
+        self.c6 = AllToAll(PP_UNITS, SS_UNITS, init=init, generators=g(1), rules=h, name="C6")
+        self.c2 = AllToAll(SS_UNITS, PP_UNITS, init=init, generators=g(2), rules=h, name="C2")
+        self.c9 = AllToAll(M1_UNITS, 300, init=init, generators=g(3), rules=h, name="C9")
+        self.c10 = AllToAll(M1_UNITS, SS_UNITS, init=init, generators=g(4), rules=h, name="C10")
+        self.c5 = AllToAll(M1_UNITS, 200, init=init, generators=g(5), rules=h, name="C5")
         som = dict(init=init, **e.som.som_kwargs())
-        self.m11 = SOM((64, 64), 6200, generators=g(6), name="M1_1", **som)
-        self.pfc2 = SOM((64, 64), 2048, generators=g(7), name="PFC_2", **som)
+        self.m11 = SOM((M1_SIDE, M1_SIDE), 2 * SS_UNITS, generators=g(6), name="M1_1", **som)
+        self.pfc2 = SOM((M1_SIDE, M1_SIDE), 2 * PP_UNITS, generators=g(7), name="PFC_2", **som)
         for s_ in (self.m11, self.pfc2):
             s_.rule.cutoff = e.som.cutoff  # truncation of the Gaussian neighbourhood (same for every method)
         fk = e.field.field_kwargs()
@@ -145,8 +148,8 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         """
         ss = self.ss_code(obj, angle)  # (K, 3100)
         pm = self.pmc1_code(torch.tensor(ANGLES))  # (7, 3100)
-        A = self.m11.part_products(ss, 0, 3100)  # (P, K, U)
-        Bm = self.m11.part_products(pm, 3100)  # (P, 7, U)
+        A = self.m11.part_products(ss, 0, SS_UNITS)  # (P, K, U)
+        Bm = self.m11.part_products(pm, SS_UNITS)  # (P, 7, U)
         nrm = self.m11.prototype_norms().unsqueeze(1)  # (P, 1, U)
         ns, npm = (ss * ss).sum(-1), (pm * pm).sum(-1)
         P, n_pm = self.m11.participants, pm.shape[0]
@@ -242,8 +245,8 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         pairs = [(i, j) for i in range(14) for j in range(14)]
         Y = torch.stack([torch.cat([img[i], img[j]]) for i, j in pairs])
         gens = participant_generators(self.seed, P, stream=9)
-        self.fit_soms([(self.m11, X, pat[:, : e.som.iterations], (3100, 3100)),  # [SS, PMC_1]
-                       (self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som.iterations,)), (1024, 1024))])  # [PP, PFC_1]
+        self.fit_soms([(self.m11, X, pat[:, : e.som.iterations], (SS_UNITS, SS_UNITS)),  # [SS, PMC_1]
+                       (self.pfc2, Y, seeding.randint(gens, Y.shape[0], (e.som.iterations,)), (PP_UNITS, PP_UNITS))])  # [PP, PFC_1]
         Th = e.hebb_steps
         table = self.m11_table(torch.arange(2).repeat_interleave(7), ang.repeat(2))  # SS codes of the 14 postures
         ids = torch.arange(98)
@@ -312,8 +315,8 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         act, d, yes = self._answer(st.pp, pfc1)
         st.rt += d.cycles
         for k in range(record):
-            frames[k].append({"PP": st.pp[0, k].reshape(32, 32), "PFC_1": pfc1[0, k].reshape(32, 32),
-                              "PFC_2": act[0, k].reshape(64, 64), "PMC_2": d.state[0, k].reshape(10, 20)})
+            frames[k].append({"PP": st.pp[0, k].reshape(PP_SIDE, PP_SIDE), "PFC_1": pfc1[0, k].reshape(PP_SIDE, PP_SIDE),
+                              "PFC_2": act[0, k].reshape(M1_SIDE, M1_SIDE), "PMC_2": d.state[0, k].reshape(10, 20)})
         return {"steps": st.steps, "rotated_ok": ok, "final_angle": final, "stopped": st.stopped, "yes": yes,
                 "rt": st.rt, "frames": frames}
 
@@ -386,8 +389,8 @@ class MotorRotationModel(FactorCheckpoint, nn.Module):
         record = len(frames)
         m = self.som_bump(self.m11, bmu=bmu[:1, :record])
         for k in range(record):
-            frames[k].append({"PP": st.pp[0, k].reshape(32, 32).clone(), "SS": st.ss[0, k].reshape(SS_ROWS, SS_COLS).clone(),
-                              "M1_1": m[0, k].reshape(64, 64).clone()})
+            frames[k].append({"PP": st.pp[0, k].reshape(PP_SIDE, PP_SIDE).clone(), "SS": st.ss[0, k].reshape(SS_ROWS, SS_COLS).clone(),
+                              "M1_1": m[0, k].reshape(M1_SIDE, M1_SIDE).clone()})
 
     def _answer(self, pp, pfc1):
         """The answer to the last image ``pp`` and the target ``pfc1``: PFC_2's cluster, C5 and the
