@@ -49,3 +49,14 @@ def test_the_exp6_report_names_its_preset_in_its_first_lines(tmp_path):
              out_dir=tmp_path)
     head = "\n".join((tmp_path / "report.md").read_text().splitlines()[:4])
     assert "preset `quick`" in head.lower(), head
+
+
+def test_a_pooled_report_of_quick_runs_names_the_preset(tmp_path):
+    from neuroimagery.pool import pool
+
+    for seed in (0, 1):
+        evaluate(make_cfg("experiment=exp1", "participants=1", "progress=false", "logger=none", "preset=quick",
+                          f"seed={seed}"), out_dir=tmp_path / str(seed))
+    summary, _, rep = pool([tmp_path / "0", tmp_path / "1"])
+    head = "\n".join(rep.text().splitlines()[:4])
+    assert summary["preset"] == "quick" and "Preset `quick`" in head, head
