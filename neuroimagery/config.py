@@ -234,4 +234,7 @@ def validate(cfg: DictConfig | Config) -> Config:
     name = getattr(obj.experiment, "name", None)
     if name is None:
         raise UserInputError("invalid configuration: choose an experiment, e.g. experiment=exp4")
+    quick = getattr(obj.experiment, "quick", None)
+    if obj.preset == "quick" and hasattr(quick, "participants"):  # docs/choices.md, "Quick presets", rule 2
+        obj.participants = min(obj.participants, quick.participants)
     return obj

@@ -36,7 +36,8 @@ SIZE_CASES = [  # the cases of the issue, then their neighbours
     (["experiment=exp6", "preset=quick", "participants=1", "experiment.quick.chains=1000000000"],
      "experiment.quick.chains=1000000000"),
     (["experiment=exp6", "participants=1", "experiment.fm.memory_mb=100000"], "experiment.fm.memory_mb=100000"),
-    (["experiment=exp6", "participants=100000", "preset=quick"], "participants=100000"),
+    (["experiment=exp6", "participants=100000", "preset=quick", "experiment.quick.participants=100000"],
+     "participants=100000"),
     (["experiment=exp2", "participants=50"], "participants=50"),  # about 230 MB of weights each
     (["experiment=exp1", "participants=500"], "participants=500"),
     (["experiment=demo", "participants=1000000000"], "participants=1000000000"),

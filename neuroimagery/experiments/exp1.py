@@ -32,7 +32,9 @@ from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report,
 class Exp1Quick:
     """What ``preset=quick`` shrinks (``experiment.quick``)."""
 
-    som_iterations: int = bounded(62, ge=1)  # PFC_2's SOM steps: full / 32, by the rule of docs/choices.md ("Quick presets")
+    # the rule of docs/choices.md ("Quick presets"): the full protocol's training, a quarter of its participants
+    som_iterations: int = bounded(2000, ge=1)  # PFC_2's SOM steps (at most som.iterations): the full protocol's
+    participants: int = bounded(3, ge=1)  # a run tests the smaller of `participants` and this
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.quick.")

@@ -32,7 +32,9 @@ from .protocol_ch5 import (auto_threads, count_trials, edge_maps, finish_report,
 class Exp2Quick:
     """What ``preset=quick`` shrinks (``experiment.quick``)."""
 
-    som_iterations: int = bounded(5000, ge=1)  # SOM steps: half the full protocol's, by the rule of docs/choices.md ("Quick presets")
+    # the rule of docs/choices.md ("Quick presets"): the full protocol's training, a quarter of its participants
+    som_iterations: int = bounded(10000, ge=1)  # SOM steps (at most som.iterations): the full protocol's
+    participants: int = bounded(3, ge=1)  # a run tests the smaller of `participants` and this
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.quick.")

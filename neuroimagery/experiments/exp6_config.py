@@ -88,9 +88,11 @@ class ConfirmParams:
 class QuickParams:
     """``preset=quick``: a first look (``experiment.quick``)."""
 
-    objects: int = bounded(2, ge=1)  # test objects
-    fm_images: int = bounded(100, ge=1)  # forward-model images per move
-    chains: int = bounded(300, ge=1)  # chain views for C_fill
+    # the rule of docs/choices.md ("Quick presets"): the full protocol's training, a quarter of its participants
+    participants: int = bounded(3, ge=1)  # a run tests the smaller of `participants` and this
+    objects: int = bounded(1, ge=1)  # test objects (the first of test_objects): 5 halved twice by rule 3 (seed 0, CPU only)
+    fm_images: int = bounded(3200, ge=1)  # forward-model images per move: the full protocol's (fm.images)
+    chains: int = bounded(1200, ge=1)  # chain views for C_fill: the full protocol's (image.chains)
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.quick.")
