@@ -33,6 +33,7 @@ def test_a_tiny_search_screens_the_present_world_first_and_resumes_from_its_jour
     assert 0 <= m["w1"] <= 24 and 0 <= m["w2"] <= 24 and m["libraries"] == 1 and m["movements_per_posture"] == 20
     assert first.values == [m["w3"], m["w4"], m["w1"] + m["w2"]]
     assert first.user_attrs["pulls"]["movements"] == 60
+    assert [d["moved"] for d in first.user_attrs["placed"]] == [False] * 4  # the present world is reachable
     assert "2 candidates" in capsys.readouterr().out
     kept = sorted(p.name for p in (tmp_path / "j.journal.d").rglob("*.json"))
     assert "posture1_seed100.json" in kept and "seed100_0000.json" in kept
@@ -46,7 +47,7 @@ def test_a_tiny_search_screens_the_present_world_first_and_resumes_from_its_jour
 def test_an_interrupted_trial_is_kept_as_failed_and_retried_with_its_parameters(tmp_path, monkeypatch, capsys):
     from neuroimagery.robot.config import WorldConfig
 
-    monkeypatch.setattr(cal, "stage1", lambda p, folder, n: (WorldConfig(), [], None))
+    monkeypatch.setattr(cal, "stage1", lambda p, folder, n: (WorldConfig(), [], None, []))
 
     def stop(*args, **kwargs):
         raise KeyboardInterrupt
@@ -95,3 +96,13 @@ def test_a_journal_of_other_sizes_a_missing_folder_or_a_foreign_file_is_refused(
     assert cal.main(["--storage", str(foreign), "--stage", "report"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:")
+
+
+def test_a_journal_searched_before_the_reachability_table_is_only_reported(tmp_path, capsys):
+    journal = tmp_path / "old.journal"
+    study = cal.open_study(journal, dict(babble=20, libraries=1, fk_movements=60), 0)
+    study.set_user_attr("sampling", None)  # as a journal of the first form has no such mark
+    assert cal.main(["--storage", str(journal), "--stage", "screen", *TINY]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "new journal" in err[0]
+    assert cal.main(["--storage", str(journal), "--stage", "report", *TINY]) == 0

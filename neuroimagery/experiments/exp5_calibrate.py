@@ -28,6 +28,7 @@ from ..arguments import ToolParser, check, check_size, count, path, run_resumabl
 from .exp5_candidate import SEED0, candidate_key, measure, rank_key
 
 STUDY = "exp5-world"
+SAMPLING = "reachable"  # the postures' sampling (docs/world_calibration.md, second amendment)
 STAGES = ("screen", "baseline", "confirm", "confirm-baseline", "report")
 PULL_LIKE_MIN, BEHIND_MAX = 0.01, 0.15  # stage 1's pull-path thresholds (docs/world_calibration.md)
 
@@ -42,7 +43,7 @@ def _optuna():
     return optuna
 
 
-def open_study(storage: Path, sizes: dict, sampler_seed: int):
+def open_study(storage: Path, sizes: dict, sampler_seed: int, check_sampling: bool = True):
     """The study in the journal ``storage`` (created with ``sizes`` if new; an existing one must have
     been screened at the same sizes)."""
     optuna = _optuna()
@@ -71,7 +72,11 @@ def open_study(storage: Path, sizes: dict, sampler_seed: int):
         from ..robot.world_candidate import PRESENT
 
         study.set_user_attr("sizes", sizes)
+        study.set_user_attr("sampling", SAMPLING)
         study.enqueue_trial({k: v for k, v in PRESENT.items() if k != "grip_pivot_deg"})  # the first trial
+    elif check_sampling and study.user_attrs.get("sampling") != SAMPLING:
+        raise UserInputError(f"--storage {storage} was searched with the postures sampled without the reachability "
+                             "table (before the second amendment): its trials are another search; use a new journal")
     elif kept != sizes:
         raise UserInputError(f"--storage {storage} was screened with {kept}, not {sizes}: "
                              "use its sizes or another journal")
@@ -98,7 +103,8 @@ def stage1(p: dict, folder: Path, fk_movements: int) -> tuple:
     from ..robot.pull_paths import pull_paths
     from ..robot.world_candidate import build, reject_reasons
 
-    cfg, bad = build(p, folder / "urdf")
+    placed: list = []
+    cfg, bad = build(p, folder / "urdf", placed)
     bad = bad or reject_reasons(cfg)
     pulls = None
     if not bad:
@@ -107,7 +113,7 @@ def stage1(p: dict, folder: Path, fk_movements: int) -> tuple:
             bad = [f"pull-like movements from posture 1: {pulls['pull_like']:.2%} (at least {PULL_LIKE_MIN:.0%})"]
         elif pulls["behind"] > BEHIND_MAX:
             bad = [f"pull paths behind from posture 4: {pulls['behind']:.0%} (at most {BEHIND_MAX:.0%})"]
-    return cfg, bad, pulls
+    return cfg, bad, pulls, placed
 
 
 def objective(trial, work: Path, sizes: dict):
@@ -116,8 +122,9 @@ def objective(trial, work: Path, sizes: dict):
     t0 = time.process_time()
     p = suggest(trial)
     folder = work / candidate_key(p)
-    cfg, bad, pulls = stage1(p, folder, sizes["fk_movements"])
+    cfg, bad, pulls, placed = stage1(p, folder, sizes["fk_movements"])
     trial.set_user_attr("pulls", pulls)
+    trial.set_user_attr("placed", placed)
     trial.set_user_attr("reasons", bad)
     trial.set_user_attr("constraint", [float(len(bad))])
     if hasattr(trial, "set_constraint"):
@@ -233,7 +240,7 @@ def run(args) -> None:
         raise UserInputError(f"--storage {args.storage}: no such journal (the stage {args.stage} reads a search)")
     sizes = dict(babble=args.babble, libraries=args.libraries, fk_movements=args.fk_movements)
     work = args.work or args.storage.with_name(args.storage.name + ".d")
-    study = open_study(args.storage, sizes, args.sampler_seed)
+    study = open_study(args.storage, sizes, args.sampler_seed, check_sampling=args.stage != "report")
     work.mkdir(parents=True, exist_ok=True)
     if args.stage == "screen":
         screen(study, work, sizes, args.trials)

@@ -112,28 +112,67 @@ def plate_centre(cfg: WorldConfig, q) -> tuple[float, float]:
     return float(c[0]), float(c[1])
 
 
-def build(p: dict, urdf_dir: Path) -> tuple[WorldConfig, list[str]]:
-    """The candidate world of parameters ``p`` (its rake written into ``urdf_dir``) and the reasons
-    its postures could not be fitted (empty: every target met within ``FIT_TOLERANCE``)."""
+def regions(cfg: WorldConfig, xy: np.ndarray) -> list[np.ndarray]:
+    """Where each posture's plate centre may be placed (docs/world_calibration.md, second
+    amendment): posture 1 in its band beyond the toy, posture k = 2-4 within r_k's range of the toy."""
+    (tx, ty), h = cfg.toy_xy, cfg.toy_size / 2
+    lo = {n: PARAMETERS[n][0] for n in ("p1_dx", "p1_dy")}
+    hi = {n: PARAMETERS[n][1] for n in ("p1_dx", "p1_dy")}
+    band = ((xy[:, 0] >= tx + h + lo["p1_dx"]) & (xy[:, 0] <= tx + h + hi["p1_dx"])
+            & (xy[:, 1] >= ty + lo["p1_dy"]) & (xy[:, 1] <= ty + hi["p1_dy"]))
+    r = np.hypot(xy[:, 0] - tx, xy[:, 1] - ty)
+    r_lo, r_hi = PARAMETERS["r_2"]
+    return [band] + [(r >= r_lo) & (r <= r_hi + (k - 2) * PARAMETERS["dr_3"][1]) for k in (2, 3, 4)]
+
+
+def _fit(cfg, xy, yaw, pitch, swivel, starts):
     from .posture_fit import fit_posture_heading
 
+    q = tuple(round(float(v), 4) for v in fit_posture_heading(cfg, xy, yaw, starts, pitch_deg=pitch, swivel=swivel))
+    return q, math.dist(plate_centre(cfg, q), xy)
+
+
+def build(p: dict, urdf_dir: Path, placed: list | None = None) -> tuple[WorldConfig, list[str]]:
+    """The candidate world of parameters ``p`` (its rake written into ``urdf_dir``) and the reasons
+    it is rejected by its postures (empty: every target met within ``FIT_TOLERANCE``). Each
+    posture's sample is fitted from the stored starts and the reachability table's nearest row;
+    a fit that misses moves the target and heading onto that row (``robot.reachability.place``).
+    ``placed`` (a list) receives each posture's target, yaw, pitch and whether it was moved."""
+    from .posture_fit import fit_posture_heading
+    from .reachability import place, reachable
+
+    placed = [] if placed is None else placed
+    placed.clear()
     write_urdfs(urdf_dir, float(p["rake_length"]), float(p["plate_width"]))
     cfg = base_config(p, urdf_dir)
-    postures, bad = [], []
-    for k, xy in enumerate(targets(cfg, p), start=1):
-        q = fit_posture_heading(cfg, xy, p[f"yaw_{k}"], _starts(), pitch_deg=p[f"pitch_{k}"], swivel=p[f"swivel_{k}"])
-        postures.append(tuple(round(float(v), 4) for v in q))
-        miss = math.dist(plate_centre(cfg, postures[-1]), xy)
-        if miss > FIT_TOLERANCE:  # rejected: the other postures need not be fitted
+    table = reachable(cfg)
+    postures = []
+    for k, (xy, region) in enumerate(zip(targets(cfg, p), regions(cfg, table[1][:, :2])), start=1):
+        near = place(table, xy, p[f"yaw_{k}"], p[f"pitch_{k}"], region)
+        if near is None:
+            return replace(cfg, postures=tuple(postures) + DEFAULT_POSTURES[k - 1:]), [
+                f"posture {k}: no reachable plate centre in its region"]
+        q, miss = _fit(cfg, xy, p[f"yaw_{k}"], p[f"pitch_{k}"], p[f"swivel_{k}"], _starts() + (tuple(near[3]),))
+        where = (list(xy), p[f"yaw_{k}"], p[f"pitch_{k}"], False)
+        if miss > FIT_TOLERANCE:  # moved onto the nearest row of the table and fitted from it
+            xy, yaw, pitch, start, _ = near
+            where = (list(xy), yaw, pitch, True)
+            q, miss = _fit(cfg, xy, yaw, pitch, p[f"swivel_{k}"], (tuple(start),))
+        placed.append(dict(target=[round(v, 4) for v in where[0]], yaw=round(where[1], 2),
+                               pitch=round(where[2], 2), moved=where[3]))
+        postures.append(q)
+        if miss > FIT_TOLERANCE:
             return replace(cfg, postures=tuple(postures) + DEFAULT_POSTURES[k:]), [
                 f"posture {k}: the fit misses its plate-centre target by {miss:.3f} m"]
     cfg = replace(cfg, postures=tuple(postures))
     # the rake reaches behind the toy with posture 4's heading (no W3 made trivial by a short rake)
-    q = fit_posture_heading(cfg, targets(cfg, p)[0], p["yaw_4"], _starts(), pitch_deg=p["pitch_4"], margin=0.10)
-    miss = math.dist(plate_centre(cfg, q), targets(cfg, p)[0])
+    behind = placed[0]["target"]
+    q = fit_posture_heading(cfg, behind, placed[3]["yaw"], _starts() + (postures[0],), pitch_deg=placed[3]["pitch"],
+                            margin=0.10)
+    miss = math.dist(plate_centre(cfg, q), behind)
     if miss > FIT_TOLERANCE:
-        bad.append(f"the rake cannot reach behind the toy with posture 4's heading (misses by {miss:.3f} m)")
-    return cfg, bad
+        return cfg, [f"the rake cannot reach behind the toy with posture 4's heading (misses by {miss:.3f} m)"]
+    return cfg, []
 
 
 def reject_reasons(cfg: WorldConfig) -> list[str]:
