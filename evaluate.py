@@ -3,10 +3,10 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
-from neuroimagery import console
-from neuroimagery.cli import friendly_errors, plain_hydra_errors
+from neuroimagery.core import console
+from neuroimagery.app.cli import friendly_errors, plain_hydra_errors
 from neuroimagery.config import register_configs
-from neuroimagery.run import evaluate
+from neuroimagery.app.run import evaluate
 
 register_configs()
 plain_hydra_errors()

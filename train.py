@@ -2,10 +2,10 @@
 import hydra
 from omegaconf import DictConfig
 
-from neuroimagery import console
-from neuroimagery.cli import friendly_errors, plain_hydra_errors
+from neuroimagery.core import console
+from neuroimagery.app.cli import friendly_errors, plain_hydra_errors
 from neuroimagery.config import register_configs
-from neuroimagery.run import train
+from neuroimagery.app.run import train
 
 register_configs()
 plain_hydra_errors()

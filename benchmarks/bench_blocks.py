@@ -237,7 +237,7 @@ def som_profile(P):
     """Where the online kernel's time goes: the largest torch operators of 64 steps."""
     from torch.profiler import ProfilerActivity, profile
 
-    from neuroimagery.native import quiet_native_output
+    from neuroimagery.core.native import quiet_native_output
 
     X = (torch.rand(196, 2048, generator=torch.Generator().manual_seed(0)) > 0.9).float()
     som = SOM((64, 64), 2048, participants=P, sigma=32.0, sigma_final=32.0)
@@ -300,7 +300,7 @@ def bench_fk(repeat, quick):
 
     import pybullet as pb
 
-    from neuroimagery.native import quiet_native_output
+    from neuroimagery.core.native import quiet_native_output
     from neuroimagery.robot.kinematics import ARM_JOINTS, ArmKinematics, icub_urdf_text
 
     kin = ArmKinematics()

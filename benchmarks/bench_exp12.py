@@ -22,7 +22,7 @@ import torch
 from hydra import compose, initialize_config_dir
 
 from neuroimagery.config import register_configs
-from neuroimagery.run import evaluate
+from neuroimagery.app.run import evaluate
 
 
 def run(exp, overrides):
@@ -37,7 +37,7 @@ def run(exp, overrides):
 def som_equivalence(steps: int) -> None:
     """M1_1 (64x64, 6,200 inputs, 98 patterns), 2 participants, the configured schedule compressed
     to ``steps``: winners, quantisation / topographic errors and weights of each method."""
-    from neuroimagery.experiments.exp2 import Exp2Config
+    from neuroimagery.experiments.exp2.protocol import Exp2Config
     from neuroimagery.models.params import SomParams
     from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
     from neuroimagery.nn import SOM, participant_generators

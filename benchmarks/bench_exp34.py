@@ -3,7 +3,7 @@ and the ratio against running the participants one at a time.
 
     python benchmarks/bench_exp34.py [participants] [quick|full]
 
-Peak memory: the process's peak resident set during the batched run (neuroimagery/memory.py).
+Peak memory: the process's peak resident set during the batched run (neuroimagery/core/memory.py).
 """
 import sys
 import time
@@ -11,9 +11,10 @@ from pathlib import Path
 
 from hydra import compose, initialize_config_dir
 
-from neuroimagery import memory
+from neuroimagery.core import memory
 from neuroimagery.config import register_configs, validate
-from neuroimagery.experiments import exp3, exp4
+from neuroimagery.experiments.exp3 import protocol as exp3
+from neuroimagery.experiments.exp4 import protocol as exp4
 
 
 def _cfg(name, participants, preset):

@@ -8,7 +8,7 @@ physics rollouts, eye renders, and the rest (DMP integration, C1-C4 updates, boo
 An individual = one robot (repetition x situation) of one group, tested as reactive and planning.
 Wall and CPU time are both printed (on shared cores the wall time depends on the other jobs);
 loading the robot once per worker process is timed apart, since a run pays it once per worker.
-Peak memory: the process's peak resident set while the tasks ran (neuroimagery/memory.py).
+Peak memory: the process's peak resident set while the tasks ran (neuroimagery/core/memory.py).
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from neuroimagery.arguments import ToolParser, check, check_size, count, run_tool, seed
+from neuroimagery.core.arguments import ToolParser, check, check_size, count, run_tool, seed
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -33,8 +33,8 @@ def main(argv=None) -> int:
     check("--repetitions", args.repetitions, ge=1)
     check_size("--repetitions", args.repetitions, 100, args.allow_large)
 
-    from neuroimagery import memory
-    from neuroimagery.experiments import exp5, exp5_config, exp5_task
+    from neuroimagery.core import memory
+    from neuroimagery.experiments.exp5 import protocol as exp5, config as exp5_config, task as exp5_task
 
     kw = {}
     if args.standin:

@@ -15,8 +15,8 @@ import torch
 from hydra import compose, initialize_config_dir
 
 from neuroimagery.config import register_configs, validate
-from neuroimagery.experiments import exp6, exp6_stages
-from neuroimagery.experiments.exp6_data import make_scene
+from neuroimagery.experiments.exp6 import protocol as exp6, stages as exp6_stages
+from neuroimagery.experiments.exp6.data import make_scene
 from neuroimagery.nn.functional import intra_op_threads
 
 

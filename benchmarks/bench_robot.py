@@ -14,7 +14,7 @@ import time
 import numpy as np
 import torch
 
-from neuroimagery.arguments import ToolParser, run_tool
+from neuroimagery.core.arguments import ToolParser, run_tool
 
 
 def bench_world(reps: int = 3) -> dict:

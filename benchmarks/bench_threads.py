@@ -16,7 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from neuroimagery.arguments import ToolParser, run_tool
+from neuroimagery.core.arguments import ToolParser, run_tool
 from neuroimagery.config import EXPERIMENTS
 
 ROOT = Path(__file__).resolve().parents[1]

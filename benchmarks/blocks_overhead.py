@@ -42,7 +42,7 @@ def _cfg(name: str, participants: int, preset: str, seed: int):
 
 
 def exp4(preset: str = "full", participants: int = 10, seed: int = 0) -> float:
-    from neuroimagery.experiments import exp4 as mod
+    from neuroimagery.experiments.exp4 import protocol as mod
 
     cfg = _cfg("exp4", participants, preset, seed)
     c0 = time.process_time()
@@ -54,8 +54,8 @@ def exp4(preset: str = "full", participants: int = 10, seed: int = 0) -> float:
 
 
 def exp6(preset: str = "full", seed: int = 0) -> float:
-    from neuroimagery.experiments import exp6 as mod
-    from neuroimagery.experiments.exp6_data import make_scene
+    from neuroimagery.experiments.exp6 import protocol as mod
+    from neuroimagery.experiments.exp6.data import make_scene
 
     cfg = _cfg("exp6", 1, preset, seed)
     scene = make_scene(cfg.experiment)

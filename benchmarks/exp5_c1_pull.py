@@ -20,8 +20,8 @@ import time
 
 import torch
 
-from neuroimagery.experiments.exp5_task import _gen, _task_environment
-from neuroimagery.experiments.exp5_config import SITUATIONS, Exp5Config
+from neuroimagery.experiments.exp5.task import _gen, _task_environment
+from neuroimagery.experiments.exp5.config import SITUATIONS, Exp5Config
 from neuroimagery.models.tool_use import EVENTS, ToolUseBrain, acquire_skills
 
 

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from neuroimagery.arguments import ToolParser, path, run_tool
-from neuroimagery.errors import UserInputError
+from neuroimagery.core.arguments import ToolParser, path, run_tool
+from neuroimagery.core.errors import UserInputError
 
 
 def read(runs):

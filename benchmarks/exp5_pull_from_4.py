@@ -4,7 +4,7 @@
     python benchmarks/exp5_pull_from_4.py --grid                       # D5: posture 4 placements
 
 Diagnosis: acquires the libraries ``--libraries`` of seed ``S`` exactly as
-``python -m neuroimagery.experiments.exp5_world`` does (all six detectors, no brain) and prints, for
+``python -m neuroimagery.experiments.exp5.world`` does (all six detectors, no brain) and prints, for
 the pull (the skill of "retrieve"): the posture it was found from, the PI^BB samples that achieved
 it from each posture in each epoch (the C1 teaching signals of Fig. 7.5 times K), the postures the
 mean achieved it from after each epoch, the postures the movement as found already achieves it
@@ -30,7 +30,7 @@ import numpy as np
 import torch
 
 import neuroimagery.models.tool_use.acquisition as acquisition
-from neuroimagery.experiments.exp5_config import WorldParams
+from neuroimagery.experiments.exp5.config import WorldParams
 from neuroimagery.models.tool_use import EVENTS, AcquisitionParams, acquire_skills
 from neuroimagery.robot.environment import ToolWorldEnvironment
 from neuroimagery.robot.scene_check import plate_points
@@ -41,7 +41,7 @@ SIDES = ("north", "south", "west", "east")
 def _approach():
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("exp5_approach", Path(__file__).with_name("exp5_approach.py"))
+    spec = importlib.util.spec_from_file_location("exp5_approach", Path(__file__).with_name("exp5/approach.py"))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

@@ -9,7 +9,7 @@ Prints the reader's bias and the table (detector, reader) -> count.
 """
 import torch
 
-from neuroimagery.experiments.exp5_config import WorldParams
+from neuroimagery.experiments.exp5.config import WorldParams
 from neuroimagery.robot.environment import ToolWorldEnvironment
 
 w = WorldParams()

@@ -22,8 +22,8 @@ import torch
 from hydra import compose, initialize_config_dir
 
 from neuroimagery.config import register_configs, validate
-from neuroimagery.experiments import exp6, exp6_stages
-from neuroimagery.experiments import exp6_data as data
+from neuroimagery.experiments.exp6 import protocol as exp6, stages as exp6_stages
+from neuroimagery.experiments.exp6 import data as data
 from neuroimagery.models import voxel_code as vc
 from neuroimagery.vision import shepard_metzler as sm
 

@@ -17,7 +17,7 @@ import time
 import numpy as np
 import torch
 
-from neuroimagery.arguments import ToolParser, check, check_size, count, run_tool
+from neuroimagery.core.arguments import ToolParser, check, check_size, count, run_tool
 from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.events import EVENTS

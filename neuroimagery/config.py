@@ -12,6 +12,7 @@ import importlib
 import math
 import re
 import warnings
+from pathlib import Path
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
@@ -19,13 +20,25 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from .bounds import bounded, check_declared
-from .errors import UserInputError
-from .manifest import flatten
+from .core.bounds import bounded, check_declared
+from .core.errors import UserInputError
+from .core.experiment import Experiment
+from .core.manifest import flatten
 from .moved_keys import MOVED, REMOVED
 from .vision.config import StimuliConfig, VisionConfig
 
-EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "exp6", "demo")
+
+
+def _experiment_names() -> tuple[str, ...]:
+    """The experiments: every subpackage of ``neuroimagery/experiments`` whose ``__init__`` defines
+    ``EXPERIMENT`` (read from the source, nothing imported), numbered ones first."""
+    root = Path(__file__).parent / "experiments"
+    names = [d.name for d in root.iterdir() if (d / "__init__.py").is_file()
+             and re.search(r"^EXPERIMENT\s*=", (d / "__init__.py").read_text(), re.M)]
+    return tuple(sorted(names, key=lambda n: (not re.fullmatch(r"exp\d+", n), len(n), n)))
+
+
+EXPERIMENTS = _experiment_names()
 # conf/hydra/launcher/submitit_*.yaml share their names with the launcher plugin's schemas, which
 # Hydra 1.3 still checks them against, with a deprecation warning; they list every key and work
 # without the schema too. Set on import: a sweep job of the submitit launcher composes its
@@ -61,11 +74,11 @@ class Config:
     preset: str = bounded("full", choices=("full", "quick"))
     checkpoint: Optional[str] = None  # evaluate.py: a training run's directory; None trains first
     progress: bool = True  # progress bars on long loops
-    # torch intra-op threads during the run (0 = the cores other work leaves free, neuroimagery.threads);
-    # more than the cores this process may use is refused (neuroimagery.resources)
+    # torch intra-op threads during the run (0 = the cores other work leaves free, neuroimagery.core.threads);
+    # more than the cores this process may use is refused (neuroimagery.core.resources)
     threads: int = bounded(0, ge=0)
     overwrite: bool = False  # write into a run directory that holds a run with other settings
-    # skip the checks of the memory a run needs and of threads against the cores (neuroimagery.resources),
+    # skip the checks of the memory a run needs and of threads against the cores (neuroimagery.core.resources),
     # for a machine whose limits are not visible to the process
     allow_large: bool = False
 
@@ -73,30 +86,25 @@ class Config:
         check_declared(self, "", recursive=False)
 
 
-def experiment_module(name: str):
-    """The module implementing experiment ``name`` (``neuroimagery.experiments.<name>``)."""
+def experiment(name: str) -> Experiment:
+    """The protocol of experiment ``name``: ``EXPERIMENT`` of ``neuroimagery.experiments.<name>``."""
     if name not in EXPERIMENTS:
         raise UserInputError(f"unknown experiment {name!r}; choose one of {', '.join(EXPERIMENTS)}")
-    return importlib.import_module(f"neuroimagery.experiments.{name}")
+    return importlib.import_module(f"neuroimagery.experiments.{name}").EXPERIMENT
 
 
-def experiment_modules():
-    """``(name, module)`` of every experiment whose module is present."""
+def experiments():
+    """The protocol of every experiment, in the order of :data:`EXPERIMENTS`."""
     for name in EXPERIMENTS:
-        try:
-            yield name, experiment_module(name)
-        except ModuleNotFoundError:
-            continue
+        yield experiment(name)
 
 
 def register_configs() -> None:
     """Store the schemas in Hydra's ConfigStore (called before composing)."""
     cs = ConfigStore.instance()
     cs.store(name="base_config", node=Config)
-    for name, mod in experiment_modules():
-        schema = getattr(mod, "CONFIG", None)
-        if schema is not None:
-            cs.store(group="experiment", name=f"{name}_schema", node=schema)
+    for e in experiments():
+        cs.store(group="experiment", name=f"{e.name}_schema", node=e.config)
 
 
 def moved_keys(experiment: str | None = None) -> dict[str, str]:
@@ -115,18 +123,16 @@ def moved_keys(experiment: str | None = None) -> dict[str, str]:
 def _experiment_in(text: str) -> str | None:
     """The experiment whose schema a Hydra or OmegaConf message names (``object_type=Exp6Config``,
     ``not in 'Exp5Config'``), if any."""
-    return next((name for name, mod in experiment_modules() if getattr(mod, "CONFIG", None) is not None
-                 and re.search(rf"\b{mod.CONFIG.__name__}\b", text)), None)
+    return next((e.name for e in experiments() if re.search(rf"\b{e.config.__name__}\b", text)), None)
 
 
 def schema_keys(experiment: str | None = None) -> list[str]:
     """Every dotted key a run may set: the top level's and those of ``experiment``'s schema (of
     every experiment when None)."""
     keys = [k for k in flatten(Config(experiment=None)) if k != "experiment"]  # type: ignore[arg-type]
-    for name, mod in experiment_modules():
-        schema = getattr(mod, "CONFIG", None)
-        if schema is not None and (experiment is None or name == experiment):
-            keys += [k for k in flatten(schema(), "experiment.") if k not in keys]
+    for e in experiments():
+        if experiment is None or e.name == experiment:
+            keys += [k for k in flatten(e.config(), "experiment.") if k not in keys]
     return keys
 
 

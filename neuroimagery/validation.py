@@ -1,27 +1,28 @@
 """Checks a run's whole configuration before any work starts.
 
-:func:`check_run` refuses, with one :class:`~neuroimagery.errors.UserInputError` naming the key or
+:func:`check_run` refuses, with one :class:`~neuroimagery.core.errors.UserInputError` naming the key or
 the file,
 
 - a setting given as an empty string where its default is not (``checkpoint=''``);
 - a number that is not finite (``nan`` slips through every range check written as a
   comparison, ``inf`` through every lower bound);
-- a value outside the bounds its field declares (:mod:`neuroimagery.bounds`), the whole
+- a value outside the bounds its field declares (:mod:`neuroimagery.core.bounds`), the whole
   configuration walked, each key named by its full path;
 - a key set to something other than its default that has no effect in this experiment or with
   these options (:func:`ineffective`), so a misplaced setting never passes silently;
 - settings that need more memory, or threads than the cores, this process may use
-  (:mod:`neuroimagery.resources`; ``allow_large=true`` skips this check);
-- what the experiment module's own ``check_inputs(conf)`` refuses (names of stimulus sets, a
+  (:mod:`neuroimagery.core.resources`; ``allow_large=true`` skips this check);
+- what the experiment's own ``check_inputs(conf)`` refuses (names of stimulus sets, a
   module path, object placement: whatever can be checked without the work);
 - a stimulus folder that cannot be used (unreadable, truncated or oversized images, links that
   lead nowhere, no shape found, too few objects), before any training.
 
 Whether a key was "set" is judged against the schema's defaults (the dataclasses), so a run
 composed by Hydra and a :class:`~neuroimagery.config.Config` built in Python are checked alike.
-An experiment module may add its own rules with ``ineffective_keys(conf) -> {key: reason}``,
-``memory_estimate(conf) -> [resources.Need]`` and ``check_inputs(conf)``, and declare ``INPUTS`` (the groups of what it sees: ``vision``, ``stimuli``) and ``MIN_OBJECTS``
-(how many shapes a user folder must hold).
+An experiment (:class:`neuroimagery.core.experiment.Experiment`) may add its own rules with
+``ineffective_keys(conf) -> {key: reason}``, ``memory_estimate(conf) -> [resources.Need]`` and
+``check_inputs(conf)``, and declare ``inputs`` (the groups of what it sees: ``vision``,
+``stimuli``) and ``min_objects`` (how many shapes a user folder must hold).
 """
 from __future__ import annotations
 
@@ -30,8 +31,8 @@ from pathlib import Path
 from typing import Any
 
 from .config import Config, check_finite
-from .errors import UserInputError
-from .manifest import flatten
+from .core.errors import UserInputError
+from .core.manifest import flatten
 
 CAMERA_KEYS = ("robot_model", "eye", "image_width", "image_height", "fov_deg", "screen_distance",
                "object_width", "gaze_jitter_deg")
@@ -72,7 +73,7 @@ def _differs(a: Any, b: Any) -> bool:
 def ineffective(conf, module) -> dict[str, str]:
     """``{key: why it has no effect}`` for every key of this run that does nothing here."""
     name = conf.experiment.name
-    inputs = getattr(module, "INPUTS", ())
+    inputs = module.inputs
     out: dict[str, str] = {}
     if "vision" not in inputs:
         out.update({f"vision.{f.name}": f"{name} does not see through the eye"
@@ -96,7 +97,7 @@ def ineffective(conf, module) -> dict[str, str]:
                     for f in dataclasses.fields(conf.experiment) if f.name.startswith("quick_")})
     if conf.threads and hasattr(conf.experiment, "auto_threads"):
         out["experiment.auto_threads"] = "it acts only when threads=0"
-    extra = getattr(module, "ineffective_keys", None)
+    extra = module.ineffective_keys
     if extra is not None:
         out.update(extra(conf))
     return out
@@ -122,7 +123,7 @@ def check_ineffective(conf, module) -> None:
 def check_stimulus_folder(conf, module) -> None:
     """Load a user stimulus folder now, so a bad one is refused before any training: every file
     listed, sized from its header and fully decoded (``vision.image_files``), by name."""
-    if "stimuli" not in getattr(module, "INPUTS", ()) or conf.stimuli.kind != "folder":
+    if "stimuli" not in module.inputs or conf.stimuli.kind != "folder":
         return
     from .vision.stimulus_sets import load_folder
 
@@ -130,7 +131,7 @@ def check_stimulus_folder(conf, module) -> None:
     if not folder.is_dir():
         raise UserInputError(f"stimuli.path {str(folder)!r} is not a folder")
     sset = load_folder(folder)
-    need = getattr(module, "MIN_OBJECTS", 1)
+    need = module.min_objects
     if len(sset.objects) < need:
         raise UserInputError(f"stimulus folder {folder} holds {len(sset.objects)} shape(s); "
                              f"{conf.experiment.name} needs at least {need} (a shape and its mirror)")
@@ -138,15 +139,15 @@ def check_stimulus_folder(conf, module) -> None:
 
 def check_run(conf, module) -> None:
     """Every check of this module, cheapest first."""
-    from .bounds import check_declared
-    from .resources import check_resources
+    from .core.bounds import check_declared
+    from .core.resources import check_resources
 
     check_finite(conf)
     check_empty(conf)
     check_declared(conf)
     check_ineffective(conf, module)
     check_resources(conf, module)
-    extra = getattr(module, "check_inputs", None)
+    extra = module.check_inputs
     if extra is not None:
         extra(conf)
     check_stimulus_folder(conf, module)

@@ -56,7 +56,7 @@ def progress_misses(monkeypatch):
     """Every run a test makes counts exactly the trials its test phase announced
     (``progress.expect``): a phase closing with another count fails the test. A test that misses
     on purpose empties the list this fixture yields."""
-    from neuroimagery import progress
+    from neuroimagery.core import progress
 
     missed: list[str] = []
     close = progress._Phase.close
@@ -70,3 +70,12 @@ def progress_misses(monkeypatch):
     monkeypatch.setattr(progress._Phase, "close", checked_close)
     yield missed
     assert missed == [], missed
+
+
+def patch_experiment(monkeypatch, name: str, **fields) -> None:
+    """Replace fields of experiment ``name``'s protocol (``EXPERIMENT``) for one test."""
+    import dataclasses
+    import importlib
+
+    package = importlib.import_module(f"neuroimagery.experiments.{name}")
+    monkeypatch.setattr(package, "EXPERIMENT", dataclasses.replace(package.EXPERIMENT, **fields))

@@ -3,17 +3,16 @@ would, in-process, and check that it was refused with one ``error:`` line naming
 exit status 2, no traceback, within seconds, before any training."""
 from __future__ import annotations
 
-import importlib
 import time
 
 import pytest
 
-from neuroimagery import cli
-from neuroimagery.run import evaluate, train
+from neuroimagery.app import cli
+from neuroimagery.app.run import evaluate, train
 
-from conftest import make_cfg
+from conftest import make_cfg, patch_experiment
 
-EXPERIMENTS = ("exp1", "exp2", "exp3", "exp4", "exp5", "exp6", "demo")
+from neuroimagery.config import EXPERIMENTS  # noqa: E402
 LIMIT_S = 10.0  # a refusal must come within seconds: these are checks, not work
 
 
@@ -24,7 +23,7 @@ def no_training(monkeypatch):
         raise AssertionError("training started before the input was refused")
 
     for name in EXPERIMENTS:
-        monkeypatch.setattr(importlib.import_module(f"neuroimagery.experiments.{name}"), "train", forbidden)
+        patch_experiment(monkeypatch, name, train=forbidden)
 
 
 def refused(capsys, fn, *needles, code: int = 2) -> str:

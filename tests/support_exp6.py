@@ -21,7 +21,7 @@ def cfg_for(*overrides):
 @lru_cache(maxsize=1)
 def trained():
     """(config, model, scene) of one participant at seed 0 (``NEUROIMAGERY_CONTRACT_SEED``: another)."""
-    from neuroimagery.experiments import exp6
+    from neuroimagery.experiments.exp6 import protocol as exp6
 
     cfg = cfg_for()
     scene = exp6.make_scene(cfg.experiment)
@@ -33,7 +33,7 @@ def trained():
 def aligned(count: int = 4):
     """:func:`exp6_stages.alignment` of the trained participant: the training objects' pairs and
     ``count`` held-out chains' pairs."""
-    from neuroimagery.experiments import exp6_stages
+    from neuroimagery.experiments.exp6 import stages as exp6_stages
 
     cfg, model, scene = trained()
     return exp6_stages.alignment(model, cfg, scene, count)

@@ -39,7 +39,7 @@ def assert_run_tests_read_no_labels(monkeypatch, module, cfg, model, tables=None
     label column shuffled (``tables.trial_table`` wrapped; ``protocol_ch6`` by default): the outputs
     are identical, while the label column ``moved`` did change."""
     if tables is None:
-        from neuroimagery.experiments import protocol_ch6 as tables
+        from neuroimagery.experiments.chapter6 import protocol as tables
 
     base, _, _ = module.run_tests(cfg, model)
     original = tables.trial_table

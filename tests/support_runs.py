@@ -43,7 +43,7 @@ def reused_run(env: str, cfg) -> dict:
 def rehash(run_dir) -> None:
     """Record in ``run_dir/manifest.json`` the hashes of its files as they are now (as if the run had
     written them: a careful forger, or a file another version wrote)."""
-    from neuroimagery import manifest as mf
+    from neuroimagery.core import manifest as mf
 
     path = Path(run_dir) / "manifest.json"
     m = json.loads(path.read_text())

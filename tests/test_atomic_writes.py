@@ -15,10 +15,12 @@ import pytest  # noqa: E402
 import torch  # noqa: E402
 from conftest import make_cfg  # noqa: E402
 
-from neuroimagery import cli, files  # noqa: E402
-from neuroimagery import run as run_mod  # noqa: E402
+from neuroimagery.app import cli
+
+from neuroimagery.core import files  # noqa: E402
+from neuroimagery.app import run as run_mod  # noqa: E402
 from neuroimagery.analysis.report import Report  # noqa: E402
-from neuroimagery.run import evaluate, train  # noqa: E402
+from neuroimagery.app.run import evaluate, train  # noqa: E402
 
 
 def _demo(*over):

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from neuroimagery import files
+from neuroimagery.core import files
 from neuroimagery.robot import babble
 from neuroimagery.robot.events import EVENTS
 

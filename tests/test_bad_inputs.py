@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from neuroimagery import cli
-from neuroimagery.run import evaluate, train
+from neuroimagery.app import cli
+from neuroimagery.app.run import evaluate, train
 
 from conftest import make_cfg
 from support_bad_inputs import evaluating, no_training, refused  # noqa: F401 (fixture)
@@ -150,7 +150,7 @@ def test_a_full_disk_keeps_what_was_computed(tmp_path, capsys, monkeypatch):
 # ------------------------------------------------------------------------------- the pool
 @pytest.mark.parametrize("make,needle", [("missing", "no such run directory"), ("empty", "not a finished")])
 def test_the_pool_refuses_what_is_not_a_run(tmp_path, capsys, make, needle):
-    from neuroimagery import pool
+    from neuroimagery.app import pool
 
     d = tmp_path / "r"
     if make == "empty":

@@ -51,8 +51,8 @@ WORLD_CASES = [
 
 @pytest.mark.parametrize("args,needle,also", WORLD_CASES, ids=[" ".join(a) for a, _, _ in WORLD_CASES])
 def test_world_check_arguments_are_one_error_line_before_any_library(tmp_path, capsys, monkeypatch, args, needle, also):
-    """``python -m neuroimagery.experiments.exp5_world`` parses as babble does (one ``error:`` line)."""
-    from neuroimagery.experiments import exp5_world
+    """``python -m neuroimagery.experiments.exp5.world`` parses as babble does (one ``error:`` line)."""
+    from neuroimagery.experiments.exp5 import world as exp5_world
 
     def no_library(*a, **k):
         raise AssertionError("a library was acquired before the arguments were checked")

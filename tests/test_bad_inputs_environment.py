@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from neuroimagery import console
+from neuroimagery.core import console
 
 from support_bad_inputs import evaluating, refused
 
@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def demo_run(tmp_path_factory):
-    from neuroimagery.run import evaluate
+    from neuroimagery.app.run import evaluate
 
     from conftest import make_cfg
 

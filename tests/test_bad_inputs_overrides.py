@@ -39,8 +39,8 @@ def test_an_empty_value_is_refused_naming_the_key(capsys, hydra_reporter, over):
 
 def test_an_empty_path_built_in_python_is_refused_before_any_work(tmp_path, capsys, no_training):
     """The same refusal without Hydra's command line (a configuration composed or built in Python)."""
-    from neuroimagery import cli
-    from neuroimagery.run import evaluate
+    from neuroimagery.app import cli
+    from neuroimagery.app.run import evaluate
 
     from conftest import make_cfg
 

@@ -1,16 +1,16 @@
 """Sizes a setting implies, checked before any allocation: the memory estimate of each experiment
 against the memory this process may use, threads against its cores, the declared bounds of the
-configuration fields; ``allow_large=true`` skips the resource checks (neuroimagery.resources,
-neuroimagery.bounds)."""
+configuration fields; ``allow_large=true`` skips the resource checks (neuroimagery.core.resources,
+neuroimagery.core.bounds)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import pytest
 
-from neuroimagery import resources
-from neuroimagery.bounds import bounded, check_declared
-from neuroimagery.errors import UserInputError
+from neuroimagery.core import resources
+from neuroimagery.core.bounds import bounded, check_declared
+from neuroimagery.core.errors import UserInputError
 
 from support_bad_inputs import evaluating, no_training, refused  # noqa: F401 (fixture)
 

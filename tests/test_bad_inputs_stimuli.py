@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from neuroimagery import stimuli
+from neuroimagery.app import stimuli
 
 from support_bad_inputs import evaluating, no_training, refused  # noqa: F401 (fixture)
 

@@ -12,7 +12,9 @@ from pathlib import Path
 import pytest
 import torch
 
-from neuroimagery import cli, manifest as mf, pool
+from neuroimagery.app import cli, pool
+
+from neuroimagery.core import manifest as mf
 
 from conftest import make_cfg
 from support_bad_inputs import evaluating, no_training, refused  # noqa: F401 (fixture)
@@ -20,7 +22,7 @@ from support_bad_inputs import evaluating, no_training, refused  # noqa: F401 (f
 
 @pytest.fixture(scope="module")
 def demo_run(tmp_path_factory):
-    from neuroimagery.run import evaluate
+    from neuroimagery.app.run import evaluate
 
     d = tmp_path_factory.mktemp("stored") / "run"
     evaluate(make_cfg("experiment=demo", "participants=2", "logger=none"), out_dir=d)
@@ -88,7 +90,7 @@ def test_an_unreadable_manifest_of_reuse_libraries_is_refused(tmp_path, capsys, 
 
 def test_libraries_of_an_exp5_run_that_stopped_may_be_reused(tmp_path):
     """Each library is checked when it is read (its seed and settings), so a run killed midway is usable."""
-    from neuroimagery.experiments.exp5_checks import check_reuse
+    from neuroimagery.experiments.exp5.checks import check_reuse
 
     d = tmp_path / "killed"
     (d / "checkpoints").mkdir(parents=True)

@@ -1,5 +1,5 @@
 """Every command line of the package takes its arguments as ``evaluate.py`` takes its settings
-(neuroimagery/arguments.py): one ``error:`` line naming the option, exit status 2, no argparse
+(neuroimagery/core/arguments.py): one ``error:`` line naming the option, exit status 2, no argparse
 usage text, no traceback, before any work; counts within declared bounds, sizes past a limit only
 with ``--allow-large``, seeds >= 0, no empty path. The tools run in-process with their work
 replaced by a function that fails the test if it is reached.
@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pytest
 
-from neuroimagery import cli, pool, stimuli
-from neuroimagery.arguments import run_tool
-from neuroimagery.experiments import exp5_calibrate, exp5_world
+from neuroimagery.app import cli, pool, stimuli
+from neuroimagery.core.arguments import run_tool
+from neuroimagery.experiments.exp5 import calibrate as exp5_calibrate, world as exp5_world
 from neuroimagery.robot import babble, posture_fit, reach, scene_check
 
 from support_bad_inputs import refused
@@ -43,7 +43,7 @@ def _bench(name: str):
     return mod
 
 
-WORLD = [  # python -m neuroimagery.experiments.exp5_world
+WORLD = [  # python -m neuroimagery.experiments.exp5.world
     (["--seed", "-1"], "--seed", "a seed must be >= 0, got -1"),
     (["--seed", "0.5"], "--seed", "not a whole number"),
     (["--libraries", "1e9"], "--libraries 1000000000", "--allow-large"),
@@ -61,7 +61,7 @@ def test_exp5_world_arguments(tmp_path, capsys, monkeypatch, args, needle, also)
     assert not (tmp_path / "o").exists()
 
 
-CALIBRATE = [  # python -m neuroimagery.experiments.exp5_calibrate
+CALIBRATE = [  # python -m neuroimagery.experiments.exp5.calibrate
     (["--trials", "-1"], "--trials must be >= 1", None),
     (["--sampler-seed", "-3"], "--sampler-seed", "a seed must be >= 0, got -3"),
     (["--babble", "1e9"], "--babble 1000000000", "--allow-large"),
@@ -124,7 +124,7 @@ def test_pool_arguments(tmp_path, capsys, monkeypatch, args, needle):
 
 
 def test_pool_as_a_module_prints_one_line_not_argparse_usage():
-    p = subprocess.run([sys.executable, "-m", "neuroimagery.pool"], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    p = subprocess.run([sys.executable, "-m", "neuroimagery.app.pool"], capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert p.returncode == 2, p.stderr
     assert p.stderr.splitlines() == ["error: the following arguments are required: runs"], p.stderr
 

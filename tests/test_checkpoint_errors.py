@@ -9,10 +9,10 @@ import pytest
 import torch
 from conftest import make_cfg
 
-from neuroimagery import cli
-from neuroimagery import manifest as mf
+from neuroimagery.app import cli
+from neuroimagery.core import manifest as mf
 from support_runs import rehash
-from neuroimagery.run import evaluate, train
+from neuroimagery.app.run import evaluate, train
 
 
 def _demo(*over):
@@ -140,11 +140,11 @@ def test_a_checkpoint_written_before_a_setting_existed_is_read_with_its_earlier_
     """An Exp 6 run trained before ``search.starts`` and ``search.keep`` existed searched as
     ``starts=[]``, ``keep=8`` do (neuroimagery.moved_keys.ADDED): it is accepted with them, and
     refused where this run sets them otherwise."""
-    from neuroimagery.checkpoints import verify_checkpoint
-    from neuroimagery.config import experiment_module, validate
-    from neuroimagery.errors import UserInputError
+    from neuroimagery.core.checkpoints import verify_checkpoint
+    from neuroimagery.config import experiment, validate
+    from neuroimagery.core.errors import UserInputError
 
-    now = mf.build(validate(make_cfg("experiment=exp6")), experiment_module("exp6"))
+    now = mf.build(validate(make_cfg("experiment=exp6")), experiment("exp6"))
     assert now["training"]["experiment.search.keep"] == 8 and now["training"]["experiment.search.starts"] == []
     older = {k: v for k, v in now["training"].items() if k not in ("experiment.search.starts", "experiment.search.keep")}
     state = {"weights": torch.zeros(2)}
@@ -152,6 +152,6 @@ def test_a_checkpoint_written_before_a_setting_existed_is_read_with_its_earlier_
     torch.save({**state, "manifest": {**now, "training": older, "tensor_hash": mf.tensor_hash(state)}},
                tmp_path / "checkpoints" / "exp6.pt")
     verify_checkpoint(tmp_path, "exp6", now)
-    other = mf.build(validate(make_cfg("experiment=exp6", "experiment.search.keep=4")), experiment_module("exp6"))
+    other = mf.build(validate(make_cfg("experiment=exp6", "experiment.search.keep=4")), experiment("exp6"))
     with pytest.raises(UserInputError, match=r"experiment.search.keep 8 \(stored\) vs 4"):
         verify_checkpoint(tmp_path, "exp6", other)

@@ -1,5 +1,5 @@
 """Sweeps through Hydra's submitit launcher: the presets in conf/hydra/launcher, a real two-job sweep
-on submitit's local executor pooled with neuroimagery.pool, and a refused job as one error line."""
+on submitit's local executor pooled with neuroimagery.app.pool, and a refused job as one error line."""
 import dataclasses
 import subprocess
 import sys
@@ -11,7 +11,7 @@ from hydra_plugins.hydra_submitit_launcher import config as submitit_launcher  #
 from omegaconf import OmegaConf
 
 from conftest import CONF
-from neuroimagery import cli, pool
+from neuroimagery.app import cli, pool
 
 ROOT = Path(__file__).resolve().parents[1]
 

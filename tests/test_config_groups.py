@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from neuroimagery.config import experiment_module, moved_keys, moved_message, schema_keys
+from neuroimagery.config import experiment, moved_keys, moved_message, schema_keys
 from neuroimagery.models.params import LcaParams, PpcParams, SelectionParams
 from neuroimagery.moved_keys import ADDED, MOVED, REMOVED, rename
 
@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
                                                    ("ppc", PpcParams, ("exp4", "exp6"))])
 def test_experiments_that_share_a_meaning_share_the_group(group, cls, experiments):
     for name in experiments:
-        value = getattr(experiment_module(name).CONFIG(), group)
+        value = getattr(experiment(name).config(), group)
         assert isinstance(value, cls), (name, group)
 
 
@@ -47,11 +47,11 @@ def test_settings_stored_under_old_names_read_under_the_new():
 @pytest.mark.parametrize("name", sorted(ADDED))
 def test_every_added_key_is_a_key_of_the_schema_with_a_value_it_accepts(name):
     keys = set(schema_keys(name))
-    module = experiment_module(name)
+    module = experiment(name)
     for key, value in ADDED[name].items():
         assert f"experiment.{key}" in keys, key
         group, field = key.split(".")
-        cls = type(getattr(module.CONFIG(), group))
+        cls = type(getattr(module.config(), group))
         assert getattr(cls(**{field: value}), field) == value  # a value the setting accepts
 
 
@@ -69,8 +69,8 @@ def test_settings_stored_before_a_key_existed_read_it_with_its_earlier_value():
 @pytest.mark.parametrize("make,key", [
     (lambda: SelectionParams(tau=0.0), "experiment.selection.tau"),
     (lambda: LcaParams(dt=2.0), "experiment.lca.dt"),
-    (lambda: experiment_module("exp6").CONFIG(step_deg=70.0), "experiment.step_deg"),
-    (lambda: experiment_module("exp5").CONFIG(hp1_ages=[14]), "experiment.hp1_ages"),
+    (lambda: experiment("exp6").config(step_deg=70.0), "experiment.step_deg"),
+    (lambda: experiment("exp5").config(hp1_ages=[14]), "experiment.hp1_ages"),
 ])
 def test_a_declared_check_refuses_naming_the_key(make, key):
     with pytest.raises(ValueError, match=re.escape(key)):

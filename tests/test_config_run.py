@@ -9,8 +9,8 @@ import pytest
 from hydra.errors import ConfigCompositionException
 
 from neuroimagery.config import validate
-from neuroimagery.errors import UserInputError
-from neuroimagery.run import evaluate, train
+from neuroimagery.core.errors import UserInputError
+from neuroimagery.app.run import evaluate, train
 
 from conftest import CONF, make_cfg
 
@@ -130,7 +130,7 @@ def test_process_age_counts_from_the_process_start():
     import subprocess
     import sys
 
-    code = ("import time; time.sleep(0.6); from neuroimagery.run import process_age_s; a = process_age_s(); "
+    code = ("import time; time.sleep(0.6); from neuroimagery.app.run import process_age_s; a = process_age_s(); "
             "print('none' if a is None else a)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     if out == "none":

@@ -9,7 +9,7 @@ from neuroimagery.models.params import SomParams
 from conftest import make_cfg
 from support_runs import reused_run
 
-from neuroimagery.experiments.exp1 import Exp1Config
+from neuroimagery.experiments.exp1.protocol import Exp1Config
 from neuroimagery.nn.hebbian_closed_form import hebbian_indexed, hebbian_online, hebbian_shared
 from neuroimagery.nn import AllToAll, Hebbian
 
@@ -43,7 +43,7 @@ def test_config_rejects_bad_values(key, value):
 
 
 def test_exp1_quick_run_writes_outputs_and_rotates(tmp_path):
-    from neuroimagery.run import evaluate, train
+    from neuroimagery.app.run import evaluate, train
 
     cfg = make_cfg("experiment=exp1", "participants=2", "preset=quick", "progress=false")
     s = evaluate(cfg, out_dir=tmp_path / "ev")
@@ -70,7 +70,7 @@ def test_exp1_quick_run_writes_outputs_and_rotates(tmp_path):
 def full_run(tmp_path_factory):
     """``EXP1_RUN=DIR`` reuses a finished ``evaluate.py experiment=exp1`` run made with the default
     settings (refused otherwise); without it one is made."""
-    from neuroimagery.run import evaluate
+    from neuroimagery.app.run import evaluate
 
     cfg = make_cfg("experiment=exp1", "progress=false", "logger=none")
     if os.environ.get("EXP1_RUN"):
@@ -88,8 +88,8 @@ def test_full_run_rotates_and_rt_rises_with_disparity(full_run):
 
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     """checkpoint=DIR tests the loaded model's participants; another `participants` is refused by name."""
-    from neuroimagery.errors import UserInputError
-    from neuroimagery.run import evaluate, train
+    from neuroimagery.core.errors import UserInputError
+    from neuroimagery.app.run import evaluate, train
 
     def cfg(n, *more):
         return make_cfg("experiment=exp1", f"participants={n}", "preset=quick", "progress=false", "logger=none",
@@ -132,8 +132,8 @@ def test_answers_do_not_read_labels(tmp_path, monkeypatch):
     from support_labels import answers, shuffle_pair_labels
 
     from neuroimagery.config import validate
-    from neuroimagery.experiments import exp1
-    from neuroimagery.run import RunDir
+    from neuroimagery.experiments.exp1 import protocol as exp1
+    from neuroimagery.app.run import RunDir
     from neuroimagery.vision.stimulus_sets import get_stimulus_set
 
     cfg = validate(make_cfg("experiment=exp1", "participants=2", "preset=quick", "progress=false", "logger=none",

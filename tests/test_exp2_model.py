@@ -13,7 +13,7 @@ from conftest import make_cfg
 from support_numerics import assert_same_threshold, assert_same_winner, assert_within
 from support_runs import reused_run
 
-from neuroimagery.experiments.exp2 import Exp2Config
+from neuroimagery.experiments.exp2.protocol import Exp2Config
 from neuroimagery.nn.som_windowed import fit_windowed as som_fit_windowed
 from neuroimagery.nn.functional import squared_norms
 from neuroimagery.models.rotation_motor import ANGLES, MotorRotationModel
@@ -112,7 +112,7 @@ def _draw_l(path, mirror):
 
 @pytest.mark.slow
 def test_exp2_quick_run_with_a_user_folder_adds_custom_results(tmp_path):
-    from neuroimagery.run import evaluate
+    from neuroimagery.app.run import evaluate
 
     folder = tmp_path / "shapes"
     folder.mkdir()
@@ -135,7 +135,7 @@ def full_run(tmp_path_factory):
     cfg = _cfg("logger=none")
     if os.environ.get("EXP2_RUN"):
         return reused_run("EXP2_RUN", cfg)
-    from neuroimagery.run import evaluate
+    from neuroimagery.app.run import evaluate
 
     return evaluate(cfg, out_dir=tmp_path_factory.mktemp("exp2_full"))
 
@@ -259,8 +259,8 @@ def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path):
     from neuroimagery.models.factor_checkpoint import PROBE_ROWS, probe_bound
     from types import SimpleNamespace
 
-    from neuroimagery.errors import UserInputError
-    from neuroimagery.experiments.protocol_ch5 import load_model
+    from neuroimagery.core.errors import UserInputError
+    from neuroimagery.experiments.chapter5.protocol import load_model
 
     e = Exp2Config(som=SomParams(iterations=30, cutoff=0.01, cluster_sigma=1.0), hebb_steps=60, c5_epochs=1)
     g = torch.Generator().manual_seed(3)
@@ -303,11 +303,11 @@ def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path):
 
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     """checkpoint=DIR tests the loaded model's participants; another `participants` is refused by name."""
-    from neuroimagery import manifest as mf
+    from neuroimagery.core import manifest as mf
     from neuroimagery.config import validate
-    from neuroimagery.errors import UserInputError
-    from neuroimagery.experiments import exp2
-    from neuroimagery.run import RunDir, evaluate
+    from neuroimagery.core.errors import UserInputError
+    from neuroimagery.experiments.exp2 import protocol as exp2
+    from neuroimagery.app.run import RunDir, evaluate
 
     small = ("experiment.som.iterations=30", "experiment.hebb_steps=60", "experiment.c5_epochs=1", "logger=none")
     e = Exp2Config(som=SomParams(iterations=30, cutoff=0.01, cluster_sigma=1.0), hebb_steps=60, c5_epochs=1)
@@ -333,8 +333,8 @@ def test_answers_do_not_read_labels(monkeypatch, condition):
     from support_labels import answers
 
     from neuroimagery.config import validate
-    from neuroimagery.experiments import exp2
-    from neuroimagery.experiments.protocol_ch5 import image_table
+    from neuroimagery.experiments.exp2 import protocol as exp2
+    from neuroimagery.experiments.chapter5.protocol import image_table
     from neuroimagery.vision.stimulus_sets import get_stimulus_set
 
     cfg = validate(_cfg("participants=2", "logger=none", "experiment.som.iterations=30", "experiment.hebb_steps=60",

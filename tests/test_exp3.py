@@ -7,9 +7,10 @@ import torch
 from conftest import make_cfg
 
 from neuroimagery.config import validate
-from neuroimagery.experiments import exp3, protocol_ch6 as pc
+from neuroimagery.experiments.exp3 import protocol as exp3
+from neuroimagery.experiments.chapter6 import protocol as pc
 from neuroimagery.nn import seeding
-from neuroimagery.run import evaluate
+from neuroimagery.app.run import evaluate
 
 
 def _cfg(*overrides, quick=True):
@@ -167,8 +168,8 @@ def test_rotated_ok_compares_orientations_modulo_360():
 
 
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
-    from neuroimagery.errors import UserInputError
-    from neuroimagery.run import train
+    from neuroimagery.core.errors import UserInputError
+    from neuroimagery.app.run import train
 
     small = ("logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100")
     train(_cfg("participants=2", *small), out_dir=tmp_path / "tr")

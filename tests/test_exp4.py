@@ -8,10 +8,11 @@ import torch
 from conftest import make_cfg
 
 from neuroimagery.config import validate
-from neuroimagery.experiments import exp4, protocol_ch6 as pc
+from neuroimagery.experiments.exp4 import protocol as exp4
+from neuroimagery.experiments.chapter6 import protocol as pc
 from neuroimagery.nn import AllToAll, Delta
 from neuroimagery.nn.binary import binary_matmul
-from neuroimagery.run import evaluate
+from neuroimagery.app.run import evaluate
 
 
 def _cfg(*overrides, quick=True):
@@ -291,8 +292,8 @@ def test_rt_by_required_steps_groups_by_disparity_not_by_steps_made():
 # one tiny participant: the condition comparisons run on nearly equal RTs, which scipy warns about
 @pytest.mark.filterwarnings("ignore:Precision loss occurred in moment calculation:RuntimeWarning")
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
-    from neuroimagery.errors import UserInputError
-    from neuroimagery.run import train
+    from neuroimagery.core.errors import UserInputError
+    from neuroimagery.app.run import train
 
     small = ("logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100", "experiment.noise_tests=[]")
     train(_cfg("participants=1", *small), out_dir=tmp_path / "tr")

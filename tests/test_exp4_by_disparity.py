@@ -5,7 +5,7 @@ import pandas as pd
 from scipy import stats
 from statsmodels.stats.multitest import multipletests
 
-from neuroimagery.experiments.exp4 import _stats_by_disparity
+from neuroimagery.experiments.exp4.protocol import _stats_by_disparity
 
 
 def _trials(seed=0):

@@ -15,7 +15,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).parent))
 from support_tool_env import StandInToolEnv  # noqa: E402
 
-from neuroimagery.experiments import exp5_config  # noqa: E402
+from neuroimagery.experiments.exp5 import config as exp5_config  # noqa: E402
 from neuroimagery.models.tool_use import (EVENTS, AcquisitionParams, Library, Outcomes,  # noqa: E402
                                           SequencingParams, ToolUseBrain, acquire_skills, build_brain, sequence_trial)
 

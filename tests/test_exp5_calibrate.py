@@ -6,7 +6,7 @@ import pytest
 
 optuna = pytest.importorskip("optuna")
 
-from neuroimagery.experiments import exp5_calibrate as cal  # noqa: E402
+from neuroimagery.experiments.exp5 import calibrate as cal  # noqa: E402
 from neuroimagery.robot.world_candidate import PRESENT  # noqa: E402
 
 TINY = ["--babble", "20", "--libraries", "1", "--fk-movements", "60"]

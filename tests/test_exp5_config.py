@@ -12,7 +12,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 from conftest import make_cfg  # noqa: E402
 
-from neuroimagery.experiments import exp5, exp5_config  # noqa: E402
+from neuroimagery.experiments.exp5 import protocol as exp5, config as exp5_config  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -20,12 +20,12 @@ import torch
 sys.path.insert(0, str(Path(__file__).parent))
 from conftest import make_cfg  # noqa: E402
 
-import neuroimagery.run as R  # noqa: E402
-from neuroimagery.cli import friendly_errors  # noqa: E402
-from neuroimagery import pool  # noqa: E402
-from neuroimagery.errors import UserInputError  # noqa: E402
-from neuroimagery.experiments import exp5, exp5_pool, exp5_tasks  # noqa: E402
-from neuroimagery.files import tmp_path as tmp_name  # noqa: E402
+import neuroimagery.app.run as R  # noqa: E402
+from neuroimagery.app.cli import friendly_errors  # noqa: E402
+from neuroimagery.app import pool  # noqa: E402
+from neuroimagery.core.errors import UserInputError  # noqa: E402
+from neuroimagery.experiments.exp5 import protocol as exp5, pool as exp5_pool, tasks as exp5_tasks  # noqa: E402
+from neuroimagery.core.files import tmp_path as tmp_name  # noqa: E402
 
 STANDIN = "support_tool_env:StandInToolEnv"
 ARGS = ("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
@@ -41,7 +41,7 @@ def compose(*overrides):
 def as_run_of(d: Path, cfg, keys=()) -> None:
     """Make ``d`` a run directory of ``cfg`` (its manifest, and an index of ``keys`` when given), as a
     run that was stopped or finished would have left it."""
-    from neuroimagery import manifest as mf
+    from neuroimagery.core import manifest as mf
     from neuroimagery.config import validate
 
     conf = validate(cfg)

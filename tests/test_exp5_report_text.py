@@ -7,7 +7,7 @@ from support_figures import checking_overlaps
 
 from neuroimagery.analysis.report import Report
 from neuroimagery.analysis.robots import ROBOT_EFFECTS_INTRO, ROBOT_EQUIVALENCE, effects
-from neuroimagery.experiments.exp5_figures import filmstrip
+from neuroimagery.experiments.exp5.figures import filmstrip
 
 
 def _rows(success_of):

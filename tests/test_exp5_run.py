@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from conftest import make_cfg  # noqa: E402
 from support_runs import reused_run  # noqa: E402
 
-from neuroimagery.experiments import exp5, exp5_config, exp5_summary, exp5_task  # noqa: E402
+from neuroimagery.experiments.exp5 import protocol as exp5, config as exp5_config, summary as exp5_summary, task as exp5_task  # noqa: E402
 from neuroimagery.models.tool_use import Result  # noqa: E402
 
 STANDIN = "support_tool_env:StandInToolEnv"
@@ -29,7 +29,7 @@ def compose(*overrides):
 
 # ---------------------------------------------------------------------------------- the run
 def test_run_contract_and_resume_with_stand_in(tmp_path, monkeypatch):
-    import neuroimagery.run as R
+    import neuroimagery.app.run as R
 
     cfg = compose("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
                   "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2", "experiment.acquisition.explore_max_rollouts=120",
@@ -141,7 +141,7 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
 
     from omegaconf import OmegaConf
 
-    import neuroimagery.run as R
+    import neuroimagery.app.run as R
 
     args = ("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
             "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2", "experiment.acquisition.explore_max_rollouts=120",
@@ -190,10 +190,10 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
 
 
 def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
-    import neuroimagery.run as R
-    from neuroimagery.errors import UserInputError
-    from neuroimagery import pool
-    from neuroimagery.experiments import exp5_pool
+    import neuroimagery.app.run as R
+    from neuroimagery.core.errors import UserInputError
+    from neuroimagery.app import pool
+    from neuroimagery.experiments.exp5 import pool as exp5_pool
 
     args = ("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
             "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2", "experiment.acquisition.explore_max_rollouts=120",
@@ -236,7 +236,7 @@ def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_quick_run_on_the_robot_world(tmp_path):
-    import neuroimagery.run as R
+    import neuroimagery.app.run as R
 
     cfg = compose("preset=quick", "experiment.quick.repetitions=1", "experiment.engine.n_jobs=1", "logger=none",
                   "progress=false")
@@ -257,7 +257,7 @@ def test_full_run_shows_the_thesis_claims(tmp_path):
     """
     import os
 
-    import neuroimagery.run as R
+    import neuroimagery.app.run as R
 
     cfg = compose("logger=none", "progress=false")
     if os.environ.get("EXP5_FULL_RUN"):

@@ -1,10 +1,10 @@
-"""``python -m neuroimagery.experiments.exp5_world``: several seeds pooled, each library kept as it
+"""``python -m neuroimagery.experiments.exp5.world``: several seeds pooled, each library kept as it
 is done and reused by a rerun with the same settings (a stand-in library, no physics)."""
 import json
 
 import pytest
 
-from neuroimagery.experiments import exp5_world
+from neuroimagery.experiments.exp5 import world as exp5_world
 
 
 def fake_library(seed, i, table_contact="lift"):

@@ -5,16 +5,16 @@ import json
 import numpy as np
 import pytest
 import torch
-from conftest import make_cfg
+from conftest import make_cfg, patch_experiment
 
 from neuroimagery.config import validate
-from neuroimagery.experiments import exp6
+from neuroimagery.experiments.exp6 import protocol as exp6
 from neuroimagery.models import voxels
 from neuroimagery.models import voxel_code as vc
 from neuroimagery.models.rotation_3d import Rotation3D, fm_bytes, grid_for_budget
 from neuroimagery.nn import Connection, Delta, Sanger, seeding
 from neuroimagery.nn.local import LocalConnection
-from neuroimagery.run import evaluate
+from neuroimagery.app.run import evaluate
 from neuroimagery.vision import shepard_metzler as sm
 
 TINY = ("experiment.grid=10", "experiment.quick.fm_images=16", "experiment.quick.chains=8",
@@ -312,7 +312,7 @@ def test_wrist_conditions_leave_the_still_condition_unchanged():
     none = every[every["condition"] == "none"].reset_index(drop=True)
     for k in ("answer", "rt", "rotation_steps", "decided"):
         assert (none[k].to_numpy() == alone[k].to_numpy()).all(), k
-    from neuroimagery.experiments import exp6_report
+    from neuroimagery.experiments.exp6 import report as exp6_report
 
     names = [r["effect"] for r in exp6_report.effects(every)]
     assert any("match minus none" in n for n in names) and any("mismatch minus none" in n for n in names)
@@ -343,12 +343,12 @@ BAD = [
 
 @pytest.mark.parametrize("over,needle", BAD, ids=[" ".join(o) for o, _ in BAD])
 def test_bad_settings_are_refused_before_any_work(tmp_path, capsys, monkeypatch, over, needle):
-    from neuroimagery import cli
+    from neuroimagery.app import cli
 
     def forbidden(*a, **k):
         raise AssertionError("training started before the input was refused")
 
-    monkeypatch.setattr(exp6, "train", forbidden)
+    patch_experiment(monkeypatch, "exp6", train=forbidden)
     with pytest.raises(SystemExit) as ex:
         cli.friendly_errors(evaluate)(make_cfg("experiment=exp6", *over), out_dir=tmp_path)
     err = capsys.readouterr().err

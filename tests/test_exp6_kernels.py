@@ -9,7 +9,7 @@ import torch
 from conftest import make_cfg
 
 from neuroimagery.config import validate
-from neuroimagery.experiments import exp6
+from neuroimagery.experiments.exp6 import protocol as exp6
 from neuroimagery.models import voxel_code as vc
 from neuroimagery.models import voxel_code_kernel
 from neuroimagery.models.rotation_3d import AXES, fill_offsets

@@ -26,12 +26,12 @@ ARGS = ["experiment=exp4", "preset=quick", "participants=1", "progress=false", "
 KILL = {
     # during training: when the posture maps start, after the forward models were trained
     "training": """
-import neuroimagery.experiments.protocol_ch6 as pc
+import neuroimagery.experiments.chapter6.protocol as pc
 pc.train_posture_maps = lambda *a, **k: die()
 """,
     # in the middle of the checkpoint write: half the bytes are in the temporary file
     "checkpoint write": """
-import neuroimagery.run as r
+import neuroimagery.app.run as r
 def half(obj, path):
     import io, torch
     buf = io.BytesIO(); torch.save(obj, buf)
@@ -42,13 +42,13 @@ r.torch_save = half
 """,
     # during the tests: after the first block of trials was counted
     "tests": """
-import neuroimagery.progress as p
+import neuroimagery.core.progress as p
 p.advance = lambda *a, **k: die()
 """,
     # in the middle of the first figure of a rerun into a finished directory
     "figures": """
 import neuroimagery.analysis.figures as fg
-from neuroimagery.files import tmp_path
+from neuroimagery.core.files import tmp_path
 def cut(fig, path, **kw):
     with open(tmp_path(path), 'wb') as f:
         f.write(b'\\x89PNG'); f.flush()

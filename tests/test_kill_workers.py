@@ -3,7 +3,7 @@ Exp 5 tasks' joblib workers (``experiment.engine.n_jobs=2``) and the jobs of Hyd
 launcher (an Exp 6 sweep), killed during training and during the tests. The process tree of the
 run (every descendant of the killed process, and every process of its session) is listed just
 before the kill; each of those processes must be gone within 10 s (the workers watch their
-parent: neuroimagery/workers.py).
+parent: neuroimagery/core/workers.py).
 
 Slow (Exp 5 and Exp 6 quick runs, killed early): ``pytest -m slow tests/test_kill_workers.py``.
 """
@@ -29,7 +29,7 @@ EXP6 = ["-m", "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "experiment=ex
 # run before evaluate.py in the killed process: the tests phase of Exp 5 announces itself and waits,
 # so that the kill comes while the tests run (the idle workers of the training still there)
 SLOW_TESTS = """
-import time, neuroimagery.experiments.exp5 as e
+import time, neuroimagery.experiments.exp5.protocol as e
 _evaluate = e.evaluate
 def evaluate(*a, **k):
     open({marker!r}, 'w').close(); time.sleep(300)

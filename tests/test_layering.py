@@ -21,23 +21,8 @@ LAYER_NAMES = ("base", "blocks", "models", "analysis", "config", "experiments", 
 LAYERS = {
     # base: what any layer may use; knows no block, model or experiment
     "": BASE,  # the package's __init__
-    "errors": BASE,  # UserInputError and its friends
-    "console": BASE,  # one-line messages on stderr
-    "files": BASE,  # atomic writes, writable folders
-    "threads": BASE,  # the threads a run may use
-    "lock": BASE,  # a run directory's lock
-    "manifest": BASE,  # what a run was made with, the hashes of its files
-    "thesis": BASE,  # the thesis's target numbers
-    "bounds": BASE,  # declared bounds of settings
     "moved_keys": BASE,  # the one table of settings that moved or went
-    "resources": BASE,  # memory and cores this process may use
-    "progress": BASE,  # progress bars
-    "workers": BASE,  # pieces of a long measurement in worker processes
-    "memory": BASE,  # peak memory of a phase
-    "native": BASE,  # silencing C-level output
-    "logger": BASE,  # TensorBoard writer (a run connects it to nn.monitor)
-    "checkpoints": BASE,  # reading a trained run's checkpoints
-    "arguments": BASE,  # the command line of every tool: one parser, bounds, one error line
+    "core": BASE,  # errors, console, files, threads, locks, manifests, bounds, resources, progress, ...
     # blocks: maps, connections, rules, motor primitives, eyes, the robot world
     "nn": BLOCKS, "motor": BLOCKS, "vision": BLOCKS, "robot": BLOCKS,
     "models": MODELS,  # the thesis's models, built from blocks
@@ -45,10 +30,7 @@ LAYERS = {
     "config": CONFIG,  # the Hydra schema of a run and its validation
     "validation": CONFIG,  # the checks of a whole configuration before any work
     "experiments": EXPERIMENTS,  # protocols: train, test, summarise, report
-    "run": ENTRY,  # run directories, train() and evaluate()
-    "cli": ENTRY,  # command-line error handling
-    "pool": ENTRY,  # python -m neuroimagery.pool
-    "stimuli": ENTRY,  # python -m neuroimagery.stimuli
+    "app": ENTRY,  # run directories, train() and evaluate(), the command line, pooling, the stimulus tool
     **{s: ENTRY for s in ENTRY_SCRIPTS},
 }
 
@@ -192,6 +174,11 @@ def upward_imports(graph: dict[str, dict[str, int]]) -> list[str]:
 # ---------------------------------------------------------------------------------- the tests
 def test_every_top_level_module_has_a_layer():
     assert sorted(m for m in _sources() if layer_of(m) is None) == []
+
+
+def test_the_package_root_holds_at_most_six_modules():
+    """The root shows the layers: base utilities in ``core/``, entry points in ``app/``."""
+    assert len(list(ROOT.glob("*.py"))) <= 6, sorted(p.name for p in ROOT.glob("*.py"))
 
 
 def test_no_import_goes_from_a_lower_layer_to_a_higher_one():

@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
-from neuroimagery.stimuli import main as stimuli_main
+from neuroimagery.app.stimuli import main as stimuli_main
 from neuroimagery.vision import make_eye, VisionConfig
 from neuroimagery.vision.measure import (
     check_rules,

@@ -1,11 +1,11 @@
-"""The peak resident memory a run reports (neuroimagery/memory.py)."""
+"""The peak resident memory a run reports (neuroimagery/core/memory.py)."""
 import sys
 
 import pytest
 
 PEAK_AND_RESET = """
 import torch
-from neuroimagery import memory
+from neuroimagery.core import memory
 assert memory.reset_peak()
 base = memory.peak_rss_mb()
 x = torch.ones(64 * 1024 * 1024 // 4 * 3)  # 192 MiB, written so it is resident

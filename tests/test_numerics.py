@@ -4,7 +4,9 @@ import torch
 from conftest import make_cfg
 
 from neuroimagery.config import validate
-from neuroimagery.experiments import exp3, exp4, protocol_ch6 as pc
+from neuroimagery.experiments.exp3 import protocol as exp3
+from neuroimagery.experiments.exp4 import protocol as exp4
+from neuroimagery.experiments.chapter6 import protocol as pc
 from neuroimagery.nn import AllToAll, Delta, seeding
 from neuroimagery.nn.numerics import rounding_bound, rounding_bound_nonneg
 

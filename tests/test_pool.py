@@ -1,4 +1,4 @@
-"""Pooling seeds (``python -m neuroimagery.pool``): the pooled rows, summary and report of demo
+"""Pooling seeds (``python -m neuroimagery.app.pool``): the pooled rows, summary and report of demo
 runs, and every refusal of runs that do not belong together, as one ``error:`` line."""
 import json
 import shutil
@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 from conftest import make_cfg
 
-from neuroimagery import cli, pool
-from neuroimagery import manifest as mf
-from neuroimagery.run import evaluate
+from neuroimagery.app import cli, pool
+from neuroimagery.core import manifest as mf
+from neuroimagery.app.run import evaluate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -166,11 +166,11 @@ def test_what_is_not_a_finished_run_is_refused(sweep, tmp_path, capsys):
 
 def test_the_command_runs_as_a_module(sweep, tmp_path):
     out = tmp_path / "out"
-    p = subprocess.run([sys.executable, "-m", "neuroimagery.pool", str(sweep / "sweep"), "--out", str(out)],
+    p = subprocess.run([sys.executable, "-m", "neuroimagery.app.pool", str(sweep / "sweep"), "--out", str(out)],
                        capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert p.returncode == 0, p.stderr
     assert "# Demo pooled over 2 runs" in p.stdout and (out / "trials.csv").is_file()
-    p = subprocess.run([sys.executable, "-m", "neuroimagery.pool", str(sweep / "sweep" / "0"), str(sweep / "other")],
+    p = subprocess.run([sys.executable, "-m", "neuroimagery.app.pool", str(sweep / "sweep" / "0"), str(sweep / "other")],
                        capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert p.returncode == 2 and p.stderr.startswith("error: pool: runs with other settings") and p.stderr.count("\n") == 1
 

@@ -1,4 +1,4 @@
-"""``python -m neuroimagery.pool``: each input it cannot pool is one ``error:`` line naming the file
+"""``python -m neuroimagery.app.pool``: each input it cannot pool is one ``error:`` line naming the file
 (manifests without the fields a run writes, saved configurations that are malformed, tagged or
 unresolvable, an ``--out`` that cannot be written); nothing in a file is run."""
 import json
@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 from conftest import make_cfg
 
-from neuroimagery import cli, pool
-from neuroimagery.experiments import exp5_pool
-from neuroimagery.run import evaluate
+from neuroimagery.app import cli, pool
+from neuroimagery.experiments.exp5 import pool as exp5_pool
+from neuroimagery.app.run import evaluate
 
 
 @pytest.fixture(scope="module")

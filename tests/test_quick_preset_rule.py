@@ -7,9 +7,9 @@ import math
 import pytest
 from conftest import make_cfg
 
-from neuroimagery import manifest as mf
+from neuroimagery.core import manifest as mf
 from neuroimagery.config import validate
-from neuroimagery.run import evaluate
+from neuroimagery.app.run import evaluate
 
 RULED = ("exp1", "exp2", "exp6")
 
@@ -30,7 +30,8 @@ def test_quick_trains_as_the_full_protocol(exp):
     differ = {k for k in full if not k.startswith("experiment.quick.") and quick.get(k) != full[k]}
     assert differ <= {"preset", "participants", "experiment.test_objects"}, differ
     if exp in ("exp1", "exp2"):  # the experiments' own code: the SOM steps they train
-        from neuroimagery.experiments import exp1, exp2
+        from neuroimagery.experiments.exp1 import protocol as exp1
+        from neuroimagery.experiments.exp2 import protocol as exp2
         mod = {"exp1": exp1, "exp2": exp2}[exp]
         q, f = validate(make_cfg(f"experiment={exp}", "preset=quick")), validate(make_cfg(f"experiment={exp}"))
         assert mod._e(q).som.iterations == mod._e(f).som.iterations
@@ -52,7 +53,7 @@ def test_the_exp6_report_names_its_preset_in_its_first_lines(tmp_path):
 
 
 def test_a_pooled_report_of_quick_runs_names_the_preset(tmp_path):
-    from neuroimagery.pool import pool
+    from neuroimagery.app.pool import pool
 
     for seed in (0, 1):
         evaluate(make_cfg("experiment=exp1", "participants=1", "progress=false", "logger=none", "preset=quick",

@@ -14,7 +14,7 @@ from support_figures import checking_overlaps, text_overlaps
 from conftest import make_cfg
 from neuroimagery.analysis import figures
 from neuroimagery.config import validate
-from neuroimagery.run import evaluate
+from neuroimagery.app.run import evaluate
 
 CONDITIONS = ["none", "match", "mismatch", "noise-none", "noise-match", "noise-mismatch"]
 

@@ -10,9 +10,9 @@ import pytest
 import torch
 
 from neuroimagery.analysis.summary import dz_interval, headline, holm, one_sample, repeated_anova
-from neuroimagery.experiments import protocol_ch6 as pc
-from neuroimagery.logger import STRIP, TensorBoardLogger
-from neuroimagery.thesis import EXP3, EXP4, FIGURES, figure_caption, figure_order, is_map_panel
+from neuroimagery.experiments.chapter6 import protocol as pc
+from neuroimagery.core.logger import STRIP, TensorBoardLogger
+from neuroimagery.core.thesis import EXP3, EXP4, FIGURES, figure_caption, figure_order, is_map_panel
 
 
 def test_sample_trials_are_chosen_among_the_rotated_and_decided_at_the_largest_disparity():
@@ -188,7 +188,7 @@ def test_robot_effects_find_a_rise_with_age_and_alike_strategies():
 
 
 def test_exp5_training_curves_average_each_event_over_its_skills():
-    from neuroimagery.experiments.exp5_figures import training_curves
+    from neuroimagery.experiments.exp5.figures import training_curves
 
     lib = lambda *skills: {"library": {"skills": list(skills)}}  # noqa: E731
     sk = lambda ev, signals, comp: {"event": ev, "log": [("c1", 1, s) for s in signals] + [("c23", 1, None)],  # noqa: E731
@@ -200,7 +200,7 @@ def test_exp5_training_curves_average_each_event_over_its_skills():
 
 
 def test_exp5_sequencing_curves_follow_the_training_trials():
-    from neuroimagery.experiments.exp5_figures import sequencing_curves
+    from neuroimagery.experiments.exp5.figures import sequencing_curves
 
     df = pd.DataFrame([
         dict(hypothesis="hp2", training_trials=2, situation="far", strategy="reactive", train_successes="0>1",

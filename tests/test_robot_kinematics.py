@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from neuroimagery.robot.kinematics import ARM_JOINTS, ArmKinematics, icub_urdf_text
-from neuroimagery.native import quiet_native_output as _quiet
+from neuroimagery.core.native import quiet_native_output as _quiet
 
 
 @pytest.fixture(scope="module")

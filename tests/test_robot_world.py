@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import torch
 
-from neuroimagery.errors import UserInputError
+from neuroimagery.core.errors import UserInputError
 from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.events import toy_events
 from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp

@@ -11,8 +11,8 @@ import torch
 from conftest import make_cfg
 from support_runs import rehash
 
-from neuroimagery import cli
-from neuroimagery.run import evaluate, train
+from neuroimagery.app import cli
+from neuroimagery.app.run import evaluate, train
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -109,7 +109,7 @@ def test_a_run_or_checkpoint_of_another_version_says_which(tmp_path, capsys):
 
 
 def test_the_test_bar_has_a_total_and_says_when_the_count_misses_it(capsys, caplog, progress_misses):
-    from neuroimagery import progress
+    from neuroimagery.core import progress
 
     with caplog.at_level(logging.INFO, logger="neuroimagery"):
         with progress.phase("exp9 test", True):

@@ -10,11 +10,13 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import make_cfg
+from conftest import make_cfg, patch_experiment
 
-from neuroimagery import cli, lock, pool
-from neuroimagery.experiments import demo
-from neuroimagery.run import evaluate, train
+from neuroimagery.app import cli, pool
+
+from neuroimagery.core import lock
+from neuroimagery.experiments.demo import protocol as demo
+from neuroimagery.app.run import evaluate, train
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -129,7 +131,7 @@ def test_the_lock_is_held_while_the_run_works(tmp_path, monkeypatch):
         seen["state"] = _manifest(run.root)["state"]
         return real(cfg, run, trained)
 
-    monkeypatch.setattr(demo, "evaluate", look)
+    patch_experiment(monkeypatch, "demo", evaluate=look)
     evaluate(_demo(), out_dir=tmp_path / "r")
     assert seen["pid"] == os.getpid() and seen["host"] == socket.gethostname() and seen["state"] == "running"
     assert not (tmp_path / "r" / "run.lock").exists()
@@ -227,7 +229,7 @@ def test_sigterm_during_an_overwrite_leaves_it_interrupted_and_pool_refuses_it(r
     d = tmp_path / "over"
     shutil.copytree(runs / "s1", d)  # the earlier run: 2 participants
     code = ("import os, signal, sys, runpy\n"
-            "import neuroimagery.experiments.demo as demo\n"
+            "import neuroimagery.experiments.demo.protocol as demo\n"
             "demo.evaluate = lambda *a, **k: os.kill(os.getpid(), signal.SIGTERM) or __import__('time').sleep(30)\n"
             f"sys.argv = ['evaluate.py', 'experiment=demo', 'logger=none', 'progress=false', 'seed=1', "
             f"'participants=3', 'overwrite=true', 'hydra.run.dir={d}']\n"

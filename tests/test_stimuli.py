@@ -5,8 +5,8 @@ import cv2
 import numpy as np
 import pytest
 
-from neuroimagery.errors import UserInputError
-from neuroimagery.stimuli import main as stimuli_main
+from neuroimagery.core.errors import UserInputError
+from neuroimagery.app.stimuli import main as stimuli_main
 from neuroimagery.vision.measure import format_report, kind_of, measure_set
 from neuroimagery.vision import (
     StimuliConfig,

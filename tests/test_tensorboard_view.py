@@ -7,13 +7,13 @@ import torch
 from conftest import make_cfg
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-from neuroimagery import manifest as mf
+from neuroimagery.core import manifest as mf
 from neuroimagery.analysis.figures import _cell
 from neuroimagery.config import validate
-from neuroimagery.logger import _to_image
+from neuroimagery.core.logger import _to_image
 from neuroimagery.nn import monitor
 from neuroimagery.nn.som import winner_changes
-from neuroimagery.run import evaluate, train
+from neuroimagery.app.run import evaluate, train
 
 
 def _scalars(root):
@@ -79,7 +79,8 @@ def test_hparams_show_the_quick_values():
         assert mf.as_used(s, exp)[key] == s[quick_key] != s[key]
         full = mf.flatten(validate(make_cfg(f"experiment={exp}")))
         assert mf.as_used(full, exp) == full
-    from neuroimagery.experiments import exp1, exp2
+    from neuroimagery.experiments.exp1 import protocol as exp1
+    from neuroimagery.experiments.exp2 import protocol as exp2
     for exp, mod in (("exp1", exp1), ("exp2", exp2)):  # the values the experiments' own code uses
         cfg = validate(make_cfg(f"experiment={exp}", "preset=quick"))
         assert mf.as_used(mf.flatten(cfg), exp)["experiment.som.iterations"] == mod._e(cfg).som.iterations
@@ -107,7 +108,7 @@ def test_a_report_names_its_preset_in_its_first_lines(tmp_path, exp):
 
 
 def test_a_pooled_report_names_the_preset(tmp_path):
-    from neuroimagery.pool import pool
+    from neuroimagery.app.pool import pool
 
     for seed in (0, 1):
         evaluate(make_cfg("experiment=demo", "participants=2", "progress=false", "logger=none", f"seed={seed}"),

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from neuroimagery.thesis import EXP1, EXP2, EXP3, EXP4, EXP5_LINES, FIGURES, SECTIONS, figure_caption, section_of
+from neuroimagery.core.thesis import EXP1, EXP2, EXP3, EXP4, EXP5_LINES, FIGURES, SECTIONS, figure_caption, section_of
 
 ROOT = Path(__file__).resolve().parents[1]
 LINE_CITE = re.compile(r"\b(?:thesis )?(?:lines?|l\.) ?\d{3,4}\b", re.IGNORECASE)

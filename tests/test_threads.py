@@ -1,7 +1,7 @@
 """threads=0 leaves out the cores other work keeps busy (measured at start-up)."""
 import pytest
 
-from neuroimagery import threads
+from neuroimagery.core import threads
 
 
 @pytest.mark.parametrize("n,busy,expected", [(2, 0.0, 2), (2, 0.3, 2), (2, 1.0, 1), (2, 1.9, 1), (2, None, 2),

@@ -2,7 +2,7 @@
 and a failed piece's error reaches the caller."""
 import pytest
 
-from neuroimagery.workers import run_pieces
+from neuroimagery.core.workers import run_pieces
 
 
 @pytest.mark.parametrize("jobs", [1, 2])
@@ -25,7 +25,7 @@ def test_sigterm_is_an_interrupt_while_the_pieces_run_and_the_handler_is_restore
 
     script = textwrap.dedent("""
         import os, signal
-        from neuroimagery.workers import run_pieces
+        from neuroimagery.core.workers import run_pieces
         try:
             run_pieces(os.kill, [(os.getpid(), signal.SIGTERM)], 1, "test")
         except KeyboardInterrupt:
@@ -47,7 +47,7 @@ def test_a_worker_ends_within_a_second_of_its_parent_s_death():
     parent = textwrap.dedent("""
         import os, signal, subprocess, sys
         child = subprocess.Popen([sys.executable, "-c",
-            "import os, time; from neuroimagery.workers import watch_parent; watch_parent(%d); "
+            "import os, time; from neuroimagery.core.workers import watch_parent; watch_parent(%d); "
             "print('ready', flush=True); time.sleep(60)" % os.getpid()], stdout=subprocess.PIPE, text=True)
         assert child.stdout.readline().strip() == "ready"
         print(child.pid, flush=True)
@@ -74,7 +74,7 @@ def test_the_workers_of_parallel_watch_this_process():
 
     from joblib import delayed
 
-    from neuroimagery import workers
+    from neuroimagery.core import workers
 
     def watched():
         return list(workers._WATCHED)

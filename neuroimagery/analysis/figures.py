@@ -18,8 +18,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ..files import save_figure  # noqa: E402
-from ..logger import own_range  # noqa: E402
+from ..core.files import save_figure  # noqa: E402
+from ..core.logger import own_range  # noqa: E402
 
 
 THESIS_STYLE = dict(color="black", linestyle="--", linewidth=1.2)

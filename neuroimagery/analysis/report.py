@@ -6,7 +6,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from ..files import write_text
+from ..core.files import write_text
 
 
 def fmt(v: Any, pct: bool = False) -> str:
@@ -167,9 +167,9 @@ class Report:
 
     def figures(self, run_root: str | Path, paths, errorbars: str = "Error bars: SEM over participants") -> "Report":
         """The run's figures in the thesis's order, each with a numbered caption that says what it
-        shows and what the thesis states beside it (:mod:`neuroimagery.thesis`); map panels carry
+        shows and what the thesis states beside it (:mod:`neuroimagery.core.thesis`); map panels carry
         no error bars."""
-        from ..thesis import figure_caption, figure_order, is_map_panel
+        from ..core.thesis import figure_caption, figure_order, is_map_panel
 
         paths = sorted((Path(p) for p in paths), key=lambda p: figure_order(p.stem))
         for i, p in enumerate(paths, 1):

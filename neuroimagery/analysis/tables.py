@@ -8,7 +8,7 @@ from typing import Sequence
 
 import pandas as pd
 
-from ..errors import UserInputError
+from ..core.errors import UserInputError
 
 
 def read_whole_csv(path: Path, required: Sequence[str], numeric: Sequence[str], filled: Sequence[str]) -> pd.DataFrame:

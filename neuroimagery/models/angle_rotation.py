@@ -1,4 +1,4 @@
-"""The demo's model (:mod:`neuroimagery.experiments.demo`): mental rotation of a population-coded angle.
+"""The demo's model (:mod:`neuroimagery.experiments.demo.protocol`): mental rotation of a population-coded angle.
 
 Maps ``ANGLE`` and ``POSTURE`` (1-D population codes, -90..90 deg); connections ``affordance``
 (ANGLE -> POSTURE) and ``forward`` (POSTURE -> ANGLE) learn by outstar Hebbian learning (eq.
@@ -14,7 +14,7 @@ from ..nn import AllToAll, DynamicField, Hebbian, PopulationMap, monitor, partic
 
 
 class AngleRotationModel(torch.nn.Module):
-    """The demo's model; ``e`` holds the settings of :class:`neuroimagery.experiments.demo.DemoConfig`."""
+    """The demo's model; ``e`` holds the settings of :class:`neuroimagery.experiments.demo.protocol.DemoConfig`."""
 
     def __init__(self, e, participants: int, seed: int) -> None:
         super().__init__()

@@ -3,13 +3,13 @@ experiment's configuration nests under one key (``experiment.field``, ``experime
 ``experiment.fm``, ``experiment.posture``, ``experiment.selection``, ``experiment.lca``,
 ``experiment.ppc``). A key that means the same in two experiments lives in the same group under
 the same name. A model reads only its own groups; the range checks are declared on the fields
-(:mod:`neuroimagery.bounds`) and run when the group is built, naming the key where it lives."""
+(:mod:`neuroimagery.core.bounds`) and run when the group is built, naming the key where it lives."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Optional
 
-from ..bounds import bounded, check_declared
+from ..core.bounds import bounded, check_declared
 
 
 # ------------------------------------------------------------------ chapter 5 (Exp 1-2)

@@ -43,8 +43,7 @@ from ..nn.decision import full_match_gain
 from ..nn.functional import gain_field, softmax_select
 from ..nn.local import LocalConnection
 from . import voxel_code as vc
-from .layout_3d import (AXES, MOVES, SIGNS, WRIST_AXIS, c20_weights, fill_offsets, fm_bytes,  # noqa: F401 (re-exported)
-                        grid_for_budget, matched_axes, move_angles, receptive_radius)
+from .layout_3d import AXES, MOVES, SIGNS, WRIST_AXIS, c20_weights, fill_offsets, fm_bytes, grid_for_budget, matched_axes, move_angles, receptive_radius
 from .recording import sample_indices
 from .rotation_embodied import check_proprioception
 from .search_starts import multi_start

@@ -34,7 +34,7 @@ from ..nn import SOM, AllToAll, DynamicField, Hebbian, PopulationMap, participan
 from ..nn.functional import intra_op_threads
 from ..nn.row_cache import RowCache, distinct_rows
 from .factor_checkpoint import FactorCheckpoint, learnt_factors
-from ..bounds import Rule, bounded, check_declared
+from ..core.bounds import Rule, bounded, check_declared
 from .params import FieldParams, SomParams
 
 

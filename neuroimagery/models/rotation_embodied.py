@@ -36,8 +36,7 @@ from .rotation_embodied_trials import FusedTrials
 from ..nn.decision import Decision, full_match_gain, smallest_deciding_gain
 from .pmcd_leak import leak_by_rule
 from .posture_ch6 import fit_posture_soms, posture_maps, posture_order  # noqa: F401  (re-exported)
-from .rotation_embodied_params import (EmbodiedLcaParams, EmbodiedParams, EmbodiedPostureParams,  # noqa: F401  (re-exported)
-                                       EmbodiedPpcParams)
+from .rotation_embodied_params import EmbodiedLcaParams, EmbodiedParams, EmbodiedPostureParams, EmbodiedPpcParams
 
 MOVES = ("Ml", "Ms", "Mr")
 

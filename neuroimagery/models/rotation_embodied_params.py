@@ -1,13 +1,13 @@
 """The parameters of the Experiment 4 model (``experiment.*`` of Experiment 4): maps, forward
 models, posture maps, action selection, decision and embodiment. The groups ``selection``,
 ``lca`` and ``ppc`` are shared with Experiment 6 (and ``selection`` with Experiment 3)
-(:mod:`neuroimagery.models.params`); every range check is declared (:mod:`neuroimagery.bounds`)."""
+(:mod:`neuroimagery.models.params`); every range check is declared (:mod:`neuroimagery.core.bounds`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field as dc_field
 from typing import List
 
-from ..bounds import Rule, bounded, check_declared
+from ..core.bounds import Rule, bounded, check_declared
 from .params import ForwardModelParams, LcaParams, PostureMapParams, PpcParams, SelectionParams
 
 

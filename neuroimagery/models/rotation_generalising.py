@@ -27,7 +27,7 @@ from torch import nn
 
 from ..nn import AllToAll, Delta, SOM, population_cover
 from ..nn.functional import gain_field, softmax_probabilities, softmax_select
-from ..bounds import Rule, bounded, check_declared
+from ..core.bounds import Rule, bounded, check_declared
 from .params import ForwardModelParams, PostureMapParams, SelectionParams
 from .recording import sample_indices
 from .rotation_embodied import fit_posture_soms, posture_maps, triangle_weights

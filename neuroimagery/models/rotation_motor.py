@@ -37,7 +37,7 @@ from ..nn.som import fit_together
 from ..nn import SOM, seeding, AllToAll, DynamicField, Hebbian, PopulationMap, participant_generators
 from ..nn.functional import intra_op_threads
 from .factor_checkpoint import FactorCheckpoint, learnt_factors
-from ..bounds import bounded, check_declared
+from ..core.bounds import bounded, check_declared
 from .params import FieldParams, SomParams
 
 ANGLES = [-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0]

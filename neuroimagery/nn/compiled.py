@@ -68,6 +68,6 @@ def _say_if_compiling(dispatcher) -> None:
         return
     if not cached:
         _said.set()
-        from ..console import note
+        from ..core.console import note
 
         note(FIRST_COMPILE)

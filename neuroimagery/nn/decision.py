@@ -14,8 +14,7 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from .functional import (check_bounds, check_floating, check_rate, check_tensor, grid_coords,  # noqa: F401
-                         softmax_probabilities, softmax_select)
+from .functional import check_bounds, check_floating, check_rate, check_tensor, grid_coords, softmax_probabilities, softmax_select
 
 
 @dataclass

@@ -14,7 +14,7 @@ from typing import Callable, Sequence
 
 import torch
 
-from ..errors import UserInputError
+from ..core.errors import UserInputError
 
 CHECKS = True  # run the value checks that synchronise with the device (see checks_enabled)
 

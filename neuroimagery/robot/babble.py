@@ -28,18 +28,18 @@ from pathlib import Path
 
 import torch
 
-from neuroimagery.arguments import (ToolParser, check, check_jobs, check_size, count, path as nonempty_path,
+from neuroimagery.core.arguments import (ToolParser, check, check_jobs, check_size, count, path as nonempty_path,
                                     run_resumable)
-from neuroimagery.errors import UserInputError
-from neuroimagery.files import kept_json, writable_folder, write_text
-from neuroimagery.workers import run_pieces
+from neuroimagery.core.errors import UserInputError
+from neuroimagery.core.files import kept_json, writable_folder, write_text
+from neuroimagery.core.workers import run_pieces
 from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
 from neuroimagery.robot.config import TABLE_CONTACTS, WorldConfig
 from neuroimagery.robot.events import EVENTS
 from neuroimagery.robot.world import ToolWorld
-from neuroimagery.thesis import EXP5_TABLE_7_1
+from neuroimagery.core.thesis import EXP5_TABLE_7_1
 
-# Table 7.1 of the thesis (line 1439), events and skills, from neuroimagery.thesis
+# Table 7.1 of the thesis (line 1439), events and skills, from neuroimagery.core.thesis
 THESIS_EVENTS = {k: v["events"] for k, v in EXP5_TABLE_7_1.items()}
 THESIS_SKILLS = {k: v["skills"] for k, v in EXP5_TABLE_7_1.items()}
 # "possible" = rate above 1 %: an event that rare is still met with probability 0.63 by a robot's
@@ -177,7 +177,7 @@ OUTPUTS = ("table_7_1.json", "table_7_1.md")
 
 
 def check_out(out: Path) -> Path:
-    """``--out`` before the first rollout (:func:`~neuroimagery.files.writable_folder`)."""
+    """``--out`` before the first rollout (:func:`~neuroimagery.core.files.writable_folder`)."""
     return writable_folder(out, OUTPUTS)
 
 

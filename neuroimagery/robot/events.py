@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from neuroimagery.errors import UserInputError
+from neuroimagery.core.errors import UserInputError
 
 EVENTS = ("retrieve", "touch", "south", "north", "west", "east")
 

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import torch
 
-from ..arguments import ToolParser, run_tool
+from ..core.arguments import ToolParser, run_tool
 from .config import WorldConfig
 
 

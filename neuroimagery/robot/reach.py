@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..arguments import ToolParser, check, check_size, count, run_tool, seed
+from ..core.arguments import ToolParser, check, check_size, count, run_tool, seed
 from .kinematics import ICUB_MODEL, icub_urdf_text, world_T_root
 
 LEFT_CHAIN = ("torso_pitch", "torso_roll", "torso_yaw", "l_shoulder_pitch", "l_shoulder_roll", "l_shoulder_yaw",

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..arguments import ToolParser, run_tool
+from ..core.arguments import ToolParser, run_tool
 from .config import WorldConfig
 
 PLATE_PITCH = -0.4363323  # the plate's pitch about the rake's y axis (urdf/rake.urdf)

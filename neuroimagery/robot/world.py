@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from neuroimagery.errors import UserInputError
-from neuroimagery.native import quiet_native_output
+from neuroimagery.core.errors import UserInputError
+from neuroimagery.core.native import quiet_native_output
 from neuroimagery.robot.config import WorldConfig
 from neuroimagery.robot.constraint_drive import rollout_constraint
 from neuroimagery.robot.events import Outcome, latch_events, watched_indices, toy_events, toy_fate, toy_yaw_of

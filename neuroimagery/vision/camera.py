@@ -30,7 +30,7 @@ import numpy as np
 import torch
 
 from neuroimagery.vision.shapes import BACKGROUND_BGR
-from neuroimagery.native import quiet_native_output
+from neuroimagery.core.native import quiet_native_output
 
 __all__ = ["icub_urdf_with_eyes", "head_eye_urdf", "eye_chain", "CameraScene"]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional
 
-from ..bounds import Rule, bounded, check_declared
+from ..core.bounds import Rule, bounded, check_declared
 
 
 @dataclass

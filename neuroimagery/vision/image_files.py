@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UserInputError
+from ..core.errors import UserInputError
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 MAX_IMAGE_SIDE = 4096  # pixels: a larger user image is refused by name (decoding it costs memory)

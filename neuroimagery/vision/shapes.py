@@ -119,7 +119,7 @@ def colourise(coverage: np.ndarray) -> np.ndarray:
 
 # Polyomino designs, rows top to bottom, '#' = cell.  Each set: 3 objects, except "L".  They meet
 # the design rules of docs/stimuli.md (checked by tests/test_stimuli.py; measured by
-# ``python -m neuroimagery.stimuli --measure``).
+# ``python -m neuroimagery.app.stimuli --measure``).
 BUILTIN_GRIDS: dict[str, dict[str, str]] = {
     # Exp. 1-2: an upside-down L (a stem with a bar on top); object B is its mirror image.
     "L": {"A": "###/#../#../#../#.."},

@@ -35,7 +35,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..files import save_figure
+from ..core.files import save_figure
 
 __all__ = ["generate", "mirror", "is_chiral", "mirror_margin", "check_object", "canonical", "rotation_matrix", "SMScene",
            "View", "contact_sheet", "KINDS"]

@@ -30,7 +30,7 @@ from typing import Optional, Sequence
 import cv2
 import numpy as np
 
-from neuroimagery.errors import UserInputError
+from neuroimagery.core.errors import UserInputError
 from neuroimagery.vision.edges import principal_axis
 from neuroimagery.vision.image_files import IMAGE_SUFFIXES, MAX_FOLDER_IMAGES, check_size, list_images, read_image
 from neuroimagery.vision.shapes import (
@@ -212,7 +212,7 @@ def list_stimulus_sets() -> list[str]:
 def get_stimulus_set(name_or_path: str) -> StimulusSet:
     """A builtin set by name, or a user folder of images (see :func:`load_folder`).
 
-    Unknown names raise :class:`~neuroimagery.errors.UserInputError` (a ValueError) listing
+    Unknown names raise :class:`~neuroimagery.core.errors.UserInputError` (a ValueError) listing
     the valid ones.
     """
     name_or_path = str(name_or_path)

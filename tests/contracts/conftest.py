@@ -12,7 +12,9 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 from neuroimagery.config import validate
-from neuroimagery.experiments import exp3, exp4, protocol_ch6 as pc
+from neuroimagery.experiments.exp3 import protocol as exp3
+from neuroimagery.experiments.exp4 import protocol as exp4
+from neuroimagery.experiments.chapter6 import protocol as pc
 
 PARTICIPANTS = [0, 1]
 SEED = int(os.environ.get("NEUROIMAGERY_CONTRACT_SEED", "0"))

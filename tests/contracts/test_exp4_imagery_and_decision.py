@@ -5,7 +5,7 @@ import pytest
 import torch
 from support_ch6 import forward_fn, forward_model_shape, item_rows
 
-from neuroimagery.experiments import exp4
+from neuroimagery.experiments.exp4 import protocol as exp4
 from neuroimagery.models.pmcd_leak import QUIET_SHARE, misaligned_pairs
 from neuroimagery.vision.edges import iou, rotate
 

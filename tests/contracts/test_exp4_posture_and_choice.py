@@ -4,7 +4,7 @@ stochastic draw of the move and the percept that varies between looks."""
 import torch
 from support_ch6 import assert_looks_vary, assert_supervised_rate, item_rows
 
-from neuroimagery.experiments import exp4
+from neuroimagery.experiments.exp4 import protocol as exp4
 from neuroimagery.nn.functional import gain_field, softmax_probabilities, softmax_select
 
 

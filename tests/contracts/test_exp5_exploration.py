@@ -97,7 +97,7 @@ def test_w10_exploration_watches_the_enabled_detectors_not_yet_acquired():
 
 
 def test_w11_each_robot_library_is_acquired_with_its_own_detectors(tmp_path, monkeypatch):
-    from neuroimagery.experiments import exp5, exp5_config
+    from neuroimagery.experiments.exp5 import protocol as exp5, config as exp5_config
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     e = exp5_config.Exp5Config(repetitions=1, hp1_levels=[2, 4], hp1_ages=[14, 18], hp2_trials=[0], hp2_ages=[14],

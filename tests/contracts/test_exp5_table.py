@@ -31,7 +31,7 @@ def test_w1_table_7_1_events_at_least_20_of_24():
 
 @pytest.fixture(scope="module")
 def libraries():
-    from neuroimagery.experiments.exp5_world import _one_library, summarise
+    from neuroimagery.experiments.exp5.world import _one_library, summarise
 
     # W2-W4's sample (docs/contracts.md): 16 libraries on each of the seeds 0-4
     return summarise([_one_library(seed, i) for seed in range(5) for i in range(16)])

@@ -1,7 +1,7 @@
 """Contract 6.1 (docs/contracts.md): the completion map fills in hidden cubes of held-out chains."""
 from support_exp6 import trained
 
-from neuroimagery.experiments import exp6_stages
+from neuroimagery.experiments.exp6 import stages as exp6_stages
 
 
 def test_completed_map_matches_the_whole_volume_of_held_out_chains():

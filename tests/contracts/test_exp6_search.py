@@ -2,7 +2,7 @@
 import pytest
 from support_exp6 import aligned, assert_every_set_and_kind, trained
 
-from neuroimagery.experiments import exp6_stages
+from neuroimagery.experiments.exp6 import stages as exp6_stages
 
 
 def test_search_finds_axis_and_angle_of_held_out_same_pairs():

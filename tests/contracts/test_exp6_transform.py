@@ -3,7 +3,7 @@ same image still beats a mirror image after them."""
 import pytest
 from support_exp6 import aligned, assert_every_set_and_kind, trained
 
-from neuroimagery.experiments import exp6_stages
+from neuroimagery.experiments.exp6 import stages as exp6_stages
 
 
 def test_chained_steps_match_one_turn_and_keep_same_above_mirror():

@@ -14,7 +14,7 @@ import torch
 
 from ...motor.pibb import PIBB, event_costs
 from .brain import ToolUseBrain
-from ...bounds import bounded, check_declared
+from ...core.bounds import bounded, check_declared
 from .common import CHOICES, EVENTS, N_POSTURES, Environment, Result, State
 from .skills import Outcomes, Skill
 

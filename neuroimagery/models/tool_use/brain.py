@@ -9,7 +9,7 @@ from torch import nn
 from ...nn.connections import AllToAll
 from ...nn.rules import GatedHebbian, QLearning
 from ...nn.som import BidirectionalSOM
-from ...bounds import bounded, check_declared
+from ...core.bounds import bounded, check_declared
 from .common import CHOICES, EVENTS, N_POSTURES, check_choice
 
 

@@ -10,7 +10,7 @@ import torch
 
 from ...nn.functional import softmax_select
 from .brain import ToolUseBrain
-from ...bounds import bounded, check_declared
+from ...core.bounds import bounded, check_declared
 from .common import CHOICES, check_choice
 from .skills import Outcomes, Skill
 
