@@ -29,12 +29,12 @@ EXP6 = ["-m", "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "experiment=ex
 # run before evaluate.py in the killed process: the tests phase of Exp 5 announces itself and waits,
 # so that the kill comes while the tests run (the idle workers of the training still there)
 SLOW_TESTS = """
-import time, neuroimagery.experiments.exp5.protocol as e
-_evaluate = e.evaluate
+import dataclasses, time, neuroimagery.experiments.exp5 as e
+_evaluate = e.EXPERIMENT.evaluate
 def evaluate(*a, **k):
     open({marker!r}, 'w').close(); time.sleep(300)
     return _evaluate(*a, **k)
-e.evaluate = evaluate
+e.EXPERIMENT = dataclasses.replace(e.EXPERIMENT, evaluate=evaluate)
 """
 
 

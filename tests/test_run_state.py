@@ -62,7 +62,7 @@ def _interrupt_in(monkeypatch, where: str):
     def stop(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(demo, where, stop)
+    patch_experiment(monkeypatch, "demo", **{where: stop})
 
 
 @pytest.mark.parametrize("where,trained", [("train", False), ("evaluate", True)])
@@ -229,8 +229,9 @@ def test_sigterm_during_an_overwrite_leaves_it_interrupted_and_pool_refuses_it(r
     d = tmp_path / "over"
     shutil.copytree(runs / "s1", d)  # the earlier run: 2 participants
     code = ("import os, signal, sys, runpy\n"
-            "import neuroimagery.experiments.demo.protocol as demo\n"
-            "demo.evaluate = lambda *a, **k: os.kill(os.getpid(), signal.SIGTERM) or __import__('time').sleep(30)\n"
+            "import dataclasses, neuroimagery.experiments.demo as demo\n"
+            "demo.EXPERIMENT = dataclasses.replace(demo.EXPERIMENT, evaluate=lambda *a, **k: "
+            "os.kill(os.getpid(), signal.SIGTERM) or __import__('time').sleep(30))\n"
             f"sys.argv = ['evaluate.py', 'experiment=demo', 'logger=none', 'progress=false', 'seed=1', "
             f"'participants=3', 'overwrite=true', 'hydra.run.dir={d}']\n"
             f"runpy.run_path({str(ROOT / 'evaluate.py')!r}, run_name='__main__')\n")
