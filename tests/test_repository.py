@@ -77,3 +77,24 @@ def test_architecture_lists_every_file_of_the_package():
                and f"`{p.parent.name}/{p.name}`" not in doc
                and (names.count(p.name) > 1 or f"`{p.name}`" not in doc)]
     assert missing == []
+
+
+def test_architecture_names_only_files_and_modules_that_exist():
+    """Every package file (``nn/som.py``, ``neuroimagery/app/run.py``) and dotted module
+    (``neuroimagery.app.pool``) docs/architecture.md names exists, so the map never names code that
+    is gone."""
+    doc = (ROOT / "docs" / "architecture.md").read_text()
+    pkg = ROOT / "neuroimagery"
+    known = {p.relative_to(pkg).as_posix() for p in pkg.rglob("*.py")}
+    stale = []
+    for ref in re.findall(r"`((?:neuroimagery/)?[a-z_0-9]+(?:/[a-z_0-9]+)*\.py)`", doc):
+        rel = ref.removeprefix("neuroimagery/")
+        if "/" in rel and not any(k == rel or k.endswith("/" + rel) for k in known) and not (ROOT / ref).is_file():
+            stale.append(ref)
+    for ref in re.findall(r"\bneuroimagery(?:\.[a-z_0-9]+)+", doc):
+        parts = ref.split(".")[1:]
+        # a module, or a name inside one: the longest prefix that is a module or package must exist
+        if not any((pkg.joinpath(*parts[:k]).with_suffix(".py")).is_file() or (pkg.joinpath(*parts[:k]) / "__init__.py").is_file()
+                   for k in range(len(parts), 0, -1)):
+            stale.append(ref)
+    assert stale == []
