@@ -71,11 +71,3 @@ def progress_misses(monkeypatch):
     yield missed
     assert missed == [], missed
 
-
-def patch_experiment(monkeypatch, name: str, **fields) -> None:
-    """Replace fields of experiment ``name``'s protocol (``EXPERIMENT``) for one test."""
-    import dataclasses
-    import importlib
-
-    package = importlib.import_module(f"neuroimagery.experiments.{name}")
-    monkeypatch.setattr(package, "EXPERIMENT", dataclasses.replace(package.EXPERIMENT, **fields))

@@ -10,7 +10,8 @@ import pytest
 from neuroimagery.app import cli
 from neuroimagery.app.run import evaluate, train
 
-from conftest import make_cfg, patch_experiment
+from conftest import make_cfg
+from support_experiments import patch_experiment
 
 from neuroimagery.config import EXPERIMENTS  # noqa: E402
 LIMIT_S = 10.0  # a refusal must come within seconds: these are checks, not work

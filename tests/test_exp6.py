@@ -5,7 +5,8 @@ import json
 import numpy as np
 import pytest
 import torch
-from conftest import make_cfg, patch_experiment
+from conftest import make_cfg
+from support_experiments import patch_experiment
 
 from neuroimagery.config import validate
 from neuroimagery.experiments.exp6 import protocol as exp6

@@ -10,7 +10,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import make_cfg, patch_experiment
+from conftest import make_cfg
+from support_experiments import patch_experiment
 
 from neuroimagery.app import cli, pool
 
