@@ -1,6 +1,7 @@
 """TensorBoard as a researcher opens it: every experiment writes a training curve, the Scalars tab's
 first group (tags sort by name) is a curve, HParams shows the settings as the run used them, and
 the images and the figures' map panels share one colour scale."""
+import matplotlib
 import numpy as np
 import pytest
 import torch
@@ -10,7 +11,7 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 from neuroimagery.core import manifest as mf
 from neuroimagery.analysis.figures import _cell
 from neuroimagery.config import validate
-from neuroimagery.core.logger import _to_image
+from neuroimagery.core.logger import COLOUR_MAP, _to_image
 from neuroimagery.nn import monitor
 from neuroimagery.nn.som import winner_changes
 from neuroimagery.app.run import evaluate, train
@@ -91,12 +92,12 @@ def test_hparams_show_the_quick_values():
 @pytest.mark.parametrize("a", [[1.0, 1.0 + 1e-9], [0.0, 0.0], [0.2, 0.9], [0.5, 0.5]])
 def test_images_and_figures_share_one_colour_scale(a):
     x = np.array(a)
-    img = _to_image(torch.tensor(x, dtype=torch.float32))[0, 0].numpy()
+    img = _to_image(torch.tensor(x, dtype=torch.float32))[:, 0].numpy().T  # (W, 3): the strip's first row
     k = img.shape[0] // len(a)
-    tb = img[k // 2::k]  # one value per unit
+    tb = img[k // 2::k]  # one colour per unit
     fig = _cell(x)
     fig = fig[~np.isnan(fig).any(1)][0, np.arange(len(a)) * fig.shape[1] // len(a)]
-    np.testing.assert_allclose(tb, fig, atol=1e-6)
+    np.testing.assert_allclose(tb, matplotlib.colormaps[COLOUR_MAP](fig)[:, :3], atol=1e-6)
 
 
 @pytest.mark.parametrize("exp", ["exp1", "exp2"])

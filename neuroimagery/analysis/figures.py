@@ -19,7 +19,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from ..core.files import save_figure  # noqa: E402
-from ..core.logger import own_range  # noqa: E402
+from ..core.logger import COLOUR_MAP, own_range  # noqa: E402
 
 
 THESIS_STYLE = dict(color="black", linestyle="--", linewidth=1.2)
@@ -178,7 +178,7 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
     for r, st in enumerate(steps):
         for c, n in enumerate(names):
             mosaic[r * pitch:r * pitch + CELL, c * pitch:c * pitch + CELL] = _cell(st[n])
-    rgba = plt.get_cmap("viridis")(np.nan_to_num(mosaic))
+    rgba = plt.get_cmap(COLOUR_MAP)(np.nan_to_num(mosaic))
     rgba[np.isnan(mosaic)] = 1.0
     dpi, left, right = 100, 170, 120
     H, W = mosaic.shape
@@ -206,7 +206,7 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
                 fig.text((left + c * pitch + (k + 0.5) * CELL / w) / fw, (bottom - 4) / fh, lab, ha="center",
                          va="top", fontsize=6, rotation=90 if w > 3 or max(map(len, labs)) > 3 else 0)
     cax = fig.add_axes([(left + W + 14) / fw, (bottom + H - bar_h) / fh, 12 / fw, bar_h / fh])
-    bar = fig.colorbar(plt.cm.ScalarMappable(cmap="viridis", norm=matplotlib.colors.Normalize(0, 1)), cax=cax)
+    bar = fig.colorbar(plt.cm.ScalarMappable(cmap=COLOUR_MAP, norm=matplotlib.colors.Normalize(0, 1)), cax=cax)
     bar.set_ticks([0, 0.5, 1], labels=["min", "", "max"])
     bar.ax.tick_params(labelsize=6)
     bar.set_label("activity, each map\nscaled to its own range", fontsize=6)

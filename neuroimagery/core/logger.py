@@ -20,6 +20,7 @@ import torch
 
 MIN_SIDE = 96  # pixels: small maps are enlarged (nearest neighbour) to at least this on their longer side
 METRICS = "values"  # the group of the HParams metrics' one-point scalars (after every curve's group)
+COLOUR_MAP = "viridis"  # of the map images and the figures' map panels (analysis.figures)
 STRIP = 12  # pixels: the height of a 1-D map's strip, and each unit's width at least
 
 
@@ -38,20 +39,25 @@ def own_range(activity) -> np.ndarray:
 
 
 def _to_image(activity: torch.Tensor) -> torch.Tensor:
-    """A 1-D or 2-D map -> ``(1, H, W)`` image in [0, 1] (each map scaled by its own range,
-    :func:`own_range`). A 1-D map becomes a strip of ``STRIP``-pixel cells, one per unit; a small
-    2-D map is enlarged by an integer factor, so every unit stays a visible square."""
-    a = torch.as_tensor(own_range(activity), dtype=torch.float32)
-    if a.dim() == 1:
-        a = a.unsqueeze(0)
+    """A 1-D or 2-D map -> ``(3, H, W)`` RGB image: each map scaled by its own range
+    (:func:`own_range`) and coloured by the figures' colour map (``COLOUR_MAP``), so a map looks
+    the same in TensorBoard and in the figures, and an active unit never blends into the page. A
+    1-D map becomes a strip of ``STRIP``-pixel cells, one per unit; a small 2-D map is enlarged by
+    an integer factor, so every unit stays a visible square."""
+    a = own_range(activity)
+    if a.ndim == 1:
+        a = a[None, :]
     h, w = a.shape
     k = max(1, math.ceil(MIN_SIDE / max(h, w)))
     if activity.dim() == 1:
         k = max(k, STRIP)
-    a = a.repeat_interleave(k, 0).repeat_interleave(k, 1)
+    a = a.repeat(k, 0).repeat(k, 1)
     if activity.dim() == 1 and a.shape[0] > STRIP:
         a = a[:STRIP]
-    return a.unsqueeze(0)
+    import matplotlib
+
+    rgb = matplotlib.colormaps[COLOUR_MAP](a)[..., :3]
+    return torch.as_tensor(rgb, dtype=torch.float32).permute(2, 0, 1).contiguous()
 
 
 def _hparam_value(v):
