@@ -114,8 +114,7 @@ CONFIG_CASES = [
     (["experiment=exp4", "preset=huge"], "preset"),
     (["experiment=exp2", "threads=-2"], "threads"),
     (["experiment=exp5", "experiment.engine.n_jobs=0"], "experiment.engine.n_jobs"),
-    (["experiment=exp4", "experiment.flip_axis=diagonal"], "experiment.flip_axis"),
-    (["experiment=exp3", "experiment.m1_readout=middle"], "experiment.m1_readout"),
+    (["experiment=exp2", "experiment.som.method=fast"], "experiment.som.method"),
     (["experiment=exp5", "experiment.situations=[nowhere]"], "experiment.situations"),
     (["experiment=exp4", "logger.kind=wandb"], "logger.kind"),
     (["experiment=exp1", "vision.kind=laser"], "vision.kind"),
@@ -133,7 +132,7 @@ CONFIG_CASES = [
     (["experiment=exp4", "logger=none", "logger.map_images=false"], "logger.map_images"),
     (["experiment=exp3", "experiment.quick.objects=2"], "experiment.quick.objects"),
     (["experiment=exp4", "preset=quick", "experiment.fm.images=100"], "experiment.fm.images"),
-    (["experiment=exp3", "experiment.m1_sigma=0.3"], "experiment.m1_sigma"),  # not read with the default m1_readout=centre
+    (["experiment=exp4", "experiment.lca.k=0.7"], "experiment.lca.k"),  # the leak is set by rule R2
     (["experiment=exp4", "experiment.noise_tests=[]", "experiment.ppc.noise_amplitude=0.3"], "experiment.ppc.noise_amplitude"),
     (["experiment=exp5", "preset=quick", "experiment.repetitions=5"], "experiment.repetitions"),
     (["experiment=exp2", "threads=1", "experiment.auto_threads=2"], "experiment.auto_threads"),

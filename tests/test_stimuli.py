@@ -21,7 +21,7 @@ from neuroimagery.vision import (
 )
 
 EXP3 = ["exp3-a", "exp3-b", "exp3-c"]
-EXP4 = ["exp4-A", "exp4-B", "exp4-B-long", "exp4-C"]
+EXP4 = ["exp4-A", "exp4-B", "exp4-C"]
 EARLIER = ["exp3-b-v1", "exp3-c-v1", "exp4-A-v1", "exp4-B-v1", "exp4-C-v1"]  # earlier designs
 
 
@@ -99,7 +99,7 @@ def test_elongation_matches_the_descriptions():
     """Sets with a clear main axis are elongated, the Gen-II sets nearly isotropic."""
     ratios = {n: [shape_elongation(get_stimulus_set(n), o) for o in get_stimulus_set(n).objects]
               for n in EXP3 + EXP4}
-    for n in ("exp3-a", "exp3-b", "exp4-A", "exp4-B", "exp4-B-long"):
+    for n in ("exp3-a", "exp3-b", "exp4-A", "exp4-B"):
         assert min(ratios[n]) > 2.0, (n, ratios[n])
     for n in ("exp3-c", "exp4-C"):
         assert max(ratios[n]) < 1.2, (n, ratios[n])
@@ -109,25 +109,25 @@ def test_gen1_axis_as_clear_as_the_training_set():
     """Sets A and B both have "a clear orientation main axis" (thesis 6.2.1): the Gen1 objects are
     as elongated as the training objects (the earlier exp4-B-v1 objects were shorter and wider)."""
     ratio = lambda n: [shape_elongation(get_stimulus_set(n), o) for o in get_stimulus_set(n).objects]
-    for gen1, train in (("exp4-B", "exp4-A"), ("exp4-B-long", "exp4-A"), ("exp3-b", "exp3-a")):
+    for gen1, train in (("exp4-B", "exp4-A"), ("exp3-b", "exp3-a")):
         assert np.mean(ratio(gen1)) >= 0.9 * np.mean(ratio(train)), (gen1, ratio(gen1), ratio(train))
     assert max(ratio("exp4-B-v1")) < min(ratio("exp4-A-v1"))
 
 
-CURRENT = ["L"] + EXP3 + [n for n in EXP4 if n != "exp4-B-long"]
+CURRENT = ["L"] + EXP3 + EXP4
 
 
 @pytest.mark.parametrize("name", CURRENT)
 def test_builtin_sets_meet_their_design_rules(name):
     """Every rule of docs/stimuli.md ("Design rules of the builtin sets") holds for the sets the
-    experiments use.  Not checked: the earlier designs (EARLIER) and the alternative exp4-B-long,
-    whose B2 mirror image and objects are too alike (docs/stimuli.md lists what each breaks)."""
+    experiments use.  Not checked: the earlier designs (EARLIER; docs/stimuli.md lists what each
+    breaks)."""
     report = measure_set(name)
     assert (report.kind == "generic") == (name == "L") and len(report.checks) >= 4
     assert report.ok, format_report(report)
 
 
-@pytest.mark.parametrize("name", ["exp4-B-long"] + EARLIER)
+@pytest.mark.parametrize("name", EARLIER)
 def test_earlier_designs_break_a_rule(name):
     assert not measure_set(name).ok
 
@@ -163,7 +163,6 @@ def test_more_features_in_set_B_than_A():
         return np.mean(out)
 
     assert corners("exp4-B") > corners("exp4-A") + 2
-    assert corners("exp4-B-long") > corners("exp4-A") + 2
     assert corners("exp3-b") > corners("exp3-a") + 2  # Gen-I shapes "consist of many details"
 
 

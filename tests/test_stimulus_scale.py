@@ -14,7 +14,7 @@ from neuroimagery.vision.shapes import CH6_RADIUS_FRACTION, RADIUS_FRACTION
 
 SIZE = 32
 DEFAULT_SETS = ["exp3-a", "exp3-b", "exp3-c", "exp4-A", "exp4-B", "exp4-C"]
-OTHER_CH6_SETS = ["exp4-B-long", "exp3-b-v1", "exp3-c-v1", "exp4-A-v1", "exp4-B-v1", "exp4-C-v1"]
+OTHER_CH6_SETS = ["exp3-b-v1", "exp3-c-v1", "exp4-A-v1", "exp4-B-v1", "exp4-C-v1"]
 
 
 @pytest.fixture(scope="module")

@@ -91,12 +91,9 @@ class PostureMapParams:
     eta_final: float = bounded(0.1, gt=0)
     sigma: float = bounded(0.3, gt=0)  # neighbourhood radius of the forced winner, in units (not given)
     iterations: int = bounded(1440, ge=1)  # supervised Kohonen steps (not given)
-    # scale of the image fed to the rule and the read-out (not given): 'sum' = divided by its sum, the scale of
-    # the weights eq. 6.8 / 6.16 keep at sum 1, so eta is the real rate | 'raw' = the binary map as it comes
-    input_scale: str = bounded("sum", choices=("sum", "raw"))
-    # order of the training images (not given; "repeated for all the possible orientations"): 'passes' = every
-    # image once per pass, in a fresh random order each pass | 'draws' = each step draws an image at random
-    order: str = bounded("passes", choices=("passes", "draws"))
+    # The image reaches the rule and the read-out divided by its sum (the scale of the weights eq. 6.8 / 6.16
+    # keep at sum 1, so eta is the real rate), and the training images come in passes, every image once per
+    # pass in a fresh random order ("repeated for all the possible orientations"): docs/choices.md.
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.posture.")

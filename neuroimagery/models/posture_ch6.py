@@ -17,24 +17,20 @@ def posture_maps(init_high: float, q: PostureMapParams, n_in: int, units: int, g
     built in order, initial weights U[0, ``init_high``], the schedule of ``q``."""
     kw = dict(shape=(units,), n_in=n_in, generators=generators, init=(0.0, init_high), eta=q.eta,
               sigma=q.sigma, eta_final=q.eta_final, sigma_final=q.sigma,
-              iterations=q.iterations, supervised=True, readout="dot", input_scale=getattr(q, "input_scale", "sum"))
+              iterations=q.iterations, supervised=True, readout="dot", input_scale="sum")
     return [SOM(name=name, **kw) for name in names]
 
 
-def posture_order(generators, n: int, steps: int, how: str) -> torch.Tensor | None:
-    """Image indices ``(P, steps)`` for the posture maps: with ``how='passes'`` every one of the ``n``
-    images once per pass, a fresh random order per pass and participant; ``'draws'`` returns None
-    (the map draws an image at random at every step)."""
-    if how == "draws":
-        return None
+def posture_order(generators, n: int, steps: int) -> torch.Tensor:
+    """Image indices ``(P, steps)`` for the posture maps: every one of the ``n`` images once per pass,
+    a fresh random order per pass and participant."""
     passes = -(-steps // n)
     return torch.stack([torch.cat([torch.randperm(n, generator=g) for _ in range(passes)])[:steps] for g in generators])
 
 
-def fit_posture_soms(soms, maps: torch.Tensor, labels: torch.Tensor, generators, q, progress=None) -> None:
-    """Train each supervised posture map of ``soms`` on ``maps`` labelled ``labels``, in the order of
-    ``q.order`` (:func:`posture_order`), by the factored form of the online rule."""
+def fit_posture_soms(soms, maps: torch.Tensor, labels: torch.Tensor, generators, progress=None) -> None:
+    """Train each supervised posture map of ``soms`` on ``maps`` labelled ``labels``, in passes over
+    the images (:func:`posture_order`), by the factored form of the online rule."""
     for som in (progress(soms) if progress is not None else soms):
-        order = posture_order(generators, maps.shape[0], som.rule.iterations, getattr(q, "order", "draws"))
-        som.fit(maps, labels=labels, generators=None if order is not None else generators, order=order,
-                method="factored")
+        order = posture_order(generators, maps.shape[0], som.rule.iterations)
+        som.fit(maps, labels=labels, generators=None, order=order, method="factored")

@@ -266,7 +266,7 @@ class Rotation3D(nn.Module):
         """Population codes ``(R, 3, nu)`` of rotation vectors ``(R, 3)`` (deg per camera axis), plus
         the wrist signal on the line-of-sight axis: ``match`` a bump on the wrist's relative
         rotation ``wrist`` (the turn done so far), ``mismatch`` on its opposite; summed, cut to
-        [0, 1] (Exp 4's ``proprio_stage='visual'``)."""
+        [0, 1] (as Exp 4's PPCp)."""
         check_proprioception(proprioception)
         code = self.ppc.encode(vec.float().clamp(-180.0, 180.0).unsqueeze(-1)).reshape(vec.shape[0], 3, -1)
         if proprioception == "none":

@@ -48,7 +48,6 @@ class AffordanceParams:
     init_high: float = bounded(0.1, gt=0)  # initial weights U[0, init_high] (thesis: 0.1)
     hebb_eta: float = bounded(0.3, gt=0, le=1)  # outstar Hebbian rate of C1, C2, C5 (not given in the thesis)
     hebb_epochs: int = bounded(6, ge=1)  # passes over the training patterns (Table 5.1 of Exp. 2 uses 6 passes)
-    feed_order: str = bounded("sequential", choices=("sequential", "shuffled"))  # 'sequential': all of object A, then B (as in the thesis); or 'shuffled'
     posture_sigma_deg: float = bounded(6.0, gt=0)  # width of a PMC_1 posture cluster (deg along both axes)
     object_band_deg: float = bounded(22.5, ge=0)  # PMC_1 row offset (deg units) of object A (-) and B (+) clusters
     answer_sigma: float = bounded(1.5, gt=0)  # width (units) of the PMC_2 answer clusters
@@ -121,14 +120,11 @@ class AffordanceRotationModel(FactorCheckpoint, nn.Module):
         """Train C1, C2 (Hebbian, shared sequence), PFC_2 (SOM) and C5 (Hebbian).
 
         ``images[(obj, angle)]`` is the 1024-vector edge map of object 0/1 at a training angle.
-        Patterns are fed object A first, then object B (the thesis's sequential feed), or shuffled.
+        Patterns are fed object A first, then object B (the thesis's sequential feed).
         """
         e = self.e
         angles = [float(a) for a in range(-90, 91, int(e.step_deg))]
         seq = [(o, a) for o in (0, 1) for a in angles]
-        if e.feed_order == "shuffled":
-            gen = torch.Generator().manual_seed(self.seed)
-            seq = [seq[i] for i in torch.randperm(len(seq), generator=gen)]
         seq = seq * e.hebb_epochs
         obj = torch.tensor([s[0] for s in seq])
         ang = torch.tensor([s[1] for s in seq])

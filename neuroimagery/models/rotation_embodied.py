@@ -30,8 +30,7 @@ from torch import nn
 
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM, population_cover
 from ..nn.functional import softmax_select
-from ..nn.binary import pack_bits, unique_rows, unpack_bits
-from ..vision.reflection import principal_axis_flip, reflection_index
+from ..vision.reflection import reflection_index
 from .rotation_embodied_trials import FusedTrials
 from ..nn.decision import Decision, full_match_gain, smallest_deciding_gain
 from .pmcd_leak import leak_by_rule
@@ -71,7 +70,7 @@ IDENTICAL_SHARE = 0.9  # rule R1: the share of identical training pairs that dec
 
 
 def identical_share_gain(pmcd, pairs: torch.Tensor, cycles: int, leak: torch.Tensor) -> torch.Tensor:
-    """Rule R1 (``lca.gain_rule=each_identical``): per participant, the smallest gain with which at
+    """Rule R1 (docs/choices.md): per participant, the smallest gain with which at
     least ``IDENTICAL_SHARE`` of the identical pairs' evidence ``pairs`` ``(P, N, 2)`` decides (either
     way, for the unit it favours) within ``cycles`` cycles from rest at the leak ``leak`` ``(P,)``."""
     P, N = pairs.shape[:2]
@@ -148,7 +147,7 @@ class RotationEmbodied(nn.Module):
         their wrist-posture units; ``progress`` optionally wraps the list of maps. PMCd is calibrated
         after it (:meth:`calibrate`)."""
         self.train()
-        fit_posture_soms([self.c16, self.c17], maps, labels, generators, self.p.posture, progress)
+        fit_posture_soms([self.c16, self.c17], maps, labels, generators, progress)
 
     @torch.no_grad()
     def calibrate(self, maps: torch.Tensor, objects: torch.Tensor, mirror: torch.Tensor, angles: torch.Tensor) -> None:
@@ -156,33 +155,27 @@ class RotationEmbodied(nn.Module):
         set: edge ``maps`` ``(N, n)`` with the object index, mirror flag and angle of each (how the
         set is built).
 
-        Gain (``lca.gain_rule``, rule R1 of docs/choices.md): pair every map with itself (target =
-        rotated object, 0 deg), run the still step and find the smallest gain with which at least 90 %
-        of these pairs' (PFCtm, PFCfm) evidence (overlap per target unit) decides within one step
-        (``each_identical``), or with which their mean does (``identical``, the former rule). Leak
-        (``lca.leak_rule``, rule R2; :func:`.pmcd_leak.leak_by_rule`): on a grid of 0.05 from w, the
-        smallest k with which at most 10 % of the misaligned same-object pairs (object and angle only)
-        decide, their still-step evidence held for ``selection.max_steps`` steps (the gain set by the
-        gain rule at each k); ``mirror`` is not read. An explicit ``lca.input_gain`` or the ``full`` rule gives the gain in closed
-        form; ``fixed`` keeps ``lca.k``."""
-        p, P = self.p, self.participants
+        Gain (rule R1 of docs/choices.md): pair every map with itself (target = rotated object,
+        0 deg), run the still step and find the smallest gain with which at least 90 % of these
+        pairs' (PFCtm, PFCfm) evidence (overlap per target unit) decides within one step. Leak (rule
+        R2; :func:`.pmcd_leak.leak_by_rule`): on a grid of 0.05 from w, the smallest k with which at
+        most 10 % of the misaligned same-object pairs (object and angle only) decide, their
+        still-step evidence held for ``selection.max_steps`` steps (the gain by R1 at each k);
+        ``mirror`` is not read. An explicit ``lca.input_gain`` gives the gain instead of R1."""
+        P = self.participants
         x = maps.unsqueeze(0).expand(P, -1, -1)
         pairs = self.pair_evidence(x, x)
         self.identical_pairs = pairs  # (P, N, 2): each image against itself (rule R1)
         self.identical_evidence.copy_(pairs.mean(1))
-        leak = torch.full((P,), float(p.lca.k))
-        if p.lca.leak_rule != "fixed":
-            leak = leak_by_rule(self, x, objects, angles)  # rule R2: object and angle only
+        leak = leak_by_rule(self, x, objects, angles)  # rule R2: object and angle only
         self.leak.copy_(leak)
         self.input_gain.copy_(self.gain_for(leak))
 
     def gain_for(self, leak: torch.Tensor) -> torch.Tensor:
-        """PMCd's input gain per participant under ``lca.gain_rule`` for the leaks ``leak`` ``(P,)``."""
+        """PMCd's input gain per participant (rule R1, or ``lca.input_gain``) for the leaks ``leak`` ``(P,)``."""
         p = self.p
-        if p.lca.input_gain is not None or p.lca.gain_rule == "full":
-            return torch.tensor([lca_gain(p, float(k)) for k in leak])
-        if p.lca.gain_rule == "identical":
-            return smallest_deciding_gain(self.pmcd, self.identical_evidence, p.lca.cycles, leak=leak)
+        if p.lca.input_gain is not None:
+            return torch.full((len(leak),), float(p.lca.input_gain))
         return identical_share_gain(self.pmcd, self.identical_pairs, p.lca.cycles, leak)
 
     @torch.no_grad()
@@ -210,13 +203,10 @@ class RotationEmbodied(nn.Module):
 
     def pmcm_input(self, ppcc: torch.Tensor) -> torch.Tensor:
         """PMCm's input AM (eq. 6.10) from PPCc ``(..., units^2)``, scaled by rule R3 (docs/choices.md):
-        ``pmcm_scale='fixed'`` divides eq. 6.10 by one constant, PPCc's total activity when PPCt and
-        PPCp are the eq. 6.14 bump on the same most central unit, so that eq. 6.11's input lies in
-        [0, 1] for the bumps and keeps eq. 6.10 linear; ``'share'`` divides by each row's own total."""
-        am = self.c20(ppcc)
-        if self.p.pmcm_scale == "share":
-            return am / am.sum(-1, keepdim=True).clamp_min(1e-12)
-        return am / self.pmcm_full_total()
+        eq. 6.10 divided by one constant, PPCc's total activity when PPCt and PPCp are the eq. 6.14
+        bump on the same most central unit, so that eq. 6.11's input lies in [0, 1] for the bumps and
+        keeps eq. 6.10 linear."""
+        return self.c20(ppcc) / self.pmcm_full_total()
 
     def pmcm_full_total(self) -> float:
         """The largest total activity of PPCc (eq. 6.9) with PPCt and PPCp the eq. 6.14 bump on the
@@ -232,10 +222,8 @@ class RotationEmbodied(nn.Module):
         return ((target > 0.5) & cover).sum(-1).float()
 
     def flip_target(self, target: torch.Tensor) -> torch.Tensor:
-        """PFCft of targets ``(P, B, n)`` by C10 as ``flip_axis`` sets it."""
-        if self.p.flip_axis == "ppct":
-            return self.flipped(target, self.posture(self.c17, target))
-        return self.flipped_image(target)
+        """PFCft of targets ``(P, B, n)`` by C10: each reflected about the axis of the orientation PPCt reads."""
+        return self.flipped(target, self.posture(self.c17, target))
 
     def posture(self, som: SOM, x: torch.Tensor) -> torch.Tensor:
         """Winning wrist-posture unit of an image (eq. 6.14: argmax of ``W x``) -> long ``(P, B)``."""
@@ -244,23 +232,16 @@ class RotationEmbodied(nn.Module):
     def ppcp_code(self, j: torch.Tensor, proprioception: str = "none", uniforms: torch.Tensor | None = None) -> torch.Tensor:
         """PPCp ``(R, units)`` for winners ``j`` ``(R,)``: the eq. 6.14 bump, plus noise
         ``a * (2u - 1)`` for ``uniforms`` u ``(R, units)`` in [0, 1), clipped to [0, 1], plus the wrist
-        signal (on unit ``j`` for ``match``, on ``units-1-j`` for ``mismatch``).
-
-        ``ppc.proprio_stage='separate'``: the wrist signal is added after the clip, so on the congruent
-        unit it lifts the activation above anything the noise can give another unit;
-        ``'visual'``: it is added before noise and clip and saturates at 1 with the bump.
+        signal (on unit ``j`` for ``match``, on ``units-1-j`` for ``mismatch``), added before noise
+        and clip, so that it saturates at 1 with the bump (one activation per unit, docs/choices.md).
         """
         p, nu = self.p, len(self.p.ppc.angles)
         ppcp = self.ppc.encode(j.float())
-        wrist = None
-        if proprioception != "none":
-            wrist = p.ppc.proprio_gain * self.ppc.encode((j if proprioception == "match" else (nu - 1 - j)).float())
-        if wrist is not None and p.ppc.proprio_stage == "visual":
-            ppcp, wrist = ppcp + wrist, None  # one signal, noised and clipped together
+        if proprioception != "none":  # one signal, noised and clipped together
+            ppcp = ppcp + p.ppc.proprio_gain * self.ppc.encode((j if proprioception == "match" else (nu - 1 - j)).float())
         if uniforms is not None:
             ppcp = ppcp + (2 * uniforms - 1) * p.ppc.noise_amplitude
-        ppcp = ppcp.clamp(0.0, 1.0)  # the image-derived posture signal lies in [0, 1]
-        return ppcp if wrist is None else ppcp + wrist
+        return ppcp.clamp(0.0, 1.0)  # PPCp's activity lies in [0, 1]
 
     def posture_winner(self, score: torch.Tensor, uniforms: torch.Tensor | None) -> torch.Tensor:
         """Winning PPCp unit of the C16 activation potentials ``score`` ``(R, units)`` (eq. 6.14).
@@ -294,19 +275,10 @@ class RotationEmbodied(nn.Module):
         return out
 
     def flipped(self, target: torch.Tensor, ppct_unit: torch.Tensor) -> torch.Tensor:
-        """PFCft with ``flip_axis='ppct'``: the target reflected about the main axis of the
-        orientation PPCt encodes (C10 driven by the posture map)."""
+        """PFCft: the target reflected about the main axis of the orientation PPCt encodes (C10
+        driven by the posture map)."""
         pad = torch.cat([target, torch.zeros(*target.shape[:-1], 1)], dim=-1)
         return torch.gather(pad, -1, self.flip_index[ppct_unit])
-
-    def flipped_image(self, target: torch.Tensor) -> torch.Tensor:
-        """PFCft with ``flip_axis='image'``: each target map reflected about its own principal axis
-        (:func:`principal_axis_flip`; C10 a fixed transformation of PFCt), computed once per
-        distinct map of the batch."""
-        rows = target.reshape(-1, target.shape[-1])
-        _, words, inv = unique_rows(torch.zeros(len(rows), dtype=torch.long), pack_bits(rows))
-        flat = principal_axis_flip(unpack_bits(words, rows.shape[-1]).to(target.dtype), self.size)
-        return flat[inv].reshape(target.shape)
 
     # ------------------------------------------------------------------ trials
     @torch.no_grad()
@@ -316,10 +288,8 @@ class RotationEmbodied(nn.Module):
 
         ``proprioception``: ``none``, ``match`` (wrist signal on the PPCp unit of the mental
         rotation) or ``mismatch`` (on the opposite unit, ``units-1-j``). ``noise`` adds
-        U[-a, a] per PPCp unit and step to the image-derived posture bump, clipped to [0, 1]; with
-        ``ppc.proprio_stage='separate'`` the wrist signal is added after that clip (the encoder is a
-        second input that the noise of the image-to-posture mapping does not touch), with
-        ``'visual'`` before it (both signals share the noise and the [0, 1] ceiling). Randomness (softmax selection, noise,
+        U[-a, a] per PPCp unit and step to the image-derived posture bump and the wrist signal,
+        clipped to [0, 1] (both signals share the noise and the [0, 1] ceiling). Randomness (softmax selection, noise,
         time-out answers) comes from ``generators``, one per participant, drawn in a fixed order.
         ``record``: the trials of participant 0 whose maps are returned per step, as a number of
         leading trials or a sequence of trial indices.

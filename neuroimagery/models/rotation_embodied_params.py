@@ -23,24 +23,17 @@ class EmbodiedPostureParams(PostureMapParams):
 
 @dataclass
 class EmbodiedLcaParams(LcaParams):
-    """PMCd (``experiment.lca``) and the rule that sets its input gain when ``input_gain`` is null.
+    """PMCd (``experiment.lca``).
 
     ``input_gain``: evidence = gain * |PFCxm| / |PFCt| (C13/C14 weights of 1.0 over the overlap, per
-    target unit)."""
-
-    # the rule that sets the gain when input_gain is null: 'each_identical' (default; rule R1 of docs/choices.md) =
-    # the smallest gain with which at least 90 % of the identical 0-deg pairs of the training set (each image
-    # against itself) decide (for the unit their evidence favours) within one step, per participant, fixed after
-    # training | 'identical' (the former R1) = the smallest gain with which their mean evidence (target and
-    # flipped overlap) decides YES within one step | 'full' = the smallest
-    # gain with which a full overlap (1, with no flipped overlap) does (nn.decision.full_match_gain: 1.495
-    # with k 0.5, dt 0.1, 10 cycles)
-    gain_rule: str = bounded("each_identical", choices=("each_identical", "identical", "full"))
-    # the rule that sets the leak k of PMCd: 'misaligned' (default; rule R2 of docs/choices.md) = per participant,
-    # after training, the smallest k on a grid of 0.05 from w to w + 2.5 with which at most 10 % of the misaligned
-    # same-object pairs of the training set (object and angle only, no appearance or answer label) decide when
-    # held for selection.max_steps steps (the gain by gain_rule at each k) | 'fixed' = k as given (0.5 = w)
-    leak_rule: str = bounded("misaligned", choices=("misaligned", "fixed"))
+    target unit). When it is null (the default) the gain is set by rule R1 of docs/choices.md: per
+    participant, after training, the smallest gain with which at least 90 % of the identical 0-deg
+    pairs of the training set (each image against itself) decide (for the unit their evidence
+    favours) within one step. The leak is set by rule R2, ``k`` being its lowest value: per
+    participant, after training, the smallest k on a grid of 0.05 from w to w + 2.5 with which at
+    most 10 % of the misaligned same-object pairs of the training set (object and angle only, no
+    appearance or answer label) decide when held for ``selection.max_steps`` steps (the gain by R1
+    at each k)."""
 
 
 @dataclass
@@ -49,11 +42,8 @@ class EmbodiedPpcParams(PpcParams):
     the noise variant."""
 
     angles: List[float] = dc_field(default_factory=lambda: [-60.0, -30.0, 0.0, 30.0, 60.0, 90.0])  # wrist posture of each unit, increasing
-    # where the wrist signal joins PPCp (not given): 'separate' = added after the noisy image-derived
-    # bump is clipped to [0, 1] (the encoder is an input of its own, untouched by the noise that stands
-    # for an unreliable image-to-posture mapping); 'visual' = summed with the bump before noise and clip,
-    # so on the congruent unit it saturates at 1 and cannot outweigh the noise on the other units
-    proprio_stage: str = bounded("visual", choices=("separate", "visual"))
+    # the wrist signal is summed with the image-derived bump before noise and clip (docs/choices.md), so on
+    # the congruent unit it saturates at 1 and cannot outweigh the noise on the other units
     noise_amplitude: float = bounded(0.5, ge=0)  # noise variant: U[-a, a] added to each PPCp unit per step (thesis 0.5)
 
     RULES = (Rule("angles", lambda c: len(c.angles) >= 2 and list(c.angles) == sorted(c.angles),
@@ -74,22 +64,17 @@ class EmbodiedParams:
     posture: EmbodiedPostureParams = dc_field(default_factory=EmbodiedPostureParams)
     # --- PPCp / PPCt: postures, bump, wrist signal, noise (eq. 6.14) -----------------------
     ppc: EmbodiedPpcParams = dc_field(default_factory=EmbodiedPpcParams)
-    # axis of the flipped target PFCft (C10, "flipped along the main object axis of the object"; not given how):
-    # 'ppct' (default: the higher IoU with the true mirror on training set A, the rule of docs/contracts.md) =
-    # the axis of the orientation PPCt reads (C17), so a misread target posture also gives a wrong flip |
-    # 'image' = the principal axis of the target map itself (no posture input). No label either way.
-    flip_axis: str = bounded("ppct", choices=("image", "ppct"))
+    # the flipped target PFCft (C10, "flipped along the main object axis of the object"; not given how) is the
+    # target reflected about the axis of the orientation PPCt reads (C17; docs/choices.md), so a misread target
+    # posture also gives a wrong flip. No label is read.
     # how far a POCp unit reaches when PFCtm / PFCfm compare it with the target (C8, C9): 1 (default) = POCp read
     # as a population code whose units respond over their 3x3 neighbourhood (contract X4.7); 0 = one-to-one
     match_tolerance: int = bounded(1, ge=0)
     # --- action selection (PMCm, eq. 6.10-6.11) and decision (PMCd, eq. 6.12-6.13) ----------
     selection: SelectionParams = dc_field(default_factory=SelectionParams)  # softmax (thesis 0.1), steps (thesis 20)
-    # the scale of PMCm's input AM (eq. 6.10) before the softmax of eq. 6.11 (docs/choices.md, rule R3): 'fixed'
-    # (default) = eq. 6.10 divided by one constant, the total activity PPCc holds when PPCt and PPCp are the
-    # eq. 6.14 bump on the same most central unit (the largest total the bumps give), the same for every trial |
-    # 'share' = divided by each trial's own PPCc total (the share of its activity reaching each unit; the former
-    # default, under which bumps cut by the map's end units give sharper draws)
-    pmcm_scale: str = bounded("fixed", choices=("fixed", "share"))
+    # PMCm's input AM (eq. 6.10) reaches the softmax of eq. 6.11 divided by one constant (docs/choices.md,
+    # rule R3): the total activity PPCc holds when PPCt and PPCp are the eq. 6.14 bump on the same most central
+    # unit (the largest total the bumps give), the same for every trial
     lca: EmbodiedLcaParams = dc_field(default_factory=EmbodiedLcaParams)
 
     RULES = (Rule("fm.dot_inner", lambda c: c.fm.dot_inner <= c.map_size - 2, "must lie in [1, map_size - 2]",

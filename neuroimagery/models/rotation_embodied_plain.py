@@ -20,8 +20,7 @@ class _PlainTrials:
         P, B, _ = target.shape
         self.B, self.nu = B, len(self.p.ppc.angles)
         self.ppct_unit = model.posture(model.c17, target)  # PPCt winner (eq. 6.14), (P, B)
-        self.flipped = (model.flipped(target, self.ppct_unit) if self.p.flip_axis == "ppct"
-                        else model.flipped_image(target))
+        self.flipped = model.flipped(target, self.ppct_unit)
         self.out = {k: torch.zeros(P, B, dtype=torch.long) for k in ("answer", "rt", "rotation_steps", "rotations")}
         self.out["rotation_deg"] = torch.zeros(P, B)
         self.out["decided"] = torch.zeros(P, B, dtype=torch.bool)

@@ -38,7 +38,7 @@ class FusedTrials:
         ppct_unit = model.posture(model.c17, target)
         self.ppct = model.ppc.encode(ppct_unit.float()).reshape(Q, nu)
         if flipped is None:
-            flipped = model.flipped(target, ppct_unit) if self.p.flip_axis == "ppct" else model.flipped_image(target)
+            flipped = model.flipped(target, ppct_unit)
         self.reach = int(self.p.match_tolerance)
         self.pfcft = flipped.reshape(Q, n)
         self.pfct_w, self.pfcft_w = pack_bits(self.pfct), pack_bits(self.pfcft)

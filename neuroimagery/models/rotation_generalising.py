@@ -37,16 +37,9 @@ MOVES = ("n1", "n2", "n3")
 
 @dataclass
 class GeneralisingForwardModel(ForwardModelParams):
-    """C6 (``experiment.fm``) and the threshold of its output."""
-
-    # what PP_2 holds (docs/choices.md, rule R6): 'graded' (default) = C6's output, the delta rule's actual output
-    # (eq. 6.4, linear: no threshold, no clipping), fed back to PP_1 as it is | 'binary' = that output > threshold
-    pp2: str = bounded("graded", choices=("graded", "binary"))
-    # what the feedback PP_2 -> PP_1 passes with pp2=graded (docs/choices.md, rule R8): 'cut' (default) = PP_2's
-    # activity cut to [0, 1], the range of PP_1's units (a population-code unit responds between 0 and its
-    # maximum, 1 for the edge units of V1 that drive PP_1 at the start) | 'linear' = PP_2 as it is (R6's first form)
-    feedback: str = bounded("cut", choices=("cut", "linear"))
-    threshold: float = bounded(0.5, gt=0)  # with pp2=binary: a PP_2 unit is on when its C6 input exceeds this (not given)
+    """C6 (``experiment.fm``). PP_2 holds C6's output, the delta rule's actual output (eq. 6.4, linear:
+    no threshold, no clipping; rule R6 of docs/choices.md), and the feedback PP_2 -> PP_1 passes it cut
+    to [0, 1], the range of PP_1's units (rule R8)."""
 
 
 @dataclass
@@ -79,27 +72,17 @@ class GeneralisingParams:
     fm: GeneralisingForwardModel = dc_field(default_factory=GeneralisingForwardModel)  # C6 (delta rule, eq. 6.4)
     # C2/C3 (supervised Kohonen, eq. 6.7-6.8), their SS / PMC_1 units' postures and graded code (eq. 6.5-6.6)
     posture: GeneralisingPostureParams = dc_field(default_factory=GeneralisingPostureParams)
-    # width of the Gaussian of eq. 6.2 (not given). M1_1 and the weights are unit length, so distances lie in
-    # [0, 2]; activity wholly in one M1_1 cell sits at least 0.82 (squared) nearer its own triangle's weights
-    # than the others'. sigma^2 = 0.82 / 4 puts the other units two "standard" widths down (exp(-2) ~ 0.13),
-    # i.e. a clear posture difference gives a clear move and the softmax (tau 0.3) picks it ~90 % of the time.
-    m1_sigma: float = bounded(0.45, gt=0)
-    # how eq. 6.2 compares M1_1 with the weights of n1, n2, n3. 'centre' (default; contract X3.6): by where the
-    # M1_1 activity is centred across the diagonal (mean SS unit - PMC_1 unit, in posture units), so that two
-    # flat posture codes, like two coinciding ones, put it on the diagonal and select n2 (thesis 6.1.3: objects
-    # with no clear orientation stop the rotation early). 'pattern' (the literal reading of eq. 6.2): the whole
-    # 16-unit pattern as a direction (width m1_sigma), where flat codes favour the 6-unit triangles.
-    m1_readout: str = bounded("centre", choices=("centre", "pattern"))
-    # width of the Gaussian of the 'centre' readout, in posture units (not given): half the spacing of the
+    # eq. 6.2 compares M1_1 with the weights of n1, n2, n3 by where the M1_1 activity is centred across the
+    # diagonal (mean SS unit - PMC_1 unit, in posture units; contract X3.6), so that two flat posture codes,
+    # like two coinciding ones, put it on the diagonal and select n2 (thesis 6.1.3: objects with no clear
+    # orientation stop the rotation early).
+    # width of the Gaussian of that read-out, in posture units (not given): half the spacing of the
     # posture units, so that a centre one unit off the diagonal selects a turn (n2 falls to ~0.3, the softmax
     # picks the turn ~87 % of the time) and a centre on the diagonal selects n2 (the turns fall to ~0.004)
-    m1_centre_sigma: float = bounded(0.5, gt=0)
-    # how wide the Gaussian of the 'centre' readout is (docs/choices.md, rule R7): 'spread' (default) = the
-    # units' width m1_centre_sigma combined with the spread of the M1_1 activity across the diagonal,
+    # (docs/choices.md, rule R7: combined with the spread of the M1_1 activity across the diagonal,
     # sqrt(sigma^2 + var), var the activity-weighted variance of (SS unit - PMC_1 unit), as a Gaussian-tuned
-    # unit responds to a spread population input (a less certain code gives a less certain M1_2, 6.1.3) |
-    # 'fixed' = m1_centre_sigma alone (the centre of the activity only; the former default)
-    m1_centre_width: str = bounded("spread", choices=("spread", "fixed"))
+    # unit responds to a spread population input: a less certain code gives a less certain M1_2, 6.1.3)
+    m1_centre_sigma: float = bounded(0.5, gt=0)
     # how far a PP_2 unit reaches when C8 subtracts it from PFC_2: 1 (default) = PP_2 read as a population code
     # whose units respond over their 3x3 neighbourhood (contract X3.8: an exact rotation of a same image leaves
     # <= 5 % of the target uncovered); 0 = the literal one-to-one reading, under which a resampled 45-deg
@@ -159,52 +142,36 @@ class RotationGeneralising(nn.Module):
         """C2 and C3 (supervised Kohonen, eq. 6.7-6.8) on edge ``maps`` ``(N, n)`` labelled with
         their posture units; ``progress`` optionally wraps the list of maps."""
         self.train()
-        fit_posture_soms([self.c2, self.c3], maps, labels, generators, self.p.posture, progress)
+        fit_posture_soms([self.c2, self.c3], maps, labels, generators, progress)
 
     def posture(self, som: SOM, x: torch.Tensor) -> torch.Tensor:
         """Graded posture code (eq. 6.5-6.6): a Gaussian of each unit's distance to the image,
         measured from the best unit's distance, ``exp(-(d_i^2 - d_min^2) / (2 sigma^2))``.
 
-        The distances are those of the image as the map sees it (scaled to sum 1 with the default
-        ``posture.input_scale``) and are measured in units of that image's squared norm, so that
-        ``code_sigma`` has the same meaning at either input scale: differences of about twice the
-        difference of the units' overlap with the image (see :func:`posture_code_distances`)."""
+        The distances are those of the image as the map sees it (scaled to sum 1) and are measured
+        in units of that image's squared norm, so that ``code_sigma`` means differences of about
+        twice the difference of the units' overlap with the image (see :func:`posture_code_distances`)."""
         d = posture_code_distances(som, x)
         return torch.exp(-d / (2 * self.p.posture.code_sigma ** 2))
 
     def m1_2(self, m11: torch.Tensor) -> torch.Tensor:
         """M1_2 activity (eq. 6.2): a Gaussian of the distance between M1_1 ``(P, B, 16)`` and the
-        weights of each of n1, n2, n3, read as set by ``m1_readout``.
+        weights of each of n1, n2, n3.
 
-        ``'centre'``: M1_1 is a population code (the 2-D Gaussian of eq. 6.1) and is compared with
-        each unit's weights by where its activity is centred across the diagonal: the
-        activity-weighted mean of (column - row), i.e. of (SS unit - PMC_1 unit), against the same
-        mean of each unit's mask (0 for the diagonal of n2, -5/3 and +5/3 for the triangles of n1
-        and n3), with width ``m1_centre_sigma`` posture units. Codes that agree, and codes that are
-        both flat, put the centre on the diagonal and select n2 (thesis 6.1.3).
+        M1_1 is a population code (the 2-D Gaussian of eq. 6.1) and is compared with each unit's
+        weights by where its activity is centred across the diagonal: the activity-weighted mean of
+        (column - row), i.e. of (SS unit - PMC_1 unit), against the same mean of each unit's mask (0
+        for the diagonal of n2, -5/3 and +5/3 for the triangles of n1 and n3). Codes that agree, and
+        codes that are both flat, put the centre on the diagonal and select n2 (thesis 6.1.3).
 
-        ``'pattern'``: both vectors are compared as directions (scaled to unit length, as eq. 6.8
-        rescales trained weights), width ``m1_sigma``. Spread-out activity then favours the
-        6-unit triangles over the 4-unit diagonal, so flat codes keep the rotation going.
-
-        With ``m1_centre_width='spread'`` (rule R7) the width of the ``centre`` comparison is
-        ``sqrt(m1_centre_sigma^2 + var)``, ``var`` the activity-weighted variance of (column - row) of
-        M1_1: the response of a unit of Gaussian tuning to an input spread with that variance, so
-        that less certain SS / PMC_1 codes give a less certain M1_2 (thesis 6.1.3).
-
-        Either way the Gaussian is centred on the nearest unit (its activity is 1), as in the
+        The width is ``sqrt(m1_centre_sigma^2 + var)`` (rule R7), ``var`` the activity-weighted
+        variance of (column - row) of M1_1: the response of a unit of Gaussian tuning to an input
+        spread with that variance, so that less certain SS / PMC_1 codes give a less certain M1_2
+        (thesis 6.1.3). The Gaussian is centred on the nearest unit (its activity is 1), as in the
         posture code of eq. 6.5-6.6.
         """
-        if self.p.m1_readout == "centre":
-            d2 = (self.m1_centre(m11).unsqueeze(-1) - self.m1_centre(self.m1_masks)) ** 2  # (P, B, 3)
-            sigma = self.p.m1_centre_sigma
-            if self.p.m1_centre_width == "spread":  # rule R7: the code's own spread widens the comparison
-                sigma = (sigma ** 2 + self.m1_spread(m11)).sqrt().unsqueeze(-1)
-        else:
-            w = self.m1_masks / self.m1_masks.norm(dim=-1, keepdim=True)
-            m = m11 / m11.norm(dim=-1, keepdim=True).clamp_min(1e-12)
-            d2 = ((m.unsqueeze(-2) - w) ** 2).sum(-1)  # (P, B, 3), in [0, 2]
-            sigma = self.p.m1_sigma
+        d2 = (self.m1_centre(m11).unsqueeze(-1) - self.m1_centre(self.m1_masks)) ** 2  # (P, B, 3)
+        sigma = (self.p.m1_centre_sigma ** 2 + self.m1_spread(m11)).sqrt().unsqueeze(-1)  # rule R7
         return torch.exp(-(d2 - d2.min(-1, keepdim=True).values) / (2 * sigma ** 2))
 
     def m1(self, pmc1: torch.Tensor, pp2: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -249,22 +216,16 @@ class RotationGeneralising(nn.Module):
 
     def forward_step(self, x: torch.Tensor, move: torch.Tensor, active: torch.Tensor | None = None) -> torch.Tensor:
         """PP_1 -> PP_2 through C6: the image sits in the PP_1 map of ``move``, cut to [0, 1] on the
-        way from PP_2 with ``fm.feedback=cut`` (rule R8); PP_2 = the linear output (``fm.pp2=graded``,
-        rule R6) or the output > ``fm.threshold`` (``binary``)."""
+        way from PP_2 (rule R8); PP_2 = the linear output (rule R6)."""
         P, B, n = x.shape
         x_in = x  # a row that does not step keeps PP_2 as it is
-        if self.p.fm.pp2 == "graded" and self.p.fm.feedback == "cut":
-            x = x.clamp(0.0, 1.0)  # a binary edge map (the first step) passes unchanged
+        x = x.clamp(0.0, 1.0)  # a binary edge map (the first step) passes unchanged
         sel = torch.ones(P, B, dtype=torch.bool) if active is None else active
         full = torch.zeros(P, B, 3 * n)
         for m in range(3):
             s = ((move == m) & sel).unsqueeze(-1)
             full[..., m * n:(m + 1) * n] = x * s
-        if self.p.fm.pp2 == "binary":
-            out = (self.c6.net_binary(full) > self.p.fm.threshold).float()
-        else:
-            out = self.c6.net_sparse(full)
-        return torch.where(sel.unsqueeze(-1), out, x_in)
+        return torch.where(sel.unsqueeze(-1), self.c6.net_sparse(full), x_in)
 
     @torch.no_grad()
     def run(self, target: torch.Tensor, rotated: torch.Tensor, generators, record=0, **_) -> dict:

@@ -48,10 +48,8 @@ def run_plain(model, target: torch.Tensor, rotated: torch.Tensor, generators) ->
                     done[pi][b] = True
                     continue
                 pp1 = torch.zeros(3 * n)
-                cut = p.fm.pp2 == "graded" and p.fm.feedback == "cut"
-                pp1[move * n:(move + 1) * n] = x.clamp(0.0, 1.0) if cut else x  # the image in the PP_1 map of the move (rule R8)
-                a = model.c6.net_of(pi, pp1)  # C6 (PP_2): graded (rule R6) or thresholded
-                pp2[pi][b] = a if p.fm.pp2 == "graded" else (a > p.fm.threshold).float()
+                pp1[move * n:(move + 1) * n] = x.clamp(0.0, 1.0)  # the image in the PP_1 map of the move (rule R8)
+                pp2[pi][b] = model.c6.net_of(pi, pp1)  # C6 (PP_2): the linear output (rule R6)
                 out["rotation_deg"][pi, b] += model.step_angles[move]
                 out["rotation_steps"][pi, b] += 1
     for pi in range(P):

@@ -60,8 +60,8 @@ KINDS = {
     "generic": "rules of every set",
 }
 _KIND = {"exp3-a": "axis", "exp4-A": "axis", "exp3-b": "features", "exp4-B": "features",
-         "exp4-B-long": "features", "exp3-c": "square", "exp4-C": "square", "L": "generic"}
-_TRAINING = {"exp3-b": "exp3-a", "exp4-B": "exp4-A", "exp4-B-long": "exp4-A"}
+         "exp3-c": "square", "exp4-C": "square", "L": "generic"}
+_TRAINING = {"exp3-b": "exp3-a", "exp4-B": "exp4-A"}
 _VERSION = re.compile(r"-v\d+$")
 
 _PAD = 2  # border that Shape adds around a mask

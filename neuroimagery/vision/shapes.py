@@ -140,10 +140,6 @@ BUILTIN_GRIDS: dict[str, dict[str, str]] = {
     # than set A, and a main axis as clear as set A's.
     "exp4-B": {"B1": ".#./##./.#./.##/.#./.#./.##/.#.", "B2": ".##/.#./.#./.#./##./.#./##./.#.",
                "B3": ".#./.#./##./.#./.#./.##/.#./##."},
-    # Alternative Gen1 set (experiment.gen1_set=exp4-B-long): eight-cell bars with three one-cell side
-    # features each.
-    "exp4-B-long": {"B1": ".#./##./.#./.#./.##/.#./.#./##.", "B2": ".#./.##/.#./##./.#./.#./.##/.#.",
-                    "B3": "##./.#./.#./.##/.#./##./.#./.#."},
     # Exp. 4 set C (Gen2): 5x5 squares with notches cut from the border, like set c.
     "exp4-C": {"C1": "#...#/#####/.####/#####/#####", "C2": "..##./#####/#####/#####/..###",
                "C3": "#..##/#####/#####/.###./##.##"},

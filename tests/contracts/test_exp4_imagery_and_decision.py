@@ -50,7 +50,7 @@ def test_x4_8_flipped_target_is_the_mirror(trained4):
     v = float(iou(flipped.reshape(P, -1, size, size), mirror.reshape(P, -1, size, size)).mean())
     pocp = m.forward_step(mirror, torch.ones(P, len(pairs), dtype=torch.long))  # the still step at alignment
     more = float((m.overlap(flipped, pocp) > m.overlap(target, pocp)).float().mean())
-    print(f"X4.8 C10 ({trained4.e.flip_axis}): IoU with the true mirror {v:.3f}; flipped > target overlap {more:.3f}")
+    print(f"X4.8 C10 (about PPCt's axis): IoU with the true mirror {v:.3f}; flipped > target overlap {more:.3f}")
     assert v >= 0.5 and more >= 0.9
 
 

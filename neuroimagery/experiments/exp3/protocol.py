@@ -49,19 +49,12 @@ CONFIG = Exp3Config
 INPUTS = ("vision", "stimuli")
 CHECKPOINTS = ("exp3",)
 # read only by the tests: a trained model (forward model C6, posture maps C2/C3) does not depend on them
-TEST_KEYS = ("fm.threshold", "fm.pp2", "fm.feedback", "recog_set", "gen1_set", "gen2_set", "m1_sigma", "m1_readout", "m1_centre_sigma", "m1_centre_width",
-             "match_threshold", "match_tolerance", "selection.max_steps", "posture.code_sigma", "quick.objects", "percept.looks", "selection.tau")
+TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "m1_centre_sigma", "match_threshold", "match_tolerance",
+             "selection.max_steps", "posture.code_sigma", "quick.objects", "percept.looks", "selection.tau")
 
 
 def ineffective_keys(cfg) -> dict[str, str]:
-    e, out = cfg.experiment, {}
-    out["m1_centre_sigma" if e.m1_readout == "pattern" else "m1_sigma"] = f"not read with m1_readout={e.m1_readout}"
-    if e.m1_readout == "pattern":
-        out["m1_centre_width"] = "not read with m1_readout=pattern"
-    if e.fm.pp2 == "graded":
-        out["fm.threshold"] = "not read with fm.pp2=graded"
-    else:
-        out["fm.feedback"] = "not read with fm.pp2=binary"
+    out = {}
     if cfg.stimuli.kind == "folder":
         out.update({k: "stimuli=folder tests the user's folder only" for k in ("gen1_set", "gen2_set")})
     if cfg.preset == "quick":
@@ -222,9 +215,9 @@ def report(cfg, run, summary) -> None:
         f" (`match_tolerance` = {e.match_tolerance}). An edge map turned by 45 deg and resampled on the 32x32 grid "
         "seldom lands on the same units as the target's, so with the one-to-one C8 most same pairs shown at a "
         "disparity leave more than the 5 % threshold uncovered and are answered NO (docs/contracts.md, X3.8).",
-        f"M1_2 compares M1_1 with the weights of n1, n2, n3 by `m1_readout` = {e.m1_readout} "
-        "('pattern': eq. 6.2 on the whole 16-unit pattern; 'centre': where the activity is centred across the "
-        "diagonal). docs/choices.md gives the measured effect of every departure from the thesis.",
+        "M1_2 compares M1_1 with the weights of n1, n2, n3 by where the activity is centred across the "
+        "diagonal (eq. 6.2 read on a population code, contract X3.6). docs/choices.md gives the measured effect "
+        "of every departure from the thesis.",
         "The constants the thesis does not give (posture-code width, M1_2 width, forward-model images) and the "
         "rules that fix them are listed in docs/exp3.md and docs/choices.md.",
     ])
