@@ -1,7 +1,7 @@
 """neuroimagery: neurorobotic models of mental imagery (mental rotation and tool use) on a
 simulated iCub, built from population-coded maps with local learning rules in PyTorch."""
 
-__version__ = "0.2.0"
+__version__ = "1.0.0"
 
 
 def _writable(path: str) -> bool:
