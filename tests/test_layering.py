@@ -29,7 +29,6 @@ LAYERS = {
     "manifest": BASE,  # what a run was made with, the hashes of its files
     "thesis": BASE,  # the thesis's target numbers
     "bounds": BASE,  # declared bounds of settings
-    "moved_keys": BASE,  # the one table of settings that moved or went
     "resources": BASE,  # memory and cores this process may use
     "progress": BASE,  # progress bars
     "workers": BASE,  # pieces of a long measurement in worker processes

@@ -31,12 +31,11 @@ import pandas as pd
 
 from ..errors import UserInputError
 from ..models.tool_use import N_POSTURES
-from ..moved_keys import fill_added
 from . import exp5_tasks as task_files
 from .exp5_task import groups, imagined_routes, make_environment, routes_available, run_task  # noqa: F401 (public names)
 from .exp5_checks import check_inputs  # noqa: F401  (checks before work: neuroimagery.validation)
-from .exp5_config import (ENGINE_KEYS, MOVED_KEYS, POOL_FREE_KEYS, SITUATIONS, THESIS,  # noqa: F401 (public names)
-                          THESIS_TABLE_7_1, Exp5Config, dotted, nest)
+from .exp5_config import (ENGINE_KEYS, POOL_FREE_KEYS, SITUATIONS, THESIS,  # noqa: F401 (public names)
+                          THESIS_TABLE_7_1, Exp5Config, dotted)
 from .exp5_summary import (ROUTES, STRATEGIES, group_rates, library_columns, success_route,  # noqa: F401
                            success_routes, summarise, table_7_1, thesis_claims)
 
@@ -101,14 +100,7 @@ def _task_path(run_or_dir, key: str) -> Path:
 def _stored(path: Path) -> dict | None:
     """The task file at ``path`` (None if absent); one that is not plain data or not a task file
     is refused (:func:`exp5_tasks.read_task`)."""
-    d = task_files.read_task(path)
-    if d is None:
-        return None
-    if "acquisition" not in d["config"]:  # the flat layout of earlier versions: its keys into their groups
-        d["config"] = nest(d["config"])
-    # written before a key existed: its value then (neuroimagery.moved_keys.ADDED)
-    d["config"] = fill_added(d["config"], "exp5")
-    return d
+    return task_files.read_task(path)
 
 
 def _same(stored: dict, e: Exp5Config, library: bool = False) -> bool:

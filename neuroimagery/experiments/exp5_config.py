@@ -5,7 +5,6 @@ checked, and the two test situations of the thesis.
 The groups the model reads are the model's own parameter dataclasses
 (:class:`~neuroimagery.models.tool_use.AcquisitionParams`, :class:`~neuroimagery.models.tool_use.BrainParams`,
 :class:`~neuroimagery.models.tool_use.SequencingParams`); the world's and the engine's are here.
-:data:`MOVED_KEYS` names the group of every key of the earlier flat layout.
 """
 from __future__ import annotations
 
@@ -16,7 +15,6 @@ from pathlib import Path
 from typing import Optional
 
 from ..bounds import Rule, bounded, check_declared
-from ..moved_keys import moved
 from ..models.tool_use import CHOICES, EVENTS, AcquisitionParams, BrainParams, SequencingParams
 from ..robot.config import TABLE_CONTACTS
 from ..thesis import EXP5, EXP5_TABLE_7_1
@@ -110,8 +108,6 @@ class QuickParams:
 
 GROUPS = {"world": WorldParams, "acquisition": AcquisitionParams, "brain": BrainParams,
           "sequencing": SequencingParams, "engine": EngineParams}
-# every key of the earlier flat layout and its place now (the table of neuroimagery.moved_keys)
-MOVED_KEYS = moved("exp5")
 
 
 @dataclass
@@ -153,23 +149,9 @@ class Exp5Config:
 
 
 def from_dict(d: dict) -> Exp5Config:
-    """An :class:`Exp5Config` from its ``asdict`` form (the groups as dicts); keys of the earlier
-    flat layout are put into their groups first (:func:`nest`)."""
-    d = nest(d)
+    """An :class:`Exp5Config` from its ``asdict`` form (the groups as dicts)."""
     kinds = {"quick": QuickParams, **GROUPS}
     return Exp5Config(**{k: kinds[k](**v) if k in kinds else v for k, v in d.items()})
-
-
-def nest(d: dict) -> dict:
-    """A copy of the settings ``d`` with every key of the earlier flat layout (``c3_eta``) moved
-    into its group (``brain.c3_eta``); stored task files and run directories of that layout
-    read this way."""
-    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in d.items() if k not in MOVED_KEYS}
-    for k, v in d.items():
-        if k in MOVED_KEYS:
-            group, key = MOVED_KEYS[k].split(".")
-            out.setdefault(group, {}).setdefault(key, v)
-    return out
 
 
 def dotted(config: dict) -> dict:
