@@ -20,8 +20,7 @@ from neuroimagery.core.arguments import ToolParser, run_tool
 def bench_world(reps: int = 3) -> dict:
     """Rollouts/s of K = 10 babbling samples from each posture, one camera image per batch.
 
-    Both rake drives: "kinematic" (default: imposed pose, far steps skipped) and "constraint"
-    (the reference: every control step simulated, rake dragged by a constraint).
+    The kinematic rake drive: imposed pose, far steps skipped with the filter.
     """
     from neuroimagery.robot.config import WorldConfig
     from neuroimagery.robot.movements import MovementConfig, goal_noise, random_primitives, trajectories, world_dmp
@@ -29,8 +28,8 @@ def bench_world(reps: int = 3) -> dict:
 
     out = {}
     dmp = world_dmp()
-    for drive in ("kinematic", "constraint"):
-        with ToolWorld(WorldConfig(rake_drive=drive)) as w:
+    for drive in ("kinematic",):
+        with ToolWorld(WorldConfig()) as w:
             cfg = MovementConfig(dt=w.cfg.control_dt)
             for use_filter in (False, True):
                 g = torch.Generator().manual_seed(0)
@@ -56,8 +55,7 @@ def bench_world(reps: int = 3) -> dict:
                     "share_render": round(w.timing["render_s"] / total, 3),
                     "share_tensors": round(w.timing["tensor_s"] / total, 3),
                 }
-                if drive == "kinematic":
-                    out[key]["share_of_steps_simulated"] = round(w.steps_simulated / max(w.steps_total, 1), 3)
+                out[key]["share_of_steps_simulated"] = round(w.steps_simulated / max(w.steps_total, 1), 3)
             # raw physics stepping of the rake/toy/table scene
             w.reset(1)
             t0 = time.perf_counter()

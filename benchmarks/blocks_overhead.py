@@ -77,7 +77,7 @@ def exp5(rollouts: int = 400, seed: int = 0) -> float:
 
     H, W = 240, 320
     g = torch.Generator().manual_seed(seed)
-    brain = ToolUseBrain((H, W), seed=seed, c3_recall="joint")
+    brain = ToolUseBrain((H, W), seed=seed)
     images = (torch.rand(POOL, 2, H, W, generator=g) < 0.02).float()  # the rollouts cycle through a pool
     units = torch.randint(brain.n_dmps, (rollouts,), generator=g).tolist()
     c0 = time.process_time()

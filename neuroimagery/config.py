@@ -24,7 +24,6 @@ from .core.bounds import bounded, check_declared
 from .core.errors import UserInputError
 from .core.experiment import Experiment
 from .core.manifest import flatten
-from .moved_keys import MOVED, REMOVED
 from .vision.config import StimuliConfig, VisionConfig
 
 
@@ -107,19 +106,6 @@ def register_configs() -> None:
         cs.store(group="experiment", name=f"{e.name}_schema", node=e.config)
 
 
-def moved_keys(experiment: str | None = None) -> dict[str, str]:
-    """``{old key: new key}`` of every experiment, or of ``experiment`` only (``experiment.field_tau``
-    -> ``experiment.field.tau``), from the one table :data:`neuroimagery.moved_keys.MOVED`; a key
-    that was removed maps to the reason, ``"removed; ..."``."""
-    out: dict[str, str] = {}
-    for name, table in MOVED.items():
-        if experiment is not None and name != experiment:
-            continue
-        for old, new in table.items():
-            out[f"experiment.{old}"] = new if new.startswith(REMOVED) else f"experiment.{new}"
-    return out
-
-
 def _experiment_in(text: str) -> str | None:
     """The experiment whose schema a Hydra or OmegaConf message names (``object_type=Exp6Config``,
     ``not in 'Exp5Config'``), if any."""
@@ -148,22 +134,16 @@ def did_you_mean(key: str, experiment: str | None = None) -> str:
     return f" (did you mean {close[0]}?)" if close else ""
 
 
-def moved_message(text: str, experiment: str | None = None) -> str | None:
-    """The refusal of a key under its old name, if ``text`` (an error message, or a key) names one
-    (of ``experiment``'s keys when given, else of the experiment the message names): ``experiment.field_tau has moved: it is
-    experiment.field.tau now``. A key that is one of that experiment's own keys has not moved
-    (a wrong value of it is not about its name)."""
-    if experiment is None:  # Hydra's refusal names the schema: "Key 'c3_eta' not in 'Exp5Config'"
-        experiment = _experiment_in(text)
-    moved = moved_keys(experiment)
-    own = set(schema_keys(experiment)) if experiment is not None else set()
-    for key in re.findall(r"\bexperiment\.[\w.]*\w", text):
-        if key in moved and key not in own:
-            new = moved[key]
-            if new.startswith(REMOVED):
-                return f"{key} is no longer a setting: {new.removeprefix(REMOVED)}"
-            return f"{key} has moved: it is {new} now (see the experiment's docs)"
-    return None
+def not_a_key(key: str, experiment: str | None = None) -> str:
+    """The refusal of ``key``, which is no key of this release (a misspelt key, or one of a 0.x
+    release, which moved or went): the closest key, the version, where earlier keys are listed."""
+    from .manifest import current_version
+
+    if not key.startswith("experiment."):  # a top-level name (the experiments' keys are those that moved)
+        return f"{key} is not a setting{did_you_mean(key, experiment)}"
+    where = f"{experiment} in " if experiment else ""
+    return (f"{key} is not a key of {where}neuroimagery {current_version()}{did_you_mean(key, experiment)}; "
+            "keys of 0.x releases: CHANGELOG.md")
 
 
 def unknown_key_message(text: str) -> str | None:
@@ -174,7 +154,7 @@ def unknown_key_message(text: str) -> str | None:
         return None
     key = m.group(1)
     experiment = _experiment_in(text)
-    return f"{key} is not a setting{' of ' + experiment if experiment else ''}{did_you_mean(key, experiment)}"
+    return not_a_key(key, experiment)
 
 
 def _unknown_keys(node: DictConfig, path: str = "") -> list[str]:
@@ -222,13 +202,9 @@ def validate(cfg: DictConfig | Config) -> Config:
     unknown = [k for k in _unknown_keys(cfg) if not k.startswith("hydra")]
     name = cfg.experiment.get("name") if "name" in cfg.experiment else None
     experiment = name if name in EXPERIMENTS else None
-    for k in unknown:
-        hint = moved_message(k, experiment)
-        if hint:
-            raise UserInputError(f"invalid configuration: {hint}")
     if unknown:
-        raise UserInputError(f"invalid configuration: unknown key(s) {', '.join(unknown)}"
-                             f"{did_you_mean(unknown[0], experiment)}")
+        raise UserInputError(f"invalid configuration: {not_a_key(unknown[0], experiment)}"
+                             + (f" (also unknown: {', '.join(unknown[1:])})" if unknown[1:] else ""))
     check_finite(cfg)
     try:
         obj = OmegaConf.to_object(cfg)

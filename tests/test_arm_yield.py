@@ -92,21 +92,15 @@ def test_under_the_yield_the_plan_rests_the_rake_on_the_table_and_keeps_it_in_th
     assert moved[0] < 1e-9 and moved[-1] > 0.05  # the posture rests on the table; the swing is yielded
 
 
-def test_kinematic_drive_agrees_with_constraint_drive_under_the_yield(yielding):
-    """Under ``table_contact="yield"`` both drives follow the yielding arm's poses and push the toy
-    alike: pulls from posture 1, level, to the side, and pressing the head 4 and 8 cm into the
-    table (the arm yields)."""
+def test_the_yielding_arm_is_never_stopped_and_yields_the_pressing_pulls(yielding):
+    """Under ``table_contact="yield"``: pulls from posture 1, level, to the side, and pressing the
+    head 4 and 8 cm into the table (the arm yields)."""
     from test_robot_world import _line
 
     pulls = ((-0.16, 0.0, 0.0), (-0.12, 0.05, 0.0), (-0.16, 0.0, -0.04), (-0.16, 0.0, -0.08))
-    with ToolWorld(WorldConfig(table_contact="yield", rake_drive="constraint")) as ref:
-        for delta in pulls:
-            traj = _line(yielding, 1, delta)
-            plan = yielding._plan(traj.numpy())
-            assert (plan["arm_step"] == np.arange(traj.shape[1])).all()  # never stopped
-            yielded = np.abs(plan["poses"] - yielding.kin.rake_pose_np(traj.numpy())).max()
-            assert yielded > 0.01 or delta[2] == 0, delta  # the pressing pulls are yielded
-            a, b = yielding.rollout(traj, 1, None)[0], ref.rollout(traj, 1, None)[0]
-            assert a.events == b.events, (delta, a, b)
-            # 0.01 m is half the move threshold: a drive that lost or added a whole move would fail
-            assert np.allclose(a.toy_displacement, b.toy_displacement, atol=0.01), (delta, a, b)
+    for delta in pulls:
+        traj = _line(yielding, 1, delta)
+        plan = yielding._plan(traj.numpy())
+        assert (plan["arm_step"] == np.arange(traj.shape[1])).all()  # never stopped
+        yielded = np.abs(plan["poses"] - yielding.kin.rake_pose_np(traj.numpy())).max()
+        assert yielded > 0.01 or delta[2] == 0, delta  # the pressing pulls are yielded

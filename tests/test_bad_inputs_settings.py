@@ -1,5 +1,5 @@
 """Settings that can be judged before any work are judged then: names of stimulus sets, module
-paths, runs named for reuse, object placement and scale, thresholds; misspelt and moved keys get
+paths, runs named for reuse, object placement and scale, thresholds; misspelt keys and keys of 0.x get
 one line that says what was meant. Each refusal: exit 2, one ``error:`` line, nothing claimed."""
 from __future__ import annotations
 
@@ -71,18 +71,20 @@ def test_the_objects_the_generator_cannot_find_are_refused_before_training(tmp_p
             "experiment.test_objects")
 
 
-MESSAGE_CASES = [  # keys: misspelt, moved, or an experiment's own key with a bad value
-    (["experiment=exp6", "experiment.selection.max_steps=abc"], "experiment.selection.max_steps", "has moved"),
-    (["experiment=exp6", "experiment.posture_iterations=5"], "experiment.posture_iterations is no longer a setting", None),
-    (["experiment=exp6", "experiment.eta_fm=0.2"], "it is experiment.fm.eta now", None),
+MESSAGE_CASES = [  # keys: misspelt, of a 0.x release, or an experiment's own key with a bad value
+    (["experiment=exp6", "experiment.selection.max_steps=abc"], "experiment.selection.max_steps", "is not a key"),
+    (["experiment=exp6", "experiment.posture_iterations=5"], "experiment.posture_iterations is not a key of exp6 in "
+                                                             "neuroimagery", None),
+    (["experiment=exp6", "experiment.eta_fm=0.2"], "did you mean experiment.fm.eta?", None),
     (["experiment=exp3", "experiment.map_sise=3"], "did you mean experiment.map_size?", None),
     (["experiment=exp3", "experiment.fm.imges=3"], "did you mean experiment.fm.images?", None),
     (["experiment=exp4", "participans=3"], "did you mean participants?", None),
     (["experiment=exp5", "experiment.brain.etta=0.1"], "did you mean experiment.brain.eta?", None),
     (["experiment=exp6", "experiment.red_treshold=50"], "did you mean experiment.red_threshold?", None),
-    (["experiment=exp4", "experiment.posture_iterations=5"], "it is experiment.posture.iterations now", None),
-    (["experiment=exp5", "experiment.c3_eta=5"], "it is experiment.brain.c3_eta now", None),
-    (["experiment=exp4", "experiment.zzzz=1"], "experiment.zzzz is not a setting of exp4", "did you mean"),
+    (["experiment=exp4", "experiment.posture_iterations=5"], "did you mean experiment.posture.iterations?", None),
+    (["experiment=exp5", "experiment.c3_eta=5"], "(did you mean experiment.brain.c3_eta?); keys of 0.x releases: "
+                                                 "CHANGELOG.md", None),
+    (["experiment=exp4", "experiment.zzzz=1"], "experiment.zzzz is not a key of exp4 in neuroimagery", "did you mean"),
 ]
 
 
@@ -119,7 +121,7 @@ CONFIG_CASES = [
     (["experiment=exp4", "logger.kind=wandb"], "logger.kind"),
     (["experiment=exp1", "vision.kind=laser"], "vision.kind"),
     (["experiment=demo", "+experiment.stp_deg=3"], "experiment.stp_deg"),
-    (["experiment=exp2", "+experiment.som_eta=0.2"], "it is experiment.som.eta now"),  # an old key added with +
+    (["experiment=exp2", "+experiment.som_eta=0.2"], "did you mean experiment.som.eta?"),  # a 0.x key added with +
     (["experiment=exp1", "experiment.field.tau=0"], "experiment.field.tau"),  # a group's own range check
     (["experiment=exp4", "experiment.fm.batch=0"], "experiment.fm.batch"),
     # keys that would have no effect in this experiment or with these options
@@ -151,11 +153,11 @@ def test_checkpoint_is_refused_in_training(tmp_path, capsys, no_training):
 
 @pytest.mark.parametrize("over,needle", [(["experiment=demo", "experiment.stp_deg=3"], "stp_deg"),
                                          (["experiment=demo", "seed=abc"], "seed"),
-                                         # a key that moved into a group is refused with its new place
-                                         (["experiment=exp1", "experiment.field_tau=5"], "it is experiment.field.tau now"),
+                                         # a key of 0.x that moved into a group: the closest key is its new place
+                                         (["experiment=exp1", "experiment.field_tau=5"], "did you mean experiment.field.tau?"),
                                          (["experiment=exp2", "experiment.cluster_sigma=2"], "experiment.som.cluster_sigma"),
                                          (["experiment=exp3", "experiment.quick_fm_images=9"], "experiment.quick.fm_images"),
-                                         (["experiment=exp4", "experiment.eta_posture=0.2"], "experiment.posture.eta")])
+                                         (["experiment=exp4", "experiment.eta_posture=0.2"], "eta_posture is not a key of exp4")])
 def test_hydra_composition_errors_are_one_line(capsys, hydra_reporter, over, needle):
     refused(capsys, composing(*over), needle)
 

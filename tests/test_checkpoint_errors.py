@@ -124,34 +124,42 @@ def test_a_training_run_that_did_not_finish_is_refused(trained, tmp_path, capsys
     assert why in _refused(capsys, d, tmp_path)
 
 
-def test_a_training_run_written_before_the_state_is_used_with_one_note(trained, tmp_path, capsys):
+def test_a_training_run_written_before_the_state_is_refused_with_the_command_that_reruns_it(trained, tmp_path, capsys):
     d = _copy(trained, tmp_path)
     m = json.loads((d / "manifest.json").read_text())
     for k in ("state", "trained", "files"):
         m.pop(k)
     (d / "manifest.json").write_text(json.dumps(m))
-    evaluate(_demo(f"checkpoint={d}"), out_dir=tmp_path / "ev")
-    notes = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("note: ")]
-    assert len(notes) == 1 and "written before runs recorded their state" in notes[0]
-    assert "its checkpoints match their stored hashes" in notes[0]
+    line = _refused(capsys, d, tmp_path)
+    assert f"is a run of neuroimagery {m['package']} (written before runs recorded their state)" in line
+    assert line.endswith("run it again: python train.py experiment=demo seed=0"), line
 
 
-def test_a_checkpoint_written_before_a_setting_existed_is_read_with_its_earlier_value(tmp_path):
-    """An Exp 6 run trained before ``search.starts`` and ``search.keep`` existed searched as
-    ``starts=[]``, ``keep=8`` do (neuroimagery.moved_keys.ADDED): it is accepted with them, and
-    refused where this run sets them otherwise."""
+def test_a_run_of_a_0x_release_is_refused_in_one_line_naming_its_version_and_command(trained, tmp_path, capsys,
+                                                                                    monkeypatch):
+    """A fake 0.x manifest read by a 1.x release: its version and the command that runs it again,
+    with the overrides its run recorded."""
+    import neuroimagery
+
+    d = _copy(trained, tmp_path)
+    m = json.loads((d / "manifest.json").read_text())
+    (d / "manifest.json").write_text(json.dumps({**m, "package": "0.2.0"}))
+    (d / ".hydra").mkdir(exist_ok=True)
+    (d / ".hydra" / "overrides.yaml").write_text("- experiment=demo\n- participants=2\n- seed=0\n- hydra.verbose=true\n")
+    monkeypatch.setattr(neuroimagery, "__version__", "1.0.0")
+    line = _refused(capsys, d, tmp_path)
+    assert line == (f"error: checkpoint: {d} is a run of neuroimagery 0.2.0, which 1.0.0 does not read; run it "
+                    "again: python train.py experiment=demo seed=0 participants=2")
+    # a checkpoint file of a 0.x release in a run directory of this one
     from neuroimagery.core.checkpoints import verify_checkpoint
-    from neuroimagery.config import experiment, validate
     from neuroimagery.core.errors import UserInputError
 
-    now = mf.build(validate(make_cfg("experiment=exp6")), experiment("exp6"))
-    assert now["training"]["experiment.search.keep"] == 8 and now["training"]["experiment.search.starts"] == []
-    older = {k: v for k, v in now["training"].items() if k not in ("experiment.search.starts", "experiment.search.keep")}
-    state = {"weights": torch.zeros(2)}
-    (tmp_path / "checkpoints").mkdir()
-    torch.save({**state, "manifest": {**now, "training": older, "tensor_hash": mf.tensor_hash(state)}},
-               tmp_path / "checkpoints" / "exp6.pt")
-    verify_checkpoint(tmp_path, "exp6", now)
-    other = mf.build(validate(make_cfg("experiment=exp6", "experiment.search.keep=4")), experiment("exp6"))
-    with pytest.raises(UserInputError, match=r"experiment.search.keep 8 \(stored\) vs 4"):
-        verify_checkpoint(tmp_path, "exp6", other)
+    ck = d / "checkpoints" / "model.pt"
+    state = torch.load(ck, weights_only=True)
+    torch.save({**state, "manifest": {**state["manifest"], "package": "0.1.5"}}, ck)
+    with pytest.raises(UserInputError, match=r"is a run of neuroimagery 0\.1\.5, which 1\.0\.0 does not read"):
+        verify_checkpoint(d, "model", {**m, "package": "1.0.0"})
+    # a run directory without manifest.json: written by 0.1.0
+    (d / "manifest.json").unlink()
+    line = _refused(capsys, d, tmp_path)
+    assert "is a run of neuroimagery 0.1.0 (no manifest.json)" in line and "python train.py experiment=demo" in line

@@ -15,8 +15,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).parent))
 from support_tool_env import StandInToolEnv  # noqa: E402
 
-from neuroimagery.experiments.exp5 import config as exp5_config  # noqa: E402
-from neuroimagery.models.tool_use import (EVENTS, AcquisitionParams, Library, Outcomes,  # noqa: E402
+from neuroimagery.models.tool_use import (EVENTS, AcquisitionParams, Outcomes,  # noqa: E402
                                           SequencingParams, ToolUseBrain, acquire_skills, build_brain, sequence_trial)
 
 
@@ -39,17 +38,16 @@ def test_c1_training_changes_only_the_trained_unit():
     assert b.affordance(x)[3] == pytest.approx(0.7, abs=1e-3)  # unit 3 kept what it learnt
 
 
-@pytest.mark.parametrize("form,sign", [("standard", 1.0), ("printed", -1.0)])
-def test_q_update_matches_eq_7_1_by_hand(form, sign):
-    b = ToolUseBrain((2, 2), q_eta=0.1, q_gamma=0.8, q_form=form)
+def test_q_update_matches_eq_7_1_by_hand():
+    b = ToolUseBrain((2, 2), q_eta=0.1, q_gamma=0.8)
     x0, x1 = torch.zeros(2, 2, 2), torch.zeros(2, 2, 2)
     x0[0, 0, 0] = 1.0
     x1[1, 1, 1] = 1.0
     b.c4.weight[0, 4, 7] = 0.5  # q(x1, unit 4) = 0.5 = qMax_t
     b.train()
     b.q_update(x0, unit=2, reward=1.0, x1=x1, done=False)
-    # dw_{2,i} = eta (r +- gamma qMax_t - qWin_{t-1}) x_{i,t-1}; qWin = 0
-    assert b.c4.weight[0, 2, 0].item() == pytest.approx(0.1 * (1.0 + sign * 0.8 * 0.5))
+    # dw_{2,i} = eta (r + gamma qMax_t - qWin_{t-1}) x_{i,t-1}; qWin = 0
+    assert b.c4.weight[0, 2, 0].item() == pytest.approx(0.1 * (1.0 + 0.8 * 0.5))
     assert torch.count_nonzero(b.c4.weight[0, 2]) == 1
 
 
@@ -69,56 +67,25 @@ def test_imagination_returns_the_trained_outcome_for_the_intended_action():
     assert torch.equal(b.imagine(sit, 7), sit)  # an untrained primitive imagines no change
 
 
-def test_situation_recall_imagines_no_change_where_the_primitive_never_succeeded():
-    """C3 recognises the situation first: a primitive that succeeded only from situation A
-    imagines nothing from situation B (c3_recall='situation'), while the joint match lets A's
-    outcome answer for B (c3_recall='joint')."""
-    g = torch.Generator().manual_seed(0)
-    sit_a, sit_b = torch.zeros(2, 6, 8), torch.zeros(2, 6, 8)
-    sit_a[0, 1, 1] = sit_a[1, 5, 5] = 1
-    sit_b[0, 1, 1] = sit_b[1, 2, 6] = sit_b[1, 3, 6] = 1
-    out_a, out_b = torch.zeros(2, 6, 8), torch.zeros(2, 6, 8)
-    out_a[0, 4, 1] = 1
-    out_b[0, 0, 7] = 1
-    brains = {}
-    for recall in ("situation", "joint"):
-        b = ToolUseBrain((6, 8), c3_eta=0.5, c3_recall=recall)
-        b.train()
-        b.train_c3(sit_a, unit=1, posture=1, outcome=out_a, times=40, generator=g)  # pull works from A only
-        b.train_c3(sit_b, unit=2, posture=4, outcome=out_b, times=40, generator=g)  # touch works from B
-        brains[recall] = b
-    s, j = brains["situation"], brains["joint"]
-    assert torch.allclose(s.imagine(sit_a, 1), out_a, atol=1e-3)
-    assert torch.allclose(s.imagine(sit_b, 2), out_b, atol=1e-3)
-    assert torch.equal(s.imagine(sit_b, 1), sit_b)  # pull never succeeded from B: no change
-    near_a = sit_a.clone()
-    near_a[1, 0, 0] = 1  # a new scene that looks like A: A's pull outcome is imagined
-    assert torch.allclose(s.imagine(near_a, 1), out_a, atol=1e-3)
-    assert torch.allclose(j.imagine(sit_b, 1), out_a, atol=1e-3)  # joint match: A answers for B
-    with pytest.raises(ValueError, match="c3_recall"):
-        ToolUseBrain((6, 8), c3_recall="nearest")
-
-
 def test_practised_recall_recognises_a_situation_where_nothing_succeeded():
-    """Only the pull succeeded, from A. 'practised' recognises B (practised, nothing stored in C3)
-    and imagines no change; 'situation' knows only A and answers with A's outcome."""
+    """Only the pull succeeded, from A. C3 recognises B (practised, nothing stored in C3) and
+    imagines no change there; from A it imagines A's outcome."""
     g = torch.Generator().manual_seed(0)
     sit_a, sit_b = torch.zeros(2, 6, 8), torch.zeros(2, 6, 8)
     sit_a[0, 1, 1] = sit_a[1, 5, 5] = 1
     sit_b[0, 1, 1] = sit_b[1, 2, 6] = sit_b[1, 3, 6] = 1
     out_a = torch.zeros(2, 6, 8)
     out_a[0, 4, 1] = 1
-    imagined = {}
-    for recall in ("practised", "situation"):
-        b = ToolUseBrain((6, 8), c3_eta=0.5, c3_recall=recall)
-        b.train()
-        b.practise_in(1, sit_a)
-        b.practise_in(4, sit_b)
-        b.train_c3(sit_a, unit=1, posture=1, outcome=out_a, times=40, generator=g)
-        imagined[recall] = (b.imagine(sit_a, 1), b.imagine(sit_b, 1), b.recall_unit(sit_b, 1))
-    assert torch.allclose(imagined["practised"][0], out_a, atol=1e-3)
-    assert torch.equal(imagined["practised"][1], sit_b) and imagined["practised"][2] == 3 * 10 + 1
-    assert torch.allclose(imagined["situation"][1], out_a, atol=1e-3)
+    b = ToolUseBrain((6, 8), c3_eta=0.5)
+    b.train()
+    b.practise_in(1, sit_a)
+    b.practise_in(4, sit_b)
+    b.train_c3(sit_a, unit=1, posture=1, outcome=out_a, times=40, generator=g)
+    assert torch.allclose(b.imagine(sit_a, 1), out_a, atol=1e-3)
+    assert torch.equal(b.imagine(sit_b, 1), sit_b) and b.recall_unit(sit_b, 1) == 3 * 10 + 1
+    near_a = sit_a.clone()
+    near_a[1, 0, 0] = 1  # a new scene that looks like A: A's pull outcome is imagined
+    assert torch.allclose(b.imagine(near_a, 1), out_a, atol=1e-3)
 
 
 # ---------------------------------------------------------------------------------- algorithms
@@ -143,38 +110,6 @@ def test_skill_acquisition_learns_only_enabled_events(acquired):
         assert s.theta.shape == (env.n_params,)
     assert len({s.unit for s in lib.skills}) == len(lib.skills)
     assert lib.explore_rollouts > 0 and lib.learn_rollouts > 0
-
-
-def test_spare_dmps_learn_an_event_again_only_where_it_is_not_mastered():
-    """spare_dmps='unmastered': after every enabled event has a skill, free DMPs learn an event
-    again when it fires from a posture where no earlier skill of it succeeded (no brain: mastery
-    = the competence check); 'none' never does. The brain rebuilt from the library matches."""
-    env = StandInToolEnv()
-    events = ["retrieve", "touch", "west"]
-    base = acquire_skills(env, events, small_acq(), torch.Generator().manual_seed(1))
-    assert all(s.copy == 0 and s.name == s.event for s in base.skills)
-    cfg = small_acq(spare_dmps="unmastered")
-    lib = acquire_skills(env, events, cfg, torch.Generator().manual_seed(1))
-    spares = [s for s in lib.skills if s.copy > 0]
-    assert spares, "the stand-in world should leave some event unmastered from some posture"
-    assert [s.event for s in lib.skills[:len(base.skills)]] == [s.event for s in base.skills]
-    assert len(lib.skills) <= cfg.n_dmps and len({s.unit for s in lib.skills}) == len(lib.skills)
-    for i, s in enumerate(lib.skills):
-        earlier = [t for t in lib.skills[:i] if t.event == s.event]
-        assert s.event in events and s.copy == len(earlier)
-        assert s.name == (s.event if s.copy == 0 else f"{s.event}{s.copy + 1}")
-        assert not any(t.succeeds_from[s.found_from - 1] for t in earlier)
-    assert Library.from_state(lib.to_state()).skills[-1].name == lib.skills[-1].name
-    brain = ToolUseBrain(env.image_shape)
-    brain.train()
-    lib_b = acquire_skills(env, events, cfg, torch.Generator().manual_seed(1), brain=brain)
-    rebuilt = build_brain(env, lib_b, cfg, ToolUseBrain(env.image_shape), torch.Generator().manual_seed(0))
-    assert torch.allclose(rebuilt.c1.weight, brain.c1.weight, atol=1e-5)
-    outcomes = Outcomes(env, {s.name: s for s in lib_b.skills}, env.perceive)
-    rec = sequence_trial(rebuilt, outcomes, lib_b.skills, 4, "reactive", True, 5, 0.1, torch.Generator().manual_seed(2))
-    assert set(rec.actions) <= {s.name for s in lib_b.skills}
-    with pytest.raises(ValueError, match="spare_dmps"):
-        small_acq(spare_dmps="all")
 
 
 def test_replayed_brain_equals_the_brain_trained_during_acquisition(acquired):
@@ -207,34 +142,6 @@ def test_brain_maps_show_each_connection_of_each_skill(acquired):
         assert torch.equal(maps[k], torch.cat([image[0], image[1]], dim=1))  # C3 run backwards gives the same image
 
 
-def test_every_c3_outcome_imagines_where_a_primitive_leads_from_every_practised_situation(acquired):
-    """c3_outcomes='every': C3 also holds the learnt primitive's real outcome from the initial
-    situations where it missed its event; 'success' imagines no change there. C1 and C2 are the same."""
-    env, _, lib = acquired
-    only = build_brain(env, lib, small_acq(c3_repeats=50), ToolUseBrain(env.image_shape), torch.Generator().manual_seed(0))
-    every = build_brain(env, lib, small_acq(c3_repeats=50), ToolUseBrain(env.image_shape, c3_outcomes="every"),
-                        torch.Generator().manual_seed(0))
-    assert torch.equal(every.c1.weight, only.c1.weight) and torch.equal(every.c2.weight, only.c2.weight)
-    # the situations where a skill never achieved its event in a competence check
-    missed = [(s, p) for s in lib.skills for p in range(1, 5)
-              if p not in {op[1] for op in s.log if op[0] == "c23"}]
-    assert missed, "the stand-in world should leave some skill failing from some posture"
-    for s, p in missed:
-        label = (p - 1) * only.n_dmps + s.unit
-        assert not only.c3_trained[label] and every.c3_trained[label]
-        seen = env.perceive(env.start(p))
-        real = env.perceive(env.execute(s.theta.unsqueeze(0), env.start(p), s.event)[0].next_state)
-        assert torch.equal(only.imagine(seen, s.unit), seen)  # no change imagined
-        assert (every.imagine(seen, s.unit) - real).abs().max() < 0.05  # where it really leads
-    cached = build_brain(env, lib, small_acq(c3_repeats=50), ToolUseBrain(env.image_shape, c3_outcomes="every"),
-                         torch.Generator().manual_seed(0), outcomes=Outcomes(env, {s.name: s for s in lib.skills}, env.perceive))
-    assert torch.equal(cached.c3.som.weight, every.c3.som.weight)  # the rollout cache gives the same brain
-    with pytest.raises(ValueError, match="c3_outcomes"):
-        ToolUseBrain(env.image_shape, c3_outcomes="some")
-    with pytest.raises(ValueError, match="experiment.brain.c3_outcomes"):
-        exp5_config.BrainParams(c3_outcomes="some")
-
-
 def test_planning_child_trains_without_moving_and_reactive_child_moves(acquired):
     env, _, lib = acquired
     # C3 trained 50 times per outcome (as in the thesis), so a mental image is the outcome itself
@@ -257,21 +164,18 @@ def test_planning_child_trains_without_moving_and_reactive_child_moves(acquired)
 
 
 def test_planning_test_acts_from_the_real_scene_each_attempt(acquired):
-    """planning_test='act': every attempt is performed and judged on the real scene."""
+    """A planning child's test: every attempt is performed and judged on the real scene."""
     env, _, lib = acquired
     brain = build_brain(env, lib, small_acq(), ToolUseBrain(env.image_shape), torch.Generator().manual_seed(0))
     outcomes = Outcomes(env, {s.name: s for s in lib.skills}, env.perceive)
     g = torch.Generator().manual_seed(5)
     for posture in (1, 4):
         for _ in range(5):
-            rec = sequence_trial(brain, outcomes, lib.skills, posture, "planning", False, 5, 0.1, g,
-                                 planning_test="act")
+            rec = sequence_trial(brain, outcomes, lib.skills, posture, "planning", False, 5, 0.1, g)
             real = [outcomes.after(posture, tuple(rec.actions[:n + 1])).retrieved for n in range(len(rec.actions))]
             assert rec.rewards == [float(r) for r in real]  # rewards read from the real scenes
             assert rec.success == real[-1] and not any(real[:-1])  # stops at the first real retrieval
             assert len(rec.actions) == 5 or rec.success
-    with pytest.raises(ValueError, match="planning_test"):
-        sequence_trial(brain, outcomes, lib.skills, 1, "planning", False, 5, 0.1, g, planning_test="dream")
 
 
 def test_active_threshold_lets_only_afforded_units_compete(acquired):
@@ -370,23 +274,23 @@ def test_brain_learns_through_its_connections_as_the_equations_say():
             hand[4] += 0.2 * xf * (0.3 - hand[4])
         assert torch.allclose(b.c1.weight[0], hand, atol=1e-6)
         b.train_c2(x, goal=1, times=3)
-        # C4: eq. 7.1, both signs, with and without bootstrap
-        for form, sign in (("standard", 1.0), ("printed", -1.0)):
-            for done in (False, True):
-                q = ToolUseBrain((6, 8), q_eta=0.05, q_form=form)
-                q.c4.weight.uniform_(-0.1, 0.1, generator=g)
-                w = q.c4.weight[0].clone()
-                q.train()
-                q.q_update(x, unit=3, reward=1.0, x1=x1, done=done)
-                q_max = 0.0 if done else float((w @ x1.reshape(-1)).max())
-                w[3] += 0.05 * (1.0 + sign * 0.8 * q_max - float(w[3] @ xf)) * xf
-                assert torch.allclose(q.c4.weight[0], w, atol=1e-7)
+        # C4: eq. 7.1, with and without bootstrap
+        for done in (False, True):
+            q = ToolUseBrain((6, 8), q_eta=0.05)
+            q.c4.weight.uniform_(-0.1, 0.1, generator=g)
+            w = q.c4.weight[0].clone()
+            q.train()
+            q.q_update(x, unit=3, reward=1.0, x1=x1, done=done)
+            q_max = 0.0 if done else float((w @ x1.reshape(-1)).max())
+            w[3] += 0.05 * (1.0 + 0.8 * q_max - float(w[3] @ xf)) * xf
+            assert torch.allclose(q.c4.weight[0], w, atol=1e-7)
     finally:
         Connection.learn = real_learn
-    assert calls.count("C1") == 1 and calls.count("C2") == 1 and calls.count("C4") == 4
+    assert calls.count("C1") == 1 and calls.count("C2") == 1 and calls.count("C4") == 2
     # C3: the mental image equals the SOM block's own backward pass
-    c = ToolUseBrain((6, 8), c3_eta=0.5, c3_recall="joint")
+    c = ToolUseBrain((6, 8), c3_eta=0.5)
     c.train()
+    c.practise_in(3, x)
     c.train_c3(x, unit=2, posture=3, outcome=x1, times=20, generator=g)
     via_som = c.c3.backward(c._c3_b(x, 2)).reshape(2, 6, 8).clamp(0, 1)
     assert torch.allclose(c.imagine(x, 2), via_som, atol=1e-6)
@@ -408,23 +312,18 @@ def test_eye_reads_a_toy_on_either_side_of_the_reachable_border():
             assert abs(env.reader.toy_x(inside[0]) - env.reader_bias() - (bx - 0.0005)) < 0.0004
 
 
-@pytest.mark.parametrize("toy_turn", ["keep", "reset"])
-def test_a_scene_between_moves_keeps_the_toy_turn_when_asked(toy_turn):
-    """With ``toy_turn: keep`` the scene after a move holds the toy's turn, the next move starts
-    from it and the eye sees it; with ``reset`` the toy is square again at the same place."""
+def test_a_scene_between_moves_keeps_the_toy_turn():
+    """The scene after a move holds the toy's turn, the next move starts from it and the eye sees it."""
     from neuroimagery.models.tool_use import State, ToolWorldEnvironment
 
-    env = ToolWorldEnvironment(toy_turn=toy_turn)
+    env = ToolWorldEnvironment()
     q4 = env.world.initial_posture(4)
     still = env.dmp.pack(q4[None], torch.zeros(1, 7, env.dmp.n_basis))  # the arm stays where it is
     turned = State(4, tuple(q4.tolist()), (0.57, 0.01), 0.4)
     after = env.execute(still, turned, None)[0].next_state
     assert after.toy_xy == pytest.approx((0.57, 0.01), abs=0.002)
-    if toy_turn == "keep":
-        assert after.toy_yaw == pytest.approx(0.4, abs=0.005)
-        square = State(4, tuple(q4.tolist()), (0.57, 0.01))
-        assert int((env.perceive(after)[0] != env.perceive(square)[0]).sum()) > 20
-    else:
-        assert after.toy_yaw is None
-    with pytest.raises(ValueError, match="toy_turn"):
-        ToolWorldEnvironment(toy_turn="spin")
+    assert after.toy_yaw == pytest.approx(0.4, abs=0.005)
+    square = State(4, tuple(q4.tolist()), (0.57, 0.01))
+    assert int((env.perceive(after)[0] != env.perceive(square)[0]).sum()) > 20
+
+

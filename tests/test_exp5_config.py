@@ -27,17 +27,16 @@ def test_config_composes_and_validates():
 
     conf = validate(compose("preset=quick"))
     e = conf.experiment
-    assert e.name == "exp5" and e.brain.q_form == "standard" and e.brain.eta == 1e-4 and e.brain.gamma == 0.8
+    assert e.name == "exp5" and e.brain.eta == 1e-4 and e.brain.gamma == 0.8
     assert e.sequencing.attempts == 5 and e.acquisition.n_dmps == 10 and e.world.environment == "robot"
     assert exp5.repetitions(conf) == e.quick.repetitions == 3
     assert len(exp5.groups(e)) == 11
 
 
-@pytest.mark.parametrize("key,value", [("brain.q_form", "sideways"), ("sequencing.attempts", 0), ("brain.gamma", 1.5),
+@pytest.mark.parametrize("key,value", [("sequencing.attempts", 0), ("brain.gamma", 1.5),
                                        ("hp1_ages", [14]), ("situations", ["near"]), ("sequencing.temperature", 0.0),
-                                       ("brain.c3_recall", "nearest"), ("sequencing.planning_test", "dream"),
-                                       ("acquisition.explore_patience", 0), ("acquisition.pibb_flat", "never"),
-                                       ("acquisition.n_dmps", 5), ("world.toy_turn", "sideways"),
+                                       ("acquisition.explore_patience", 0), ("world.table_contact", "sideways"),
+                                       ("acquisition.n_dmps", 5),
                                        ("world.environment", "pybullet"), ("engine.n_jobs", 0), ("quick.repetitions", 0)])
 def test_config_rejects_bad_values_naming_the_key(key, value):
     import re
@@ -50,29 +49,20 @@ def test_config_rejects_bad_values_naming_the_key(key, value):
             exp5.Exp5Config(**{key: value})
 
 
-def test_every_key_of_the_flat_layout_is_refused_naming_its_group(tmp_path):
+def test_a_key_of_the_flat_layout_of_0x_is_refused_in_one_line_naming_the_version(tmp_path):
     from dataclasses import asdict
 
-    from neuroimagery.config import moved_message
-
-    from neuroimagery.moved_keys import ADDED
+    import neuroimagery
 
     now = exp5_config.dotted(asdict(exp5.Exp5Config()))
-    grouped = {k for k in now if "." in k}
-    assert len(now) - len(grouped) == 9  # the protocol's keys stay at the top
-    # every key of the flat layout moved into a group; a key of a group added since is declared
-    # with the value that reproduces the runs stored before it (neuroimagery.moved_keys.ADDED)
-    assert set(exp5_config.MOVED_KEYS.values()) | set(ADDED["exp5"]) == grouped
-    for old, new in exp5_config.MOVED_KEYS.items():
-        assert new in now and old not in now
-        hint = moved_message(f"Could not override 'experiment.{old}'; Key '{old}' not in 'Exp5Config'")
-        assert hint == f"experiment.{old} has moved: it is experiment.{new} now (see the experiment's docs)"
-    # on the command line: one error line naming the new place, before any work
+    assert len([k for k in now if "." not in k]) == 9  # the protocol's keys stay at the top
+    # on the command line: one error line, the closest key and the version, before any work
     p = subprocess.run([sys.executable, str(ROOT / "evaluate.py"), "experiment=exp5", "experiment.c3_eta=0.2",
                         f"hydra.run.dir={tmp_path / 'r'}"], capture_output=True, text=True, cwd=ROOT, timeout=120)
     lines = [ln for ln in (p.stdout + p.stderr).splitlines() if ln.strip() and not ln.startswith("pybullet build")]
-    assert p.returncode == 2 and lines == ["error: experiment.c3_eta has moved: it is experiment.brain.c3_eta now "
-                                           "(see the experiment's docs)"]
+    assert p.returncode == 2 and lines == [f"error: experiment.c3_eta is not a key of exp5 in neuroimagery "
+                                           f"{neuroimagery.__version__} (did you mean experiment.brain.c3_eta?); "
+                                           "keys of 0.x releases: CHANGELOG.md"]
     assert not (tmp_path / "r" / "checkpoints").exists()
 
 
@@ -91,19 +81,19 @@ def test_each_alternative_config_changes_one_choice_of_the_default():
 
     base = exp5_config.dotted(asdict(validate(compose()).experiment))
     files = sorted((Path(__file__).resolve().parents[1] / "conf" / "experiment" / "exp5").glob("*.yaml"))
-    assert len(files) >= 8
+    assert [f.stem for f in files] == ["table_grip", "table_yield"]
     for f in files:
         alt = exp5_config.dotted(asdict(validate(make_cfg(f"experiment=exp5/{f.stem}")).experiment))
         changed = [k for k in base if alt[k] != base[k]]
         assert len(changed) == 1, (f.name, changed)
 
 
-def test_a_removed_key_is_refused_naming_where_it_went():
-    from neuroimagery.config import moved_message
+def test_a_key_that_went_in_0x_is_refused():
+    from neuroimagery.config import unknown_key_message
 
-    hint = moved_message("Could not override 'experiment.retrieve_x'; Key 'retrieve_x' not in 'Exp5Config'")
-    assert hint.startswith("experiment.retrieve_x is no longer a setting: ")
-    assert "reachable area" in hint and "docs/robot.md" in hint
-    assert moved_message("Could not override 'experiment.attempt'; Key 'attempt' not in 'Exp5Config'") is None
+    hint = unknown_key_message("Could not override 'experiment.retrieve_x'; Key 'retrieve_x' not in 'Exp5Config'\n"
+                               "    full_key: experiment.retrieve_x")
+    assert hint.startswith("experiment.retrieve_x is not a key of exp5 in neuroimagery ")
+    assert hint.endswith("; keys of 0.x releases: CHANGELOG.md")
     with pytest.raises(ConfigCompositionException, match="retrieve_x"):
         compose("experiment.retrieve_x=0.4")

@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from conftest import make_cfg  # noqa: E402
 from support_runs import reused_run  # noqa: E402
 
-from neuroimagery.experiments.exp5 import protocol as exp5, config as exp5_config, summary as exp5_summary, task as exp5_task  # noqa: E402
+from neuroimagery.experiments.exp5 import protocol as exp5, summary as exp5_summary, task as exp5_task  # noqa: E402
 from neuroimagery.models.tool_use import Result  # noqa: E402
 
 STANDIN = "support_tool_env:StandInToolEnv"
@@ -166,25 +166,6 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
     path = exp5._task_path(tmp_path / "a", "rep000_far")
     assert exp5._valid(path, dataclasses.replace(e, engine=dataclasses.replace(e.engine, n_jobs=3)), 0) is not None
     assert exp5._valid(path, dataclasses.replace(e, brain=dataclasses.replace(e.brain, eta=0.01)), 0) is None
-    # a checkpoint of the earlier flat layout (every key of that layout at the top) is read back into
-    # the groups; the keys added since (world.table_contact, world.grip_pivot_max) are absent from it
-    # and read with the values that reproduce it (neuroimagery.moved_keys.ADDED)
-    d = torch.load(path, weights_only=True)
-    groups = d["config"]
-    d["config"] = {k: v for k, v in groups.items() if not isinstance(v, dict)}
-    d["config"].update({old: groups[new.split(".")[0]][new.split(".")[1]] for old, new in exp5_config.MOVED_KEYS.items()})
-    assert "table_contact" not in d["config"] and "world" not in d["config"]
-    torch.save(d, path)
-    assert exp5._valid(path, e, 0) is not None
-    grip = dataclasses.replace(e, world=dataclasses.replace(e.world, table_contact="grip"))
-    assert exp5._valid(path, grip, 0) is None  # computed with the lift, not with the grip
-    del d["config"]["c3_outcomes"]  # one written before c3_outcomes existed is still read back
-    torch.save(d, path)
-    assert exp5._valid(path, e, 0) is not None
-    del d["config"]["toy_turn"]  # one written before toy_turn existed squared the toy between moves
-    torch.save(d, path)
-    reset = dataclasses.replace(e, world=dataclasses.replace(e.world, toy_turn="reset"))
-    assert exp5._valid(path, e, 0) is None and exp5._valid(path, reset, 0) is not None
     with pytest.raises(ValueError, match="experiment.engine.reuse_libraries"):
         dataclasses.replace(e.engine, reuse_libraries=str(tmp_path / "nowhere"))
 

@@ -357,14 +357,6 @@ def test_bad_settings_are_refused_before_any_work(tmp_path, capsys, monkeypatch,
     assert ex.value.code == 2 and len(lines) == 1 and needle in lines[0], err
 
 
-def test_old_keys_name_their_new_place_or_why_they_went():
-    from neuroimagery.config import moved_message
-
-    assert "experiment.fm.eta" in moved_message("experiment.eta_fm", "exp6")
-    assert "experiment.lca.threshold" in moved_message("experiment.lca_threshold", "exp6")
-    assert "no longer a setting" in moved_message("experiment.posture_readout", "exp6")
-
-
 @pytest.mark.parametrize("measure", ["opened", "pooled", "pooled_two_sided", "cluster"])
 def test_mismatch_measures_are_zero_for_identical_images_and_see_a_missing_cube(measure):
     """A bar of five cubes (2 voxels a side, graded code) against itself, against the bar without its

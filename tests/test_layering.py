@@ -21,7 +21,6 @@ LAYER_NAMES = ("base", "blocks", "models", "analysis", "config", "experiments", 
 LAYERS = {
     # base: what any layer may use; knows no block, model or experiment
     "": BASE,  # the package's __init__
-    "moved_keys": BASE,  # the one table of settings that moved or went
     "core": BASE,  # errors, console, files, threads, locks, manifests, bounds, resources, progress, ...
     # blocks: maps, connections, rules, motor primitives, eyes, the robot world
     "nn": BLOCKS, "motor": BLOCKS, "vision": BLOCKS, "robot": BLOCKS,

@@ -27,23 +27,16 @@ def test_weights_are_eq_7_7_and_update_is_eq_7_8():
     assert torch.equal(d.mean, torch.zeros(2)) and torch.equal(d.covariance, torch.eye(2))
 
 
-def test_flat_costs_average_the_samples_or_keep_the_distribution():
+def test_flat_costs_average_the_samples():
     samples = torch.tensor([[1.0, 0.0], [0.0, 3.0], [2.0, 0.0]])
     for cost in (0.0, 1.0):
         costs = torch.full((3,), cost)
         avg = PIBB.from_sigma(torch.zeros(2), 1.0, n_samples=3, decay=0.8).update(samples, costs)
         assert torch.allclose(avg.mean, torch.tensor([1.0, 1.0]))  # uniform weights: the plain mean
         assert torch.allclose(avg.covariance, 0.8 * torch.eye(2))
-        keep = PIBB.from_sigma(torch.zeros(2), 1.0, n_samples=3, decay=0.8, flat="keep").update(samples, [cost] * 3)
-        assert torch.equal(keep.mean, torch.zeros(2)) and torch.equal(keep.covariance, torch.eye(2))
-    # one differing cost is information: 'keep' then updates exactly as 'average'
     costs = torch.tensor([1.0, 0.0, 1.0])
     a = PIBB.from_sigma(torch.zeros(2), 1.0, n_samples=3, decay=0.8).update(samples, costs)
-    k = PIBB.from_sigma(torch.zeros(2), 1.0, n_samples=3, decay=0.8, flat="keep").update(samples, costs)
-    assert torch.equal(a.mean, k.mean) and torch.equal(a.covariance, k.covariance)
     assert a.mean[1] > 2.5  # the successful sample dominates
-    with pytest.raises(ValueError, match="flat"):
-        PIBB.from_sigma(torch.zeros(2), 1.0, flat="never")
 
 
 def test_minimises_a_quadratic():

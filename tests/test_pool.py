@@ -152,8 +152,11 @@ def test_what_is_not_a_finished_run_is_refused(sweep, tmp_path, capsys):
     run0 = sweep / "sweep" / "0"
     _refused(capsys, [run0, tmp_path / "nowhere"], "no such run directory")
     old = _copy(sweep, tmp_path, "1")
-    (old / "manifest.json").unlink()  # as a run of the previous version left it
-    _refused(capsys, [run0, old], f"{old}: not a finished run directory", "runs of version 0.1.0 have none")
+    (old / "manifest.json").unlink()  # a run directory without a manifest, as 0.1.0 left it
+    line = _refused(capsys, [run0, old], f"pool: {old} is a run of neuroimagery 0.1.0 (no manifest.json)")
+    assert line.endswith("run it again: python evaluate.py experiment=demo seed=1")
+    shutil.rmtree(old / ".hydra")
+    _refused(capsys, [run0, old], f"{old}: not a finished run directory")
     (old / "manifest.json").write_text("{cut")
     _refused(capsys, [run0, old], f"{old / 'manifest.json'}: cannot be read")
     (old / "manifest.json").write_text(json.dumps({"experiment": "demo", "seed": 1}))
@@ -162,6 +165,20 @@ def test_what_is_not_a_finished_run_is_refused(sweep, tmp_path, capsys):
     (stopped / "summary.json").unlink()
     _refused(capsys, [stopped], f"{stopped}: no summary.json (not a finished run")
     _refused(capsys, [run0, "--out", sweep / "sweep" / "1"], "is a run directory")
+
+
+def test_a_run_of_a_0x_release_is_refused_naming_its_version_and_the_command(sweep, tmp_path, capsys, monkeypatch):
+    import neuroimagery
+
+    old = _copy(sweep, tmp_path, "1")
+    m = json.loads((old / "manifest.json").read_text())
+    (old / "manifest.json").write_text(json.dumps({**m, "package": "0.2.0"}))
+    monkeypatch.setattr(neuroimagery, "__version__", "1.0.0")
+    line = _refused(capsys, [old], f"pool: {old} is a run of neuroimagery 0.2.0, which 1.0.0 does not read")
+    assert line.endswith("run it again: python evaluate.py experiment=demo seed=1")
+    monkeypatch.setattr(neuroimagery, "__version__", "0.9.0")  # a run of the same major release is pooled
+    summary, _, _ = pool.pool([sweep / "sweep" / "0", old])
+    assert summary["seeds"] == [0, 1]
 
 
 def test_the_command_runs_as_a_module(sweep, tmp_path):

@@ -101,7 +101,7 @@ def test_a_run_or_checkpoint_of_another_version_says_which(tmp_path, capsys):
     rehash(tmp_path / "tr")
     with pytest.raises(SystemExit):
         cli.friendly_errors(evaluate)(cfg(f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev2")
-    assert "has no manifest (written by version 0.1.0" in capsys.readouterr().err
+    assert "has no manifest (written by neuroimagery 0.1.0" in capsys.readouterr().err
     (tmp_path / "tr" / "manifest.json").unlink()
     with pytest.raises(SystemExit):
         cli.friendly_errors(train)(cfg(), out_dir=tmp_path / "tr")

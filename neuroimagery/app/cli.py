@@ -178,12 +178,9 @@ def plain_hydra_errors() -> None:
         except UserInputError as ex:
             _fail(str(ex), log=False)
         except (HydraException, OmegaConfBaseException) as ex:
-            from ..config import moved_message, unknown_key_message
+            from ..config import unknown_key_message
 
             full = "\n".join(str(e) for e in (ex, ex.__cause__) if e is not None)  # object_type= names the schema
-            moved = moved_message(full) if " not in " in full else None
-            if moved:
-                _fail(moved, log=False)
             unknown = unknown_key_message(full) or missing_option_message(full)
             if unknown:
                 _fail(unknown, log=False)

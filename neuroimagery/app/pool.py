@@ -40,7 +40,6 @@ from ..analysis.tables import read_whole_csv
 from ..config import EXPERIMENTS, experiment
 from ..core.errors import UserInputError
 from ..core.files import writable_folder, write_atomic
-from ..moved_keys import rename
 
 # per test: (key in summary.json, label in report.md, a rate shown in %?)
 MEASURES = (("correct_rate", "correct", True), ("error_rate", "error", True),
@@ -48,7 +47,6 @@ MEASURES = (("correct_rate", "correct", True), ("error_rate", "error", True),
             ("error_rate_different", "YES to mirror pairs", True), ("rt_mean", "RT mean", False))
 NUMERIC = ("participant", "disparity", "rt")
 TITLES = {"demo": "Demo", **{f"exp{k}": f"Experiment {k}" for k in range(1, 6)}}
-OLD = "runs of version 0.1.0 have none"
 
 
 @dataclass
@@ -58,7 +56,6 @@ class Run:
     dir: Path
     manifest: dict
     summary: dict
-    legacy: str | None = None  # a run written before runs recorded their state: the note to give
 
     experiment = property(lambda self: self.manifest.get("experiment"))
     seed = property(lambda self: self.manifest.get("seed"))
@@ -74,10 +71,12 @@ def find_runs(dirs: list[str | Path]) -> list[Path]:
         if (d / "manifest.json").is_file():
             out.append(d)
             continue
-        jobs = [c for c in d.iterdir() if (c / "manifest.json").is_file()]
+        if (d / ".hydra").is_dir():  # a run directory without a manifest: written by 0.1.0
+            mf.usable_run(d, "pool")
+        jobs = [c for c in d.iterdir() if (c / "manifest.json").is_file() or (c / ".hydra").is_dir()]
         if not jobs:
             raise UserInputError(f"{d}: not a finished run directory nor a sweep directory holding runs "
-                                 f"(no manifest.json in it or in its subdirectories; {OLD})")
+                                 "(no manifest.json in it or in its subdirectories)")
         jobs.sort(key=lambda c: (not c.name.isdigit(), int(c.name) if c.name.isdigit() else 0, c.name))
         out.extend(jobs)
     if not out:
@@ -101,9 +100,9 @@ def read_run(d: Path) -> Run:
     """The manifest and summary of one run directory; refused unless the run is finished."""
     # the files' hashes are checked after the rows (read_trials, pool_trials): a changed table is
     # then named with what changed in it
-    manifest, legacy = mf.usable_run(d, "pool", files=None)
+    manifest = mf.usable_run(d, "pool", files=None)
     summary = _json(d / "summary.json", "not a finished run: it stopped, or is still running")
-    return Run(d, manifest, summary, legacy)
+    return Run(d, manifest, summary)
 
 
 def check_runs(runs: list[Run], free: tuple[str, ...] = ()) -> None:
@@ -113,8 +112,7 @@ def check_runs(runs: list[Run], free: tuple[str, ...] = ()) -> None:
         if r.experiment != first.experiment:
             raise UserInputError(f"pool: {r.dir} is a run of {r.experiment}, {first.dir} of {first.experiment}; "
                                  "pool runs of one experiment")
-        # settings stored under a key's earlier name are compared under its name now
-        a, b = (rename(x.manifest["settings"], x.experiment) for x in (first, r))
+        a, b = first.manifest["settings"], r.manifest["settings"]
         diff = [f"{k} {a.get(k, '<absent>')!r} in {first.dir} but {b.get(k, '<absent>')!r} in {r.dir}"
                 for k in sorted(set(a) | set(b)) if k != "seed" and k not in free and a.get(k) != b.get(k)]
         if diff:
@@ -145,16 +143,6 @@ def read_trials(run: Run) -> pd.DataFrame:
         if not pd.api.types.is_bool_dtype(df[col]):
             raise UserInputError(f"{path}: column {col} is not True/False")
     return df
-
-
-def _accept_legacy(run: Run, participants: int | None) -> None:
-    """A run written before runs recorded their state has no hashes of its files: accepted when its
-    rows are its summary's (checked) and count the participants its manifest states, with a note."""
-    stated = run.manifest.get("participants")
-    if participants is not None and stated != participants:
-        raise UserInputError(f"pool: {run.dir}: manifest.json states {stated} participants, its rows hold {participants} "
-                             "(files of two runs mixed: an overwrite that stopped?); run it again")
-    console.note(run.legacy)
 
 
 def _close(a, b, rate: bool) -> bool:
@@ -215,11 +203,8 @@ def pool_trials(runs: list[Run]) -> tuple[dict, pd.DataFrame]:
     if any((r.summary.get("targets") or {}) != targets for r in runs[1:]):
         console.note(f"the runs state different thesis targets; the report shows those of {runs[0].dir}")
     counts = [int(f.participant.nunique()) for f in frames]
-    for r, n in zip(runs, counts):
-        if r.legacy is not None:
-            _accept_legacy(r, n)
-        else:
-            mf.verify_files(r.dir, r.manifest, "pool")
+    for r in runs:
+        mf.verify_files(r.dir, r.manifest, "pool")
     summary = {"experiment": runs[0].experiment, "pooled": True, "seeds": [r.seed for r in runs],
                "preset": runs[0].manifest["settings"].get("preset", "full"),
                "participants": sum(counts), "tests": tests, "targets": targets,
@@ -297,10 +282,7 @@ def pool(dirs: list[str | Path]) -> tuple[dict, pd.DataFrame, Report]:
         check_runs(runs, free=tuple(f"experiment.{k}" for k in hook.pool_free_keys))
         summary, df, rep = hook.pool_runs([r.dir for r in runs])
         for r in runs:
-            if r.legacy is not None:
-                console.note(r.legacy)
-            else:
-                mf.verify_files(r.dir, r.manifest, "pool")
+            mf.verify_files(r.dir, r.manifest, "pool")
         return summary, df, rep
     check_runs(runs)
     summary, df = pool_trials(runs)

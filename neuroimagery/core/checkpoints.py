@@ -15,7 +15,6 @@ import torch
 
 from . import console, manifest as mf
 from .errors import UserInputError
-from ..moved_keys import rename
 
 # torch's refusal of an unsafe pickle advises loading it unsafely; never repeat that advice
 _UNSAFE_ADVICE = ("weights_only", "trust the source", "torch.serialization", "add_safe_globals", "safe_globals",
@@ -87,9 +86,12 @@ def verify_checkpoint(checkpoint: str | Path, name: str, manifest: dict) -> None
     path = checkpoint_file(checkpoint, name, manifest["experiment"])
     state = safe_load(path)
     stored = state.pop("manifest", None) if isinstance(state, dict) else None
-    if not isinstance(stored, dict):
-        raise UserInputError(f"checkpoint {path}: has no manifest (written by version 0.1.0, before checkpoints had "
-                             "manifests, or not by this package): train it again with this version")
+    if not isinstance(stored, dict):  # 0.1.0 wrote checkpoints without one
+        raise UserInputError(f"checkpoint {path}: has no manifest (written by neuroimagery {mf.FIRST_MANIFEST}, which "
+                             f"{mf.current_version()} does not read, or not by this package); train it again: "
+                             f"{mf.rerun_command(checkpoint, None, 'train.py')}")
+    if mf.older_release(stored.get("package")):
+        raise UserInputError(mf.old_release(path, "checkpoint", stored, script="train.py"))
     if stored.get("tensor_hash") != mf.tensor_hash(state):
         raise UserInputError(f"checkpoint {path}: its tensors do not match the hash it stores (altered or corrupt)")
     if stored.get("experiment") != manifest["experiment"]:
@@ -99,9 +101,7 @@ def verify_checkpoint(checkpoint: str | Path, name: str, manifest: dict) -> None
     if not isinstance(training, dict):
         raise UserInputError(f"checkpoint {path}: its manifest has no 'training' settings (not a checkpoint this "
                              "package wrote)")
-    # settings stored under a key's earlier name are compared under its name now, and a key added
-    # since is read with the value that reproduces what the run computed (neuroimagery.moved_keys)
-    diff = mf.differences(manifest["training"], rename(training, manifest["experiment"], within=manifest["training"]))
+    diff = mf.differences(manifest["training"], training)
     if diff:
         raise UserInputError(f"checkpoint {path} was trained with other settings: {'; '.join(diff)} "
                              "(set them as in training, or train again)")
@@ -116,15 +116,13 @@ def verify_run(checkpoint: str | Path, names, manifest: dict) -> None:
     ck = Path(checkpoint)
     if not ck.is_dir():
         raise UserInputError(f"checkpoint: {ck} is not a directory")
-    legacy, stored = None, None
-    if (ck / "manifest.json").is_file():
-        stored, legacy = mf.usable_run(ck, "checkpoint", need="trained", files=None)
+    for name in names:  # a directory that holds none is named by the file it lacks
+        checkpoint_file(ck, name, manifest["experiment"])
+    stored = mf.usable_run(ck, "checkpoint", need="trained", files=None, script="train.py")
     for name in names:
         verify_checkpoint(ck, name, manifest)
-    if stored is not None and legacy is None:  # the checkpoints as the run wrote them (the hashes in manifest.json)
-        mf.verify_files(ck, stored, "checkpoint", only=("checkpoints/",))
-    if legacy:
-        console.note(legacy.replace("its files agree with its manifest", "its checkpoints match their stored hashes"))
+    # the checkpoints as the run wrote them (the hashes in manifest.json)
+    mf.verify_files(ck, stored, "checkpoint", only=("checkpoints/",))
 
 
 # errors a model's loading raises on a checkpoint that passed the checks above but does not fit

@@ -150,12 +150,11 @@ def verify_files(root, manifest: Mapping[str, Any], use: str, only: tuple[str, .
         raise UserInputError(f"{use}: {bad}")
 
 
-def require_complete(root, manifest: Mapping[str, Any], use: str, trained_enough: bool = False) -> str | None:
+def require_complete(root, manifest: Mapping[str, Any], use: str, trained_enough: bool = False,
+                     script: str = "evaluate.py") -> None:
     """Refuse (``UserInputError``, ``use`` says for what) a run directory that is not complete.
-    ``trained_enough``: a run whose training
-    finished (``trained``) suffices. The files are checked by :func:`verify_files` (pooling) or
-    by the hash of the tensors (checkpoints.py). Returns a ``note`` for a run
-    written before runs recorded their state (the caller has checked its files), else None."""
+    ``trained_enough``: a run whose training finished (``trained``) suffices. The files are checked
+    by :func:`verify_files` (pooling) or by the hash of the tensors (checkpoints.py)."""
     from pathlib import Path
 
     from . import lock
@@ -163,11 +162,10 @@ def require_complete(root, manifest: Mapping[str, Any], use: str, trained_enough
 
     root = Path(root)
     state = manifest.get("state")
-    if state is None:
-        return (f"{root}: written before runs recorded their state (version {manifest.get('package')}); "
-                "accepted as its files agree with its manifest")
+    if state is None:  # written by a 0.x release before runs recorded their state
+        raise UserInputError(old_release(root, use, manifest, "written before runs recorded their state", script))
     if state == "complete" or (trained_enough and state in STATES and manifest.get("trained") is True):
-        return None
+        return
     if state == "running":
         holder = lock.read(root)
         alive = lock.holder_alive(holder) if holder else False
@@ -182,11 +180,75 @@ def require_complete(root, manifest: Mapping[str, Any], use: str, trained_enough
     raise UserInputError(f"{use}: {root} is not a complete run: {why}; its files may mix runs (run it again)")
 
 
+# ------------------------------------------------------------------------------ releases
+FIRST_MANIFEST = "0.1.0"  # the release whose runs had no manifest.json (the next one wrote them)
+
+
+def current_version() -> str:
+    """This package's release (``neuroimagery.__version__``)."""
+    import neuroimagery
+
+    return str(neuroimagery.__version__)
+
+
+def major(version: Any) -> int | None:
+    """The major number of a release string (``"1.0.0"`` -> 1); None when it is not one."""
+    head = str(version).split(".")[0]
+    return int(head) if head.isdigit() else None
+
+
+def older_release(version: Any) -> bool:
+    """Whether ``version`` (a stored manifest's ``package``) is of an earlier major release than
+    this package: what it stored is not read (settings, checkpoints and task files change between
+    major releases)."""
+    stored, now = major(version), major(current_version())
+    return stored is not None and now is not None and stored < now
+
+
+def _hydra_file(root, name: str) -> Any:
+    """The YAML file ``.hydra/<name>`` of a run directory, or None (absent, unreadable)."""
+    from pathlib import Path
+
+    import yaml
+
+    try:
+        return yaml.safe_load((Path(root) / ".hydra" / name).read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return None
+
+
+def rerun_command(root, manifest: Mapping[str, Any] | None = None, script: str = "evaluate.py") -> str:
+    """The command that runs a stored run again with this release: its experiment and seed (from
+    its manifest, else its ``.hydra/overrides.yaml``) and the overrides it was run with."""
+    loaded = _hydra_file(root, "overrides.yaml")
+    overrides = [str(o) for o in loaded] if isinstance(loaded, list) else []
+    composed = _hydra_file(root, "config.yaml")  # a run without a manifest: the configuration it ran
+    composed = composed if isinstance(composed, dict) else {}
+    given = dict(o.split("=", 1) for o in overrides if "=" in o)
+    manifest = manifest or {}
+    experiment = (manifest.get("experiment") or given.get("experiment")
+                  or (composed.get("experiment") or {}).get("name") or "EXPERIMENT")
+    seed = manifest.get("seed", given.get("seed", composed.get("seed")))
+    skip = ("experiment=", "seed=", "hydra.", "checkpoint=", "overwrite=")
+    args = [f"experiment={experiment}"] + ([f"seed={seed}"] if seed is not None else [])
+    args += [o for o in overrides if not o.lstrip("+~").startswith(skip)]
+    return " ".join(["python", script, *args])
+
+
+def old_release(root, use: str, manifest: Mapping[str, Any] | None, why: str = "",
+                script: str = "evaluate.py") -> str:
+    """The one-line refusal of a run (or checkpoint) of an earlier release: its version, and the
+    command that runs it again with this one."""
+    version = (manifest or {}).get("package") or FIRST_MANIFEST
+    return (f"{use}: {root} is a run of neuroimagery {version}{' (' + why + ')' if why else ''}, which "
+            f"{current_version()} does not read; run it again: {rerun_command(root, manifest, script)}")
+
+
 REQUIRED = ("experiment", "seed", "settings", "participants")  # what every manifest.json this package wrote holds
 
 
 def usable_run(root, use: str, experiment: str | None = None, need: str = "complete",
-               files: tuple[str, ...] | None = ()) -> tuple[dict, str | None]:
+               files: tuple[str, ...] | None = (), script: str = "evaluate.py") -> dict:
     """The one judgement of whether a stored run may be used (``use``: by ``pool``, ``checkpoint``,
     ``experiment.engine.reuse_libraries=...``, named in each refusal): its ``manifest.json`` is a
     manifest this package wrote (:data:`REQUIRED` keys, ``settings`` a mapping), of ``experiment``
@@ -194,8 +256,10 @@ def usable_run(root, use: str, experiment: str | None = None, need: str = "compl
     ``any``), and the files it lists under ``files`` (path prefixes; ``()``: all, None: none) are
     those it finished with: the hash in ``manifest.json`` is checked against the file itself, so a
     file or a hash edited by hand is refused (a caller that first reads the files for a more precise
-    message gives ``files=None`` and calls :func:`verify_files` after). Returns the manifest and a note for a run written
-    before runs recorded their state (else None); raises :class:`UserInputError` otherwise."""
+    message gives ``files=None`` and calls :func:`verify_files` after). A run of an earlier major
+    release (or of 0.1.0, which wrote no manifest) is refused with the command that runs it again
+    (``script``: the entry point that does). Returns the manifest; raises :class:`UserInputError`
+    otherwise."""
     import json
     from pathlib import Path
 
@@ -205,8 +269,9 @@ def usable_run(root, use: str, experiment: str | None = None, need: str = "compl
     try:
         manifest = json.loads(path.read_text())
     except FileNotFoundError:
-        raise UserInputError(f"{use}: {root}: no manifest.json (not a run directory; runs of version 0.1.0 have "
-                             "none)") from None
+        if (Path(root) / ".hydra").is_dir():  # a run directory of the release that wrote no manifest
+            raise UserInputError(old_release(root, use, None, "no manifest.json", script)) from None
+        raise UserInputError(f"{use}: {root}: no manifest.json (not a run directory)") from None
     except (OSError, UnicodeDecodeError, ValueError) as err:
         raise UserInputError(f"{use}: run manifest {path}: cannot be read ({getattr(err, 'strerror', None) or err})") from None
     if not isinstance(manifest, dict):
@@ -218,10 +283,13 @@ def usable_run(root, use: str, experiment: str | None = None, need: str = "compl
             raise UserInputError(f"{use}: {path}: no {key!r} (not a manifest this package wrote, or edited by hand)")
     if not isinstance(manifest["settings"], dict):
         raise UserInputError(f"{use}: {path}: 'settings' is not a mapping (not a manifest this package wrote)")
-    note = None if need == "any" else require_complete(root, manifest, use, trained_enough=need == "trained")
-    if note is None and files is not None:
+    if older_release(manifest.get("package")):
+        raise UserInputError(old_release(root, use, manifest, script=script))
+    if need != "any":
+        require_complete(root, manifest, use, trained_enough=need == "trained", script=script)
+    if files is not None:
         verify_files(root, manifest, use, files or None)
-    return manifest, note
+    return manifest
 
 
 def _smaller(key: str, limit):

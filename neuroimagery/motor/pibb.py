@@ -9,8 +9,8 @@ One iteration, in the numbered steps of the thesis:
 4. averaging      M_{i+1} = sum_k p_k theta_k                                         (eq. 7.8)
 
 and the exploration covariance shrinks by ``decay`` each update.  When every sample cost the same
-the weights are uniform and step 4 is the plain mean of the samples (``flat="average"``), or no
-update at all (``flat="keep"``).  ``PIBB`` is immutable:
+the weights are uniform and step 4 is the plain mean of the samples (eq. 7.8 as printed).
+``PIBB`` is immutable:
 ``update`` returns a new distribution and leaves the old one as it was.
 """
 from __future__ import annotations
@@ -34,10 +34,6 @@ class PIBB:
     n_samples: int = 10
     temperature: float = 0.1
     decay: float = 0.9
-    # what an update does when every sample cost the same (the weights of eq. 7.7 are then uniform):
-    # 'average' = move to the plain mean of the samples (eq. 7.8 as written: a random step) |
-    # 'keep' = the samples carry no information, so mean and covariance stay as they are
-    flat: str = "average"
 
     def __post_init__(self) -> None:
         m, C = self.mean, self.covariance
@@ -55,8 +51,6 @@ class PIBB:
             raise ValueError(f"PIBB temperature must be > 0, got {self.temperature}")
         if not 0 < self.decay <= 1:
             raise ValueError(f"PIBB decay must be in (0, 1], got {self.decay}")
-        if self.flat not in ("average", "keep"):
-            raise ValueError(f"PIBB flat must be 'average' or 'keep', got {self.flat!r}")
 
     @classmethod
     def from_sigma(cls, mean: torch.Tensor, sigma: torch.Tensor | float, **kw) -> "PIBB":
@@ -82,17 +76,13 @@ class PIBB:
 
     def update(self, samples: torch.Tensor, costs: torch.Tensor) -> "PIBB":
         """New distribution: probability-weighted mean of the samples (eq. 7.8), decayed covariance
-        (with ``flat="keep"`` and all costs equal: this distribution, unchanged)."""
+        (all costs equal: the plain mean of the samples)."""
         if samples.dim() != 2 or samples.shape[1] != len(self.mean):
             raise ValueError(f"samples must be (K, {len(self.mean)}), got {tuple(samples.shape)}")
         if len(costs) != len(samples):
             raise ValueError(f"{len(samples)} samples but {len(costs)} costs")
         if not torch.isfinite(samples).all():
             raise ValueError("samples contain NaN or inf")
-        if self.flat == "keep":
-            c = torch.as_tensor(costs)
-            if bool((c == c[0]).all()):  # no sample better than another: nothing to learn
-                return self
         p = self.weights(costs)
         return replace(self, mean=p @ samples.to(self.mean.dtype), covariance=self.covariance * self.decay)
 

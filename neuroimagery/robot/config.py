@@ -68,10 +68,6 @@ class WorldConfig:
     # exploration: a DMP's goal noise has this share of each joint's range as its standard
     # deviation (the goal noise rule, docs/robot.md)
     goal_noise_share: float = 0.1
-    # where an exploratory movement's goal lies before the noise (docs/contracts.md, W9): 'posture'
-    # = the initial posture the DMP is reinitialised with (Fig. 7.5, line 1532, the reading fixed
-    # from the text) | 'anywhere' = the DMP's own random goal, uniform inside the joint limits
-    explore_goals: str = "posture"
     rake_length: float = 0.40  # grip -> end of the handle, where the head is fixed (urdf/rake.urdf)
     # centre of the rake head's plate in the rake (grip) frame: the handle meets the plate 3.5 cm
     # above its centre (5 mm below its top edge), so the handle clears a toy the head is placed
@@ -87,11 +83,8 @@ class WorldConfig:
     toy_mass: float = 0.05  # kg
     rake_mass: float = 2.0  # kg; heavy enough that the 50 g toy barely deflects it between two
     #                         imposed poses (kinematic drive)
-    rake_max_force: float = 200.0  # N, strength of the constraint (only with rake_drive="constraint")
-    # how the hand moves the rake: "kinematic" imposes the rake's pose and velocity at every control
-    # step (the table meets it by table_contact); "constraint" drags it with a fixed constraint of
-    # force rake_max_force (slower; kept as a reference)
-    rake_drive: str = "kinematic"
+    # the hand moves the rake kinematically: its pose and velocity are imposed at every control step
+    # (the table meets it by table_contact)
     table_clearance: float = 0.002  # lowest rake point kept this far above the table
     # how the table meets the rake (docs/robot.md, "The table, the grip and the arm"): "lift" = the
     # pose is lifted vertically (an arm that yields upward) | "grip" = the rake turns in the hand
@@ -141,16 +134,12 @@ class WorldConfig:
     def __post_init__(self) -> None:
         positive = (
             "root_height", "rake_length", "table_top", "toy_size", "toy_mass", "rake_mass",
-            "rake_max_force", "physics_dt", "control_dt", "move_threshold", "touch_tolerance",
+            "physics_dt", "control_dt", "move_threshold", "touch_tolerance",
             "filter_margin", "blowup_speed_factor", "blowup_speed_margin", "reach_height_band", "camera_fov", "goal_noise_share",
         )
         for key in positive:
             if not float(getattr(self, key)) > 0:
                 raise ValueError(f"WorldConfig.{key} must be > 0, got {getattr(self, key)!r}")
-        if self.explore_goals not in ("posture", "anywhere"):
-            raise ValueError(f"WorldConfig.explore_goals must be 'posture' or 'anywhere', got {self.explore_goals!r}")
-        if self.rake_drive not in ("kinematic", "constraint"):
-            raise ValueError(f"WorldConfig.rake_drive must be 'kinematic' or 'constraint', got {self.rake_drive!r}")
         if self.table_contact not in TABLE_CONTACTS:
             raise ValueError(f"WorldConfig.table_contact must be one of {TABLE_CONTACTS}, got {self.table_contact!r}")
         if not 0 <= self.grip_pivot_max < math.pi / 2:

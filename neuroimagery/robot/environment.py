@@ -4,7 +4,7 @@
 protocol of :mod:`neuroimagery.models.tool_use`): start an initial situation, draw random
 movements around a posture, execute DMP primitives from any scene (:class:`State`) and return
 what they did (:class:`Result`), render the PC map of a scene and read the toy-related reward
-from an image. Its three choices (``ENV_CHOICES``) say how a primitive is replayed.
+from an image.
 """
 from __future__ import annotations
 
@@ -15,17 +15,6 @@ import torch
 
 from .config import OFF_TABLE_XY
 from .eye import ToyReader
-
-# the values each choice of the environment accepts (Exp5Config checks the same table)
-ENV_CHOICES = {"toy_turn": ("keep", "reset")}
-
-
-def check_choice(key: str, value, choices: dict | None = None) -> None:
-    """Raise ``ValueError`` naming ``key`` when ``value`` is not one of ``choices[key]``."""
-    allowed = (choices or ENV_CHOICES)[key]
-    if value not in allowed:
-        raise ValueError(f"{key} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
-
 
 @dataclass(frozen=True)
 class State:
@@ -68,9 +57,8 @@ class ToolWorldEnvironment:
     arm's current joints. A scene after earlier moves (arm elsewhere, toy displaced) is restored
     through ``ToolWorld.reset(q=..., toy_xy=..., toy_yaw=...)`` before the next rollout.
 
-    ``toy_turn`` says whether a scene keeps the toy's turn about the vertical: ``"keep"`` (the toy
-    is put back as the last move left it, the default) or ``"reset"`` (square again; the toy's
-    place is kept either way). A rollout from an initial situation is the same under both.
+    A scene keeps the toy where and as the last move left it (its place and its turn about the
+    vertical): the simulator keeps whatever a move left.
 
     A primitive's 7 goal numbers are joint angles (thesis: 7 goal parameters, one per joint):
     every rollout of a primitive ends in the same arm posture whatever the start, its shape
@@ -79,7 +67,7 @@ class ToolWorldEnvironment:
     """
 
     def __init__(self, world_config=None, duration_s: float = 1.5, explore_weight_sigma: float = 300.0,
-                 search_goal_sigma: float = 0.05, search_weight_sigma: float = 30.0, toy_turn: str = "keep") -> None:
+                 search_goal_sigma: float = 0.05, search_weight_sigma: float = 30.0) -> None:
         from .movements import MovementConfig, world_dmp
         from .world import ToolWorld
 
@@ -93,8 +81,6 @@ class ToolWorldEnvironment:
                     q, toy_xy, toy_yaw = self.start_state
                 super().reset(posture, q=q, toy_xy=toy_xy, toy_yaw=toy_yaw)
 
-        check_choice("toy_turn", toy_turn)
-        self.toy_turn = toy_turn
         self.world = _World(world_config)
         self.dmp = world_dmp()
         self.n_params = self.dmp.n_params
@@ -151,7 +137,7 @@ class ToolWorldEnvironment:
             arm = o.stop_step if o.arm_step is None else o.arm_step  # the joints the arm holds
             q_end = tuple(round(float(v), 6) for v in traj[n, arm])
             toy = tuple(round(float(v), 6) for v in o.final_toy_xy)
-            yaw = round(float(o.final_toy_yaw), 6) if self.toy_turn == "keep" else 0.0
+            yaw = round(float(o.final_toy_yaw), 6)
             if o.off_table:  # out of play from now on (docs/robot.md, a toy thrown off the table)
                 toy, yaw = OFF_TABLE_XY, 0.0
             res.append(Result(tuple(bool(e) for e in o.events), State(state.posture, q_end, toy, yaw or None),

@@ -53,12 +53,10 @@ def goal_noise(world, dmp: DMP, theta: torch.Tensor, generator: torch.Generator)
 
 def explore(world, dmp: DMP, theta: torch.Tensor, q0: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
     """Exploratory movements (Fig. 7.5 A) of the DMPs ``theta`` (N, P) from the initial posture
-    ``q0``: with ``WorldConfig.explore_goals == "posture"`` (docs/contracts.md, W9) each DMP is
-    reinitialised with the posture, its goal set to ``q0``, then the goal noise is added; with
-    ``"anywhere"`` the noise is added to the DMP's own goal. Shape weights unchanged."""
-    if world.cfg.explore_goals == "posture":
-        g, w = dmp.split(theta)
-        theta = dmp.pack(q0.to(g.dtype).expand_as(g).clone(), w)
+    ``q0``: each DMP is reinitialised with the posture, its goal set to ``q0``, then the goal noise
+    is added (Fig. 7.5, section 7.1.2; docs/contracts.md, W9). Shape weights unchanged."""
+    g, w = dmp.split(theta)
+    theta = dmp.pack(q0.to(g.dtype).expand_as(g).clone(), w)
     return goal_noise(world, dmp, theta, generator)
 
 

@@ -5,13 +5,10 @@ its kinematics: the right arm's joint trajectory goes through batched forward ki
 (:class:`~neuroimagery.robot.kinematics.ArmKinematics`) and the fixed grasp gives the pose the rake
 must have at every control step.
 
-Rake drive (``WorldConfig.rake_drive``; docs/robot.md): "kinematic" (default) puts the rake at
-pose t-1 with the velocity that carries it to pose t and lets pybullet's substeps resolve rake-toy
-and toy-table contact; the table meets the rake by ``table_contact`` (``rake_plan.table_poses``);
-control steps far from a resting toy are skipped (``skip_far_steps``). "constraint" drags a
-dynamic rake by a fixed constraint, every step simulated (the slower reference,
-:mod:`neuroimagery.robot.constraint_drive`).
-pybullet resolves the contacts; the toy moves only when pushed.
+Rake drive (docs/robot.md): the rake is put at pose t-1 with the velocity that carries it to pose
+t and pybullet's substeps resolve rake-toy and toy-table contact; the table meets the rake by
+``table_contact`` (``rake_plan.table_poses``); control steps far from a resting toy are skipped
+(``skip_far_steps``). pybullet resolves the contacts; the toy moves only when pushed.
 
 Compass and events: :mod:`neuroimagery.robot.events` (south = toward the robot, -x; west = its
 left, +y). Each event, once fired, stays fired; a rollout stops at the first control step where the
@@ -31,7 +28,6 @@ import torch
 from neuroimagery.core.errors import UserInputError
 from neuroimagery.core.native import quiet_native_output
 from neuroimagery.robot.config import WorldConfig
-from neuroimagery.robot.constraint_drive import rollout_constraint
 from neuroimagery.robot.events import Outcome, latch_events, watched_indices, toy_events, toy_fate, toy_yaw_of
 from neuroimagery.robot.eye import colour_masks
 from neuroimagery.robot.kinematics import ArmKinematics
@@ -55,9 +51,6 @@ class ToolWorld:
 
         self.cfg = config or WorldConfig()
         cfg = self.cfg
-        # the reference drive under the lift drags the rake to the commanded poses and lets the
-        # table stop it; every other drive and rule takes the poses of ``_plan``
-        self._table_collides = cfg.rake_drive == "constraint" and cfg.table_contact == "lift"
         self.kin = ArmKinematics(
             root_height=cfg.root_height,
             grasp=torch.tensor(cfg.grasp, dtype=torch.float32),
@@ -100,8 +93,6 @@ class ToolWorld:
         for body in (self.table, self.toy, self.rake):
             c.changeDynamics(body, -1, lateralFriction=cfg.friction)
         c.changeDynamics(self.toy, -1, mass=cfg.toy_mass)
-        if cfg.rake_drive == "constraint":
-            c.changeDynamics(self.rake, -1, mass=cfg.rake_mass)
         # the rake frame is the grip; pybullet's base frame is the inertial frame: keep the offset
         self._rake_com = np.array(c.getDynamicsInfo(self.rake, -1)[3])
         self._rake_com_orn = c.getDynamicsInfo(self.rake, -1)[4]
@@ -114,20 +105,12 @@ class ToolWorld:
         self._geometry = rake_plan.RakeGeometry(self._rake_points_np[:, :3], self._point_radius,
                                                 self._point_radius_max, self._R_com, self._rake_com)
         # the table meets the rake through the table rule of ``_plan``: rake-table collisions are
-        # not computed, except where the constraint drive drags the rake to the commanded poses
-        # and the table stops it (``_table_collides``)
-        if not self._table_collides:
-            c.setCollisionFilterPair(self.rake, self.table, -1, -1, 0)
-        if cfg.rake_drive == "constraint":
-            self.constraint = c.createConstraint(
-                self.rake, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [0, 0, 2]
-            )
-        else:
-            self.constraint = None
-            # a heavy rake barely yields to the toy during the substeps between two imposed poses
-            m0 = c.getDynamicsInfo(self.rake, -1)[0]
-            inertia = np.array(c.getDynamicsInfo(self.rake, -1)[2]) * (cfg.rake_mass / m0)
-            c.changeDynamics(self.rake, -1, mass=cfg.rake_mass, localInertiaDiagonal=inertia.tolist())
+        # not computed
+        c.setCollisionFilterPair(self.rake, self.table, -1, -1, 0)
+        # a heavy rake barely yields to the toy during the substeps between two imposed poses
+        m0 = c.getDynamicsInfo(self.rake, -1)[0]
+        inertia = np.array(c.getDynamicsInfo(self.rake, -1)[2]) * (cfg.rake_mass / m0)
+        c.changeDynamics(self.rake, -1, mass=cfg.rake_mass, localInertiaDiagonal=inertia.tolist())
 
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -156,32 +139,6 @@ class ToolWorld:
             raise UserInputError(f"posture must be 1, 2, 3 or 4, got {k!r}")
         return self._postures[int(k) - 1].clone()
 
-    def _rake_target(self, T: np.ndarray) -> tuple[list[float], tuple[float, ...]]:
-        """Base (inertial-frame) pose pybullet needs so that the rake's grip frame is at ``T``."""
-        pos, orn = self._rake_targets(T[None])
-        return pos[0].tolist(), tuple(orn[0].tolist())
-
-    def _rake_targets(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Batched :meth:`_rake_target`: (S, 4, 4) grip poses -> positions (S, 3), quaternions (S, 4)."""
-        from scipy.spatial.transform import Rotation
-
-        R_com = np.array(self.client.getMatrixFromQuaternion(self._rake_com_orn)).reshape(3, 3)
-        pos = T[:, :3, 3] + T[:, :3, :3] @ self._rake_com
-        orn = Rotation.from_matrix(T[:, :3, :3] @ R_com).as_quat()
-        return pos, orn
-
-    def _set_rake(self, T: np.ndarray, teleport: bool, target=None) -> None:
-        """Drive the rake's grip frame to world pose ``T`` (teleport: also place it there now)."""
-        pos, orn = self._rake_target(T) if target is None else target
-        if teleport:
-            self.client.resetBasePositionAndOrientation(self.rake, pos, orn)
-            self.client.resetBaseVelocity(self.rake, [0, 0, 0], [0, 0, 0])
-        if self.constraint is None:
-            return
-        self.client.changeConstraint(
-            self.constraint, jointChildPivot=pos, jointChildFrameOrientation=orn, maxForce=self.cfg.rake_max_force
-        )
-
     def reset(self, posture: int, q: torch.Tensor | None = None, toy_xy: tuple[float, float] | None = None,
               toy_yaw: float | None = None) -> None:
         """Put the arm (and so the rake) at ``posture`` (or joint vector ``q``) and the toy at its
@@ -193,19 +150,6 @@ class ToolWorld:
         yaw = float(toy_yaw or 0.0)
         toy_orn = [0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)]
         c = self.client
-        if self.constraint is not None:
-            self.kin.check_limits(q0)
-            q_np = np.asarray(torch.as_tensor(q0, dtype=torch.float32).detach().numpy(), dtype=np.float64)
-            T = self.kin.rake_pose_np(q_np)
-            if not self._table_collides:
-                T = self._plan(q_np[None, None])["poses"][0, 0]  # the table rule
-            self._set_rake(T, teleport=True)
-            c.resetBasePositionAndOrientation(self.toy, start, toy_orn)
-            c.resetBaseVelocity(self.toy, [0, 0, 0], [0, 0, 0])
-            self._set_physics_step(self.substeps)
-            for _ in range(self.cfg.settle_steps):
-                c.stepSimulation()
-            return
         q_np = np.asarray(torch.as_tensor(q0, dtype=torch.float32).detach().numpy(), dtype=np.float32)
         key = q_np.tobytes()
         pose = self._reset_cache.get(key)
@@ -311,8 +255,6 @@ class ToolWorld:
         traj = trajectories.detach().to(torch.float32)
         N, T = traj.shape[:2]
         plan = self._plan(traj.numpy())
-        if self.constraint is not None:  # reference drive: dragged by a constraint, every step simulated
-            return rollout_constraint(self, traj, plan, posture, watched, use_filter, t0)
         return self._rollout_kinematic(plan, posture, watched, use_filter, t0)
 
     def _rollout_kinematic(self, plan: dict, posture: int, watched, use_filter: bool, t0: float) -> list[Outcome]:

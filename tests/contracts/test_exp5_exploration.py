@@ -40,22 +40,6 @@ def test_w9_exploration_goals_are_the_chosen_posture_plus_noise(world):
     assert torch.equal(w, dmp.split(theta)[1])  # shape weights untouched
 
 
-def test_w9_the_other_reading_keeps_the_dmps_own_goal(world):
-    from dataclasses import replace
-
-    from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, world_dmp
-
-    class W:  # the same world with explore_goals='anywhere'
-        cfg = replace(world.cfg, explore_goals="anywhere")
-        kin = world.kin
-
-    dmp = world_dmp()
-    g = torch.Generator().manual_seed(0)
-    theta = random_primitives(world, dmp, 400, MovementConfig(), g)
-    goals = dmp.split(explore(W, dmp, theta, world.initial_posture(3), g))[0]
-    assert (goals - dmp.split(theta)[0]).abs().mean() < (goals - world.initial_posture(3)).abs().mean()
-
-
 def test_w10_a_watched_rollout_stops_at_the_first_firing_of_any_watched_event(world):
     from neuroimagery.robot.movements import MovementConfig, explore, random_primitives, trajectories, world_dmp
 

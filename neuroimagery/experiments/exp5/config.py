@@ -5,7 +5,6 @@ checked, and the two test situations of the thesis.
 The groups the model reads are the model's own parameter dataclasses
 (:class:`~neuroimagery.models.tool_use.AcquisitionParams`, :class:`~neuroimagery.models.tool_use.BrainParams`,
 :class:`~neuroimagery.models.tool_use.SequencingParams`); the world's and the engine's are here.
-:data:`MOVED_KEYS` names the group of every key of the earlier flat layout.
 """
 from __future__ import annotations
 
@@ -16,8 +15,7 @@ from pathlib import Path
 from typing import Optional
 
 from ...core.bounds import Rule, bounded, check_declared
-from ...moved_keys import moved
-from ...models.tool_use import CHOICES, EVENTS, AcquisitionParams, BrainParams, SequencingParams
+from ...models.tool_use import EVENTS, AcquisitionParams, BrainParams, SequencingParams
 from ...robot.config import TABLE_CONTACTS
 from ...core.thesis import EXP5, EXP5_TABLE_7_1
 
@@ -41,15 +39,9 @@ class WorldParams:
     explore_weight_sigma: float = bounded(300.0, gt=0)  # std of a random DMP's shape weights (goals: docs/robot.md)
     search_goal_sigma: float = bounded(0.05, gt=0)  # rad, PI^BB exploration std of the goals (eq. 7.6)
     search_weight_sigma: float = bounded(30.0, gt=0)  # PI^BB exploration std of the shape weights (eq. 7.6)
-    # whether a scene between moves keeps the toy's turn about the vertical: 'keep' = as the last
-    # move left it | 'reset' = square again (its place is kept either way). See docs/exp5.md.
-    toy_turn: str = bounded("keep", choices=CHOICES["toy_turn"])
     # m; no rake point travels farther in one physics step (robot.config.WorldConfig, docs/robot.md,
     # physics step criterion); null: two fixed 10 ms steps per control step
     max_substep_travel: Optional[float] = bounded(0.008, gt=0)
-    # an exploratory movement's goal before the noise (robot.config.WorldConfig, docs/contracts.md
-    # W9): 'posture' = the chosen initial posture (Fig. 7.5, section 7.1.2) | 'anywhere' = the DMP's own
-    explore_goals: str = bounded("posture", choices=("posture", "anywhere"))
     # how the table meets the rake (robot.config.WorldConfig, docs/robot.md "The table, the grip and
     # the arm"): 'lift' = the pose lifted vertically where the command would sink it | 'grip' = the
     # rake turns in the hand by at most grip_pivot_max (rad), beyond that the table stops the arm
@@ -65,15 +57,15 @@ class WorldParams:
     def env_kwargs(self) -> dict:
         """The keyword arguments of ``ToolWorldEnvironment`` (all but ``environment`` and the
         physics settings of ``world_config``)."""
-        skip = ("environment", "max_substep_travel", "explore_goals", "table_contact", "grip_pivot_max")
+        skip = ("environment", "max_substep_travel", "table_contact", "grip_pivot_max")
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name not in skip}
 
     def world_config(self):
         """The pybullet world's ``WorldConfig`` with this group's physics settings."""
         from ...robot.config import WorldConfig
 
-        return WorldConfig(max_substep_travel=self.max_substep_travel, explore_goals=self.explore_goals,
-                           table_contact=self.table_contact, grip_pivot_max=self.grip_pivot_max)
+        return WorldConfig(max_substep_travel=self.max_substep_travel, table_contact=self.table_contact,
+                           grip_pivot_max=self.grip_pivot_max)
 
 
 @dataclass
@@ -81,12 +73,9 @@ class EngineParams:
     """How the work is organised (``experiment.engine``)."""
 
     n_jobs: int = bounded(2, ge=1)  # parallel tasks (joblib processes); 1 runs in this process
-    # one skill library per repetition for both situations (changes the results: docs/exp5.md)
-    share_library_across_situations: bool = False
     filmstrip_repetition: int = bounded(0, ge=0)  # repetition whose planning test is filmed (imagined vs real)
     # a run directory whose skill libraries are reused when every setting of skill acquisition
-    # (Fig. 7.5: the world and acquisition groups, brain.c2_eta, share_library_across_situations,
-    # the seed) matches; only action sequencing (Fig. 7.6) is then run again, e.g. in a sweep over
+    # (Fig. 7.5: the world and acquisition groups, brain.c2_eta, the seed) matches; only action sequencing (Fig. 7.6) is then run again, e.g. in a sweep over
     # brain.eta or sequencing.temperature. '' = none. Libraries of this run's own directory are
     # always reused that way.
     reuse_libraries: str = ""
@@ -110,8 +99,6 @@ class QuickParams:
 
 GROUPS = {"world": WorldParams, "acquisition": AcquisitionParams, "brain": BrainParams,
           "sequencing": SequencingParams, "engine": EngineParams}
-# every key of the earlier flat layout and its place now (the table of neuroimagery.moved_keys)
-MOVED_KEYS = moved("exp5")
 
 
 @dataclass
@@ -153,23 +140,9 @@ class Exp5Config:
 
 
 def from_dict(d: dict) -> Exp5Config:
-    """An :class:`Exp5Config` from its ``asdict`` form (the groups as dicts); keys of the earlier
-    flat layout are put into their groups first (:func:`nest`)."""
-    d = nest(d)
+    """An :class:`Exp5Config` from its ``asdict`` form (the groups as dicts)."""
     kinds = {"quick": QuickParams, **GROUPS}
     return Exp5Config(**{k: kinds[k](**v) if k in kinds else v for k, v in d.items()})
-
-
-def nest(d: dict) -> dict:
-    """A copy of the settings ``d`` with every key of the earlier flat layout (``c3_eta``) moved
-    into its group (``brain.c3_eta``); stored task files and run directories of that layout
-    read this way."""
-    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in d.items() if k not in MOVED_KEYS}
-    for k, v in d.items():
-        if k in MOVED_KEYS:
-            group, key = MOVED_KEYS[k].split(".")
-            out.setdefault(group, {}).setdefault(key, v)
-    return out
 
 
 def dotted(config: dict) -> dict:

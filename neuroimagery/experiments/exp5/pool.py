@@ -28,7 +28,7 @@ from ...analysis.report import Report
 from ...analysis.robots import ROBOT_EFFECTS_INTRO, ROBOT_EQUIVALENCE
 from ...analysis.tables import read_whole_csv
 from ...core.errors import UserInputError
-from .config import POOL_FREE_KEYS, Exp5Config, dotted, from_dict, nest
+from .config import POOL_FREE_KEYS, Exp5Config, dotted, from_dict
 from .report import group_table
 from .summary import STRATEGIES, group_rates, summarise
 
@@ -68,7 +68,7 @@ def read_config(run_dir: str | Path) -> tuple[Exp5Config, int]:
     raw = read_yaml(cfg_path)
     if not isinstance(raw.get("experiment") or {}, dict):
         raise UserInputError(f"{cfg_path}: 'experiment' is not a mapping (not a config this package wrote)")
-    exp = nest(dict(raw.get("experiment") or {}))  # a run of the earlier flat layout reads too
+    exp = dict(raw.get("experiment") or {})
     if exp.get("name") != "exp5":
         raise UserInputError(f"{d}: experiment {exp.get('name')!r}, not exp5")
     known = {f.name for f in dataclasses.fields(Exp5Config)}

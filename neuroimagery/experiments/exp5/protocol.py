@@ -7,8 +7,7 @@ from toy = posture 4), every individual tested both as a reactive and as a plann
   drawn at random per individual), 10 training trials.
 * HP2: all six detectors, 0, 2, 4, 6, 8, 10 training trials (ages 14, 14, 16, 18, 20, 22 months).
 
-Work unit ("task"): one repetition and one situation (or both, with
-``engine.share_library_across_situations``). Each detector set of the task's individuals
+Work unit ("task"): one repetition and one situation. Each detector set of the task's individuals
 acquires its own skill library with exactly those detectors (Fig. 7.5); the individuals with the
 same set (the HP2 groups, HP1's six-detector group) share it, their C1/C2/C3 training is replayed
 from it, and each then runs Fig. 7.6. The individuals of one library share the (deterministic)
@@ -31,11 +30,10 @@ import pandas as pd
 
 from ...core.errors import UserInputError
 from ...models.tool_use import N_POSTURES
-from ...moved_keys import fill_added
 from . import tasks as task_files
 from .task import groups, imagined_routes, make_environment, routes_available, run_task  # noqa: F401 (public names)
 from .checks import check_inputs  # noqa: F401  (checks before work: neuroimagery.validation)
-from .config import ENGINE_KEYS, MOVED_KEYS, POOL_FREE_KEYS, SITUATIONS, THESIS, THESIS_TABLE_7_1, Exp5Config, dotted, nest
+from .config import ENGINE_KEYS, POOL_FREE_KEYS, SITUATIONS, THESIS, THESIS_TABLE_7_1, Exp5Config, dotted
 from .summary import ROUTES, STRATEGIES, group_rates, library_columns, success_route, success_routes, summarise, table_7_1, thesis_claims
 
 
@@ -74,20 +72,14 @@ def trained_count(cfg) -> tuple[int, str]:
 
 
 # the settings a task's skill library depends on (Fig. 7.5): the world and acquisition groups
-# whole, and of the others what acts during acquisition (C2 -> HIP makes an event "not new"; one
-# library for both situations); the seed is compared apart. The other keys act only in Fig. 7.6.
+# whole, and of the others what acts during acquisition (C2 -> HIP makes an event "not new"); the
+# seed is compared apart. The other keys act only in Fig. 7.6.
 LIBRARY_GROUPS = ("world", "acquisition")
-LIBRARY_KEYS = ("brain.c2_eta", "engine.share_library_across_situations")
+LIBRARY_KEYS = ("brain.c2_eta",)
 def tasks(cfg) -> list[dict]:
     e = _exp(cfg)
-    sits = list(e.situations)
-    out = []
-    for r in range(repetitions(cfg)):
-        if e.engine.share_library_across_situations:
-            out.append(dict(repetition=r, situations=sits, key=f"rep{r:03d}"))
-        else:
-            out += [dict(repetition=r, situations=[s], key=f"rep{r:03d}_{s}") for s in sits]
-    return out
+    return [dict(repetition=r, situations=[s], key=f"rep{r:03d}_{s}")
+            for r in range(repetitions(cfg)) for s in e.situations]
 
 
 # ---------------------------------------------------------------------------------- contract
@@ -99,14 +91,7 @@ def _task_path(run_or_dir, key: str) -> Path:
 def _stored(path: Path) -> dict | None:
     """The task file at ``path`` (None if absent); one that is not plain data or not a task file
     is refused (:func:`exp5_tasks.read_task`)."""
-    d = task_files.read_task(path)
-    if d is None:
-        return None
-    if "acquisition" not in d["config"]:  # the flat layout of earlier versions: its keys into their groups
-        d["config"] = nest(d["config"])
-    # written before a key existed: its value then (neuroimagery.moved_keys.ADDED)
-    d["config"] = fill_added(d["config"], "exp5")
-    return d
+    return task_files.read_task(path)
 
 
 def _same(stored: dict, e: Exp5Config, library: bool = False) -> bool:

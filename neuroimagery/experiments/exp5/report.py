@@ -203,10 +203,7 @@ def _differences(rep: Report, e, summary: dict) -> None:
         "paired rather than independent samples.",
         "The physics is deterministic, so the outcome of a given skill sequence from a posture is computed once; "
         "the thesis notes run-to-run variation of tool-toy contacts that this world does not have. "
-        + ("A scene between moves keeps the toy where a move left it, turned as it left it (`world.toy_turn: keep`)."
-           if e.world.toy_turn == "keep" else
-           "A scene between moves keeps where the toy is but not how a move turned it (`world.toy_turn: reset`): the "
-           "next move starts from the toy set square at that place (docs/exp5.md)."),
+        "A scene between moves keeps the toy where a move left it, turned as it left it.",
     ])
 
 

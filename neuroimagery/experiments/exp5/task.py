@@ -171,7 +171,7 @@ class _Task:
         outcomes = self.outcomes_of[(sit, key)]
         if key not in self.built:
             self.built[key] = build_brain(self.env, sub, self.e.acquisition, self.new_brain(), _gen(self.seed, 3, self.r),
-                                          self.env.perceive, outcomes=outcomes)
+                                          self.env.perceive)
         if (sit, key) not in self.routes:
             r1, r2 = routes_available(outcomes, posture, [s.name for s in sub.skills])
             i1, i2, i_true = imagined_routes(self.built[key], outcomes, posture, sub.skills)

@@ -18,8 +18,8 @@ Connections
                     (posture, primitive) pair keeps the situation image plus the primitive's code
                     on one side and the outcome image on the other; run backwards (situation +
                     intended action -> outcome) it yields the mental image, the perceived scene
-                    being first recognised as one of the initial situations (``c3_recall``).
-    C4  PC -> PMC   Q-learning (eq. 7.1, ``nn.rules.QLearning``), standard sign by default.
+                    being first recognised as one of the initial situations practised in.
+    C4  PC -> PMC   Q-learning (eq. 7.1, ``nn.rules.QLearning``), the standard sign.
 
 Algorithms
     ``acquisition``  skill acquisition, Fig. 7.5 (exploration, PI^BB learning with the
@@ -38,10 +38,10 @@ from __future__ import annotations
 from ...robot.environment import ToolWorldEnvironment
 from .acquisition import AcquisitionParams, Library, acquire_skills, build_brain
 from .brain import BrainParams, GatedHebbian, ToolUseBrain
-from .common import CHOICES, EVENTS, N_POSTURES, SKILL_LETTERS, Environment, Result, State, check_choice
+from .common import EVENTS, N_POSTURES, SKILL_LETTERS, Environment, Result, State
 from .sequencing import SequencingParams, TrialRecord, run_trial, sequence_trial
 from .skills import Outcomes, Skill
 
-__all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "CHOICES", "check_choice", "State", "Result", "Environment",
+__all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "State", "Result", "Environment",
            "ToolUseBrain", "BrainParams", "GatedHebbian", "AcquisitionParams", "SequencingParams", "run_trial", "Skill", "Library", "acquire_skills", "build_brain",
            "Outcomes", "TrialRecord", "sequence_trial", "ToolWorldEnvironment"]

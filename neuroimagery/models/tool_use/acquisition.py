@@ -15,8 +15,8 @@ import torch
 from ...motor.pibb import PIBB, event_costs
 from .brain import ToolUseBrain
 from ...core.bounds import bounded, check_declared
-from .common import CHOICES, EVENTS, N_POSTURES, Environment, Result, State
-from .skills import Outcomes, Skill
+from .common import EVENTS, N_POSTURES, Environment, Result, State
+from .skills import Skill
 
 
 @dataclass
@@ -29,10 +29,6 @@ class AcquisitionParams:
     pibb_samples: int = bounded(10, ge=2)  # K samples per posture and update (thesis: 10)
     pibb_temperature: float = bounded(0.1, gt=0)  # tau of eq. 7.7 on the 0/1 costs (not given)
     pibb_decay: float = bounded(0.9, gt=0, le=1)  # exploration covariance factor per PI^BB update (not given)
-    # a PI^BB update whose K samples all cost the same (none or all achieved the event from that
-    # posture): 'average' = the plain mean of the samples, eq. 7.8 with uniform weights (a random
-    # step) | 'keep' = no information, mean and covariance unchanged. See docs/exp5.md.
-    pibb_flat: str = bounded("average", choices=CHOICES["pibb_flat"])
     max_epochs: int = bounded(10, ge=1)  # PI^BB epochs at most (thesis: 10)
     competence_tolerance: float = bounded(0.05, ge=0, le=1)  # stop when the competence changes by less (thesis: 0.05)
     c1_repeats: int = bounded(10, ge=0)  # C1 updates per PI^BB update (thesis: 10)
@@ -44,11 +40,6 @@ class AcquisitionParams:
     # rollouts of one DMP without a new event before it is given back with fresh random
     # parameters (one PI^BB epoch's worth: 4 postures x 10 samples; docs/exp5.md)
     explore_patience: int = bounded(40, ge=1)
-    # the DMPs left free once every enabled event has its skill: 'none' = unused | 'unmastered' =
-    # exploration goes on, and an enabled event firing from a situation whose distal goal (HIP) is
-    # not active there is learnt again by a free DMP (thesis: the extra DMPs serve events one DMP
-    # cannot achieve from every initial posture)
-    spare_dmps: str = bounded("none", choices=CHOICES["spare_dmps"])
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.acquisition.")
@@ -116,10 +107,8 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionPar
        each success trains C2 ``c2_repeats`` times and C3 ``c3_repeats`` times. The epoch's
        competence is successes / (4 K); learning stops when it changes by less than
        ``competence_tolerance`` from the previous epoch, or after ``max_epochs``.
-    With ``cfg.spare_dmps == "unmastered"``, once every enabled event has a skill the free DMPs go on
-    exploring: an enabled event that fires from a situation where it is not yet mastered (its
-    distal goal below ``hip_threshold`` there; without a brain: no skill of it succeeded from that
-    posture) is learnt again, by A and B, as a further skill of that event.
+    The DMPs left free once every enabled event has its skill stay unused (Fig. 7.5 disables a
+    detector once its skill is acquired).
     If ``brain`` is given it is trained on the way; the returned :class:`Library` also records
     every training step so that a brain can be rebuilt later (:func:`build_brain`).
     """
@@ -135,11 +124,6 @@ def acquire_skills(env: Environment, enabled: Sequence[str], cfg: AcquisitionPar
             run.lib.missing.extend(wanted)
             break
         wanted.remove(skill.event)  # the detector is disabled once its skill is acquired
-    if cfg.spare_dmps == "unmastered":
-        again = [e for e in EVENTS if e in enabled and e not in run.lib.missing]
-        while again and run.free:
-            if run.acquire(again) is None:
-                break
     return run.lib
 
 
@@ -234,7 +218,7 @@ def _explore(env, events: Sequence[str], cfg: AcquisitionParams, generator, lib:
 def _learn_skill(env, skill: Skill, cfg: AcquisitionParams, generator, brain, perceive, lib: Library) -> None:
     """Part B of Fig. 7.5 for one primitive (PI^BB + competence stopping rule)."""
     pibb = PIBB.from_sigma(skill.theta, env.search_sigma(), n_samples=cfg.pibb_samples,
-                           temperature=cfg.pibb_temperature, decay=cfg.pibb_decay, flat=cfg.pibb_flat)
+                           temperature=cfg.pibb_temperature, decay=cfg.pibb_decay)
     goal = EVENTS.index(skill.event)
     total = N_POSTURES * cfg.pibb_samples
     # "the competence changes by less than the tolerance", judged on the success counts: a change
@@ -282,15 +266,12 @@ def _train_c23(brain: ToolUseBrain, env, perceive, skill: Skill, p: int, outcome
 
 
 def build_brain(env: Environment, lib: Library, cfg: AcquisitionParams, brain: ToolUseBrain,
-                generator: torch.Generator, perceive: Callable[[State], torch.Tensor] | None = None,
-                outcomes: Outcomes | None = None) -> ToolUseBrain:
+                generator: torch.Generator, perceive: Callable[[State], torch.Tensor] | None = None) -> ToolUseBrain:
     """Replay the C1/C2/C3 training of Fig. 7.5 for the skills of ``lib`` (in their order).
 
     Used when one acquired library serves several individuals (a HP1 robot keeps only the skills
     of its enabled detectors): the brain ends exactly as if only those skills had been trained.
-    With ``brain.c3_outcomes == "every"`` (:class:`BrainParams`) the primitives are also performed
-    from the initial situations where they missed their event, through ``outcomes`` (the rollout
-    cache shared with action sequencing) when given.
+    C3 learns a primitive's outcome only where it achieved its event (Fig. 7.5).
     """
     perceive = perceive or env.perceive
     brain.train()
@@ -303,13 +284,4 @@ def build_brain(env: Environment, lib: Library, cfg: AcquisitionParams, brain: T
                 brain.train_c1(seen, s.unit, op[2], cfg.c1_repeats)
             else:
                 _train_c23(brain, env, perceive, s, op[1], op[2], cfg, generator)
-        if brain.c3_outcomes == "every":
-            # the learnt movement from the initial situations where it did not achieve its event
-            # (the last competence check): C3 learns where it leads there, C2 learns nothing
-            for p in range(1, N_POSTURES + 1):
-                if not s.succeeds_from[p - 1]:
-                    r = (outcomes.after(p, (s.name,)) if outcomes is not None  # cached, shared with sequencing
-                         else env.execute(s.theta.unsqueeze(0), env.start(p), s.event)[0])
-                    brain.train_c3(perceive(env.start(p)), s.unit, p, perceive(r.next_state), cfg.c3_repeats,
-                                   generator)
     return brain

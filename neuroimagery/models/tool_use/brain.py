@@ -10,7 +10,7 @@ from ...nn.connections import AllToAll
 from ...nn.rules import GatedHebbian, QLearning
 from ...nn.som import BidirectionalSOM
 from ...core.bounds import bounded, check_declared
-from .common import CHOICES, EVENTS, N_POSTURES, check_choice
+from .common import EVENTS, N_POSTURES
 
 
 @dataclass
@@ -21,17 +21,7 @@ class BrainParams:
     c2_eta: float = bounded(0.1, gt=0, le=1)  # C2 Hebbian rate (not given)
     c3_eta: float = bounded(0.1, gt=0, le=1)  # C3 SOM rate (not given); 50 steps make the prototype the last outcome
     c3_sigma: float = bounded(0.1, gt=0)  # C3 neighbourhood width in units; small: each pair keeps its own unit
-    c3_action_gain: float = bounded(100.0, gt=0)  # weight of the primitive's code against the image in C3's match ('joint')
-    # how C3 finds the unit that imagines "primitive a in this image": 'practised' = recognise the
-    # nearest of the initial situations practised in (Fig. 7.5 B), then that situation's unit for a
-    # (never trained: no change imagined) | 'situation' = the same among the situations stored in C3
-    # only | 'joint' = nearest [image, gain * code] (any situation where a once succeeded answers)
-    c3_recall: str = bounded("practised", choices=CHOICES["c3_recall"])
-    # what C3 (the mental images) holds: 'success' = a primitive's outcome from an initial situation
-    # only where it achieved its event (Fig. 7.5) | 'every' = also its outcome from the other initial
-    # situations (the learnt movement performed there; applied by ``build_brain``). docs/exp5.md.
-    c3_outcomes: str = bounded("success", choices=CHOICES["c3_outcomes"])
-    q_form: str = bounded("standard", choices=("standard", "printed"))  # eq. 7.1 sign: 'standard' r + gamma maxQ (default) | 'printed' r - gamma maxQ
+    c3_action_gain: float = bounded(100.0, gt=0)  # weight of the primitive's code against the image in C3's input
     eta: float = bounded(1e-4, gt=0, le=1)  # C4 Q-learning rate (thesis: 0.0001) on the 2 x 240 x 320 binary PC map
     gamma: float = bounded(0.8, ge=0, le=1)  # discount (thesis: 0.8)
 
@@ -46,19 +36,15 @@ class ToolUseBrain(nn.Module):
     def __init__(self, image_shape: tuple[int, int], n_dmps: int = 10, n_goals: int = 6,
                  c1_eta: float = 0.1, c2_eta: float = 0.1, c3_eta: float = 0.1, c3_sigma: float = 0.1,
                  c3_action_gain: float = 100.0, q_eta: float = 1e-4, q_gamma: float = 0.8,
-                 q_form: str = "standard", c3_recall: str = "practised", c3_outcomes: str = "success",
                  seed: int = 0) -> None:
         super().__init__()
-        check_choice("c3_recall", c3_recall)
-        check_choice("c3_outcomes", c3_outcomes)
-        self.c3_recall, self.c3_outcomes = c3_recall, c3_outcomes
         self.image_shape = tuple(image_shape)
         self.n_pc = 2 * image_shape[0] * image_shape[1]
         self.n_dmps, self.n_goals = int(n_dmps), int(n_goals)
         self.c3_action_gain = float(c3_action_gain)
         self.c1 = AllToAll(self.n_pc, n_dmps, init="zeros", rules=GatedHebbian(c1_eta), name="C1")
         self.c2 = AllToAll(self.n_pc, n_goals, init="zeros", rules=GatedHebbian(c2_eta), name="C2")
-        self.c4 = AllToAll(self.n_pc, n_dmps, init="zeros", rules=QLearning(q_eta, q_gamma, q_form), name="C4")
+        self.c4 = AllToAll(self.n_pc, n_dmps, init="zeros", rules=QLearning(q_eta, q_gamma), name="C4")
         # C3: a = outcome image (PFC), b = [situation image, gain * primitive code] (PC + PMC)
         self.c3 = BidirectionalSOM(N_POSTURES * n_dmps, self.n_pc, self.n_pc + n_dmps, seed=seed, eta=c3_eta,
                                    sigma=c3_sigma, iterations=1, name="C3")
@@ -74,8 +60,7 @@ class ToolUseBrain(nn.Module):
         """A brain with ``n_dmps`` PMC / M1 units and the rates and read-outs of ``params``."""
         p = params
         return cls(image_shape, n_dmps=n_dmps, c1_eta=p.c1_eta, c2_eta=p.c2_eta, c3_eta=p.c3_eta, c3_sigma=p.c3_sigma,
-                   c3_action_gain=p.c3_action_gain, q_eta=p.eta, q_gamma=p.gamma, q_form=p.q_form,
-                   c3_recall=p.c3_recall, c3_outcomes=p.c3_outcomes, seed=seed)
+                   c3_action_gain=p.c3_action_gain, q_eta=p.eta, q_gamma=p.gamma, seed=seed)
 
     # --- read-outs
     @staticmethod
@@ -111,29 +96,17 @@ class ToolUseBrain(nn.Module):
     def recall_unit(self, image: torch.Tensor, unit: int) -> int:
         """The C3 unit that answers "what if I do primitive ``unit`` in situation ``image``".
 
-        ``c3_recall = "practised"``: the perceived scene is recognised first, as the nearest of the
-        initial situations the robot practised in (all it met in Fig. 7.5 B, whether a movement
-        succeeded there or not); the answer is that situation's unit for the intended primitive,
-        trained or not. ``"situation"``: the same, but only among the situations stored in C3
-        (those where some primitive succeeded).  ``"joint"``: the unit whose
-        input side [situation, gain * primitive code] is nearest (the primitive's code dominates,
-        so any situation where the primitive ever succeeded can answer).
+        The perceived scene is recognised first, as the nearest of the initial situations the robot
+        practised in (all it met in Fig. 7.5 B, whether a movement succeeded there or not); the
+        answer is that situation's unit for the intended primitive, trained or not (the mental image
+        is constrained by the perceived situation, thesis section 7.1.2).
         """
-        som = self.c3.som  # inputs: [outcome image, situation image, gain * primitive code]
-        if self.c3_recall == "joint":
-            b = self._c3_b(image, unit)[0]
-            return int(som.part_distances(b, self.n_pc, checked=True).argmin())
-        if not bool((self.practised_seen if self.c3_recall == "practised" else self.c3_trained).any()):
+        if not bool(self.practised_seen.any()):
             return unit
         x = self.flat(image)[0]
-        if self.c3_recall == "practised":  # rows: the practised initial situations
-            known, per_situation = self.practised_seen, 1
-            d = (self.practised ** 2).sum(-1) - 2.0 * (self.practised @ x)  # squared distance up to the image's own norm
-        else:  # rows: the situation parts of C3's trained prototypes
-            known, per_situation = self.c3_trained, self.n_dmps
-            d = som.part_distances(x, self.n_pc, 2 * self.n_pc, checked=True)
-        d = torch.where(known, d, torch.full_like(d, float("inf")))
-        return int(d.argmin()) // per_situation * self.n_dmps + int(unit)
+        d = (self.practised ** 2).sum(-1) - 2.0 * (self.practised @ x)  # squared distance up to the image's own norm
+        d = torch.where(self.practised_seen, d, torch.full_like(d, float("inf")))
+        return int(d.argmin()) * self.n_dmps + int(unit)
 
     def imagine(self, image: torch.Tensor, unit: int) -> torch.Tensor:
         """C3 run backwards: the mental image of doing primitive ``unit`` in situation ``image``.

@@ -1,26 +1,16 @@
-"""What the tool-use model shares between its parts: the events, the situations, the modelling
-choices and the :class:`Environment` protocol the model talks to a world through."""
+"""What the tool-use model shares between its parts: the events, the situations and the
+:class:`Environment` protocol the model talks to a world through."""
 from __future__ import annotations
 
 from typing import Protocol
 
 import torch
 
-from ...robot.environment import ENV_CHOICES, Result, State
-from ...robot.environment import check_choice as _check
+from ...robot.environment import Result, State
 from ...robot.events import EVENTS
 
 SKILL_LETTERS = ("P", "T", "S", "N", "W", "E")  # Table 7.1 column names of the skills
 N_POSTURES = 4
-# the values each modelling switch accepts (Exp5Config checks the same table)
-CHOICES = {"c3_recall": ("practised", "situation", "joint"), "planning_test": ("act", "plan"),
-           "spare_dmps": ("none", "unmastered"), "c3_outcomes": ("success", "every"),
-           "pibb_flat": ("average", "keep"), **ENV_CHOICES}
-
-
-def check_choice(key: str, value) -> None:
-    """Raise ``ValueError`` naming ``key`` when ``value`` is not one of ``CHOICES[key]``."""
-    _check(key, value, CHOICES)
 
 
 class Environment(Protocol):
@@ -54,4 +44,4 @@ class Environment(Protocol):
         """The toy-related reward read from a PC image: 1 if the toy lies in reach, else 0."""
 
 
-__all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "CHOICES", "check_choice", "State", "Result", "Environment"]
+__all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "State", "Result", "Environment"]

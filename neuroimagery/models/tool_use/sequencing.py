@@ -11,7 +11,6 @@ import torch
 from ...nn.functional import softmax_select
 from .brain import ToolUseBrain
 from ...core.bounds import bounded, check_declared
-from .common import CHOICES, check_choice
 from .skills import Outcomes, Skill
 
 
@@ -22,10 +21,6 @@ class SequencingParams:
     attempts: int = bounded(5, ge=1)  # primitives per trial (thesis: 5)
     temperature: float = bounded(0.1, gt=0)  # softmax temperature of action selection in training trials (not given)
     test_temperature: float = bounded(0.1, gt=0)  # softmax temperature in the test trial (not given)
-    # how a planning child is tested (Fig. 7.6 does not say): 'act' = each attempt chooses from the
-    # real scene with the C4 learnt in mind, imagines, performs and looks again | 'plan' = the whole
-    # plan is made in mind from the initial image, then performed. See docs/exp5.md.
-    planning_test: str = bounded("act", choices=CHOICES["planning_test"])
     # Fig. 7.6 "select one active neuron of PMC": a unit is active when its PMC activity (C1 + C4)
     # is above this; 0 = above the maps' resting level (the default, docs/exp5.md). A child with
     # no active unit does not move.
@@ -48,8 +43,7 @@ class TrialRecord:
 
 def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Skill], posture: int, strategy: str,
                    training: bool, attempts: int, temperature: float, generator: torch.Generator,
-                   record_frames: bool = False, planning_test: str = "act",
-                   active_threshold: float = 0.0) -> TrialRecord:
+                   record_frames: bool = False, active_threshold: float = 0.0) -> TrialRecord:
     """One trial of Fig. 7.6 from initial posture ``posture``.
 
     Each attempt: feed the current PC image through C1 and C4, pick one acquired PMC unit with
@@ -61,15 +55,10 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     retrieved (``TrialRecord.success``). In training mode C4 learns by eq. 7.1; a planning
     child trains in mind only.
 
-    The test (``training`` False) of a planning child, ``planning_test``:
-
-    * ``"act"``: every attempt starts from the real scene: the child chooses from what it sees
-      (C1 + the C4 it learnt in mind), imagines the outcome, performs the primitive and looks
-      again; it stops once the toy is really in reach.
-    * ``"plan"``: the whole plan (up to ``attempts`` primitives, until the mental image shows the
-      toy in reach) is made in mind from the initial image, then performed for real.
-
-    Test success is always the real retrieval.
+    In the test (``training`` False) every attempt of a planning child starts from the real scene
+    (Fig. 7.6 "get visual input as x0"): the child chooses from what it sees (C1 + the C4 it learnt
+    in mind), imagines the outcome, performs the primitive and looks again; it stops once the toy
+    is really in reach. Test success is always the real retrieval.
 
     ``active_threshold``: Fig. 7.6 draws among the *active* PMC units: the acquired units whose
     PMC activity (C1 + C4) is above it (0: above the maps' resting level); a child with no active
@@ -77,7 +66,6 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     """
     if strategy not in ("reactive", "planning"):
         raise ValueError(f"strategy must be 'reactive' or 'planning', got {strategy!r}")
-    check_choice("planning_test", planning_test)
     units = torch.tensor([s.unit for s in skills])
     by_unit = {s.unit: s for s in skills}
     done_events: tuple[str, ...] = ()
@@ -86,7 +74,7 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
     if len(skills) == 0:
         return rec
     brain.train(training)
-    child = _Child(brain, outcomes, posture, acting=strategy == "reactive" or (not training and planning_test == "act"),
+    child = _Child(brain, outcomes, posture, acting=strategy == "reactive" or not training,
                    imagining=strategy == "planning", record_frames=record_frames)
     for _ in range(attempts):
         skill = _choose(brain, x0, units, by_unit, active_threshold, temperature, generator)
@@ -99,7 +87,7 @@ def sequence_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Ski
         x0 = x1
         if reward > 0:
             break
-    child.score(rec, done_events, training)
+    child.score(rec, done_events)
     brain.eval()
     return rec
 
@@ -120,7 +108,7 @@ def _choose(brain: ToolUseBrain, x0: torch.Tensor, units: torch.Tensor, by_unit:
 @dataclass
 class _Child:
     """How a child of a trial from ``posture`` moves: ``acting`` performs each primitive and looks
-    again, ``imagining`` imagines its outcome through C3 (both in a planning child's 'act' test)."""
+    again, ``imagining`` imagines its outcome through C3 (both in a planning child's test)."""
 
     brain: ToolUseBrain
     outcomes: Outcomes
@@ -152,7 +140,7 @@ class _Child:
                                "imagined": imagined, "reward": reward})
         return x1, reward
 
-    def score(self, rec: TrialRecord, done_events: tuple[str, ...], training: bool) -> None:
+    def score(self, rec: TrialRecord, done_events: tuple[str, ...]) -> None:
         """``rec.success``: whether the toy is really retrieved after the trial (and, for a child
         that only imagined, ``rec.imagined_success`` from its last mental image)."""
         if self.acting:
@@ -161,11 +149,6 @@ class _Child:
             rec.success = bool(done_events) and self.outcomes.after(self.posture, done_events).retrieved
             return
         rec.imagined_success = bool(rec.rewards and rec.rewards[-1] > 0)
-        # "plan" test: the plan is performed for real (prefixes are cached); stop once the toy is in reach
-        for n in range(1, 0 if training else len(rec.actions) + 1):
-            if self.outcomes.after(self.posture, tuple(rec.actions[:n])).retrieved:
-                rec.success = True
-                break
 
 
 def run_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Skill], posture: int, strategy: str,
@@ -174,5 +157,4 @@ def run_trial(brain: ToolUseBrain, outcomes: Outcomes, skills: Sequence[Skill], 
     """:func:`sequence_trial` with the settings of ``params`` (the test temperature in a test)."""
     return sequence_trial(brain, outcomes, skills, posture, strategy, training, params.attempts,
                           params.temperature if training else params.test_temperature, generator,
-                          record_frames=record_frames, planning_test=params.planning_test,
-                          active_threshold=params.active_threshold)
+                          record_frames=record_frames, active_threshold=params.active_threshold)
