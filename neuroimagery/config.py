@@ -137,7 +137,7 @@ def did_you_mean(key: str, experiment: str | None = None) -> str:
 def not_a_key(key: str, experiment: str | None = None) -> str:
     """The refusal of ``key``, which is no key of this release (a misspelt key, or one of a 0.x
     release, which moved or went): the closest key, the version, where earlier keys are listed."""
-    from .manifest import current_version
+    from .core.manifest import current_version
 
     if not key.startswith("experiment."):  # a top-level name (the experiments' keys are those that moved)
         return f"{key} is not a setting{did_you_mean(key, experiment)}"

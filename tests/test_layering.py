@@ -270,3 +270,24 @@ def test_the_model_internals_check_catches_each_pattern():
            "s = model.som.steps\n")                               # 10
     assert model_internals(src) == [(2, ".learn("), (3, ".c16["), (3, "part.fit("), (4, ".fm["), (5, ".weight"),
                                     (6, "part.fit_rows("), (10, ".som.steps")]
+
+
+def test_every_import_of_the_package_names_a_module_that_exists():
+    """A relative or absolute import of ``neuroimagery`` (those inside functions too) names a module
+    or package of the tree, or a name inside one: a module that moved leaves no import behind."""
+    known = _modules()
+    stale = []
+    for name, path in _sources().items():
+        for node in _import_statements(_parse(path).body):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            if node.level:
+                pkg = [] if path.parent == ROOT.parent else list(path.relative_to(ROOT).with_suffix("").parts[:-1])
+                target = ".".join(pkg[: len(pkg) - node.level + 1] + ([node.module] if node.module else []))
+            elif node.module == "neuroimagery" or (node.module or "").startswith("neuroimagery."):
+                target = node.module[len("neuroimagery"):].lstrip(".")
+            else:
+                continue
+            if target not in known:
+                stale.append(f"{name}:{node.lineno} imports from {target or 'neuroimagery'}")
+    assert stale == []
