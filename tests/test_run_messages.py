@@ -90,13 +90,13 @@ def test_a_run_or_checkpoint_of_another_version_says_which(tmp_path, capsys):
     manifest = json.loads((tmp_path / "tr" / "manifest.json").read_text())
     ck = tmp_path / "tr" / "checkpoints" / "model.pt"
     state = torch.load(ck, weights_only=True)
-    torch.save({**state, "manifest": {**state["manifest"], "package": "0.0.9"}}, ck)
+    torch.save({**state, "manifest": {**state["manifest"], "package": "1.9.9"}}, ck)
     rehash(tmp_path / "tr")  # as that version's run would have recorded it
     evaluate(cfg(f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev")
-    assert f"note: checkpoint {ck} was written by version 0.0.9 (this is {manifest['package']})" in capsys.readouterr().err
-    (tmp_path / "ev" / "manifest.json").write_text(json.dumps({**manifest, "package": "0.0.9"}))
+    assert f"note: checkpoint {ck} was written by version 1.9.9 (this is {manifest['package']})" in capsys.readouterr().err
+    (tmp_path / "ev" / "manifest.json").write_text(json.dumps({**manifest, "package": "1.9.9"}))
     evaluate(cfg(f"checkpoint={tmp_path / 'tr'}"), out_dir=tmp_path / "ev")
-    assert f"note: {tmp_path / 'ev'} holds a run of version 0.0.9" in capsys.readouterr().err
+    assert f"note: {tmp_path / 'ev'} holds a run of version 1.9.9" in capsys.readouterr().err
     torch.save({k: v for k, v in state.items() if k != "manifest"}, ck)  # as version 0.1.0 wrote it
     rehash(tmp_path / "tr")
     with pytest.raises(SystemExit):

@@ -138,7 +138,9 @@ def test_the_lock_is_held_while_the_run_works(tmp_path, monkeypatch):
     assert not (tmp_path / "r" / "run.lock").exists()
 
 
-def test_a_run_written_before_the_state_is_pooled_with_one_note(runs, tmp_path, capsys):
+def test_a_run_written_before_the_state_is_refused_with_its_rerun_command(runs, tmp_path, capsys):
+    """A manifest without ``state`` (runs of 0.x before runs recorded it) is not pooled: one line
+    with the command that runs it again."""
     import shutil
 
     d = tmp_path / "old"
@@ -147,14 +149,8 @@ def test_a_run_written_before_the_state_is_pooled_with_one_note(runs, tmp_path, 
     for k in ("state", "trained", "files"):
         m.pop(k)
     (d / "manifest.json").write_text(json.dumps(m))
-    summary, _, _ = pool.pool([runs / "s0", d])
-    err = capsys.readouterr().err
-    notes = [ln for ln in err.splitlines() if ln.startswith("note: ")]
-    assert len(notes) == 1 and "written before runs recorded their state" in notes[0], err
-    assert summary["participants"] == 4
-    (d / "manifest.json").write_text(json.dumps({**m, "participants": 3}))  # rows of another run
     line = _refused(capsys, _pool, runs / "s0", d)
-    assert "manifest.json states 3 participants, its rows hold 2" in line
+    assert "written before runs recorded their state" in line and "python evaluate.py experiment=demo seed=1" in line
 
 
 def test_a_file_changed_after_the_run_finished_is_refused(runs, tmp_path, capsys):

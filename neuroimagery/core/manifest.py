@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-from importlib import metadata
 from typing import Any, Mapping
 
 import torch
@@ -27,13 +26,6 @@ FORMAT = 1
 NEUTRAL = ("checkpoint", "progress", "threads", "overwrite", "allow_large", "logger")
 # top-level keys that only the tests read: the stimuli a trained model is tested on
 TEST_ONLY = ("stimuli",)
-
-
-def package_version() -> str:
-    try:
-        return metadata.version("neuroimagery")
-    except metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree
-        return "unknown"
 
 
 def flatten(obj: Any, prefix: str = "") -> dict[str, Any]:
@@ -63,7 +55,7 @@ def build(conf, module) -> dict:
     settings = {k: v for k, v in flatten(conf).items()
                 if k.split(".")[0] not in NEUTRAL and k not in runtime}
     training = {k: v for k, v in settings.items() if k not in test and k.split(".")[0] not in TEST_ONLY}
-    return {"format": FORMAT, "package": package_version(), "experiment": conf.experiment.name,
+    return {"format": FORMAT, "package": current_version(), "experiment": conf.experiment.name,
             "seed": conf.seed, "participants": conf.participants, "settings": settings, "training": training}
 
 
