@@ -113,6 +113,25 @@ def reachable(cfg: WorldConfig, draws: int = TABLE_DRAWS, seed: int = TABLE_SEED
     return q[keep], x[keep]
 
 
+def nearest(x: np.ndarray, vals, region: np.ndarray) -> tuple[int, float] | None:
+    """The row of ``x`` (M, 4: two lengths, two angles) nearest to ``vals`` among those where
+    ``region`` (M,) is true, in the metric 1 cm = 5 degrees, and its distance in those units; None
+    when the region holds no row."""
+    region = np.asarray(region, dtype=bool)
+    if len(region) != len(x):
+        raise ValueError(f"place: region has {len(region)} rows, the table {len(x)}")
+    if not region.any():
+        return None
+    vals = np.asarray(vals, dtype=np.float64)
+    if not np.isfinite(vals).all():
+        raise ValueError(f"place: target and heading must be finite numbers, got {vals.tolist()}")
+    d = np.sqrt(((x[:, :2] - vals[:2]) ** 2).sum(axis=1) / XY_UNIT ** 2
+                + ((x[:, 2:] - vals[2:]) ** 2).sum(axis=1) / HEADING_UNIT ** 2)
+    d = np.where(region, d, np.inf)
+    i = int(np.argmin(d))
+    return i, float(d[i])
+
+
 def place(table: tuple[np.ndarray, np.ndarray], target_xy, yaw: float, pitch: float, region: np.ndarray):
     """The sampled plate-centre ``target_xy`` and heading (``yaw``, ``pitch``, degrees) mapped into
     the reachable set: the nearest row of ``table`` among those where ``region`` (M,) is true, in
@@ -120,18 +139,11 @@ def place(table: tuple[np.ndarray, np.ndarray], target_xy, yaw: float, pitch: fl
     farther is moved onto that row. Returns (xy, yaw, pitch, joint vector of the row, distance in
     units), or None when the region holds no row."""
     q, x = table
-    region = np.asarray(region, dtype=bool)
-    if len(region) != len(x):
-        raise ValueError(f"place: region has {len(region)} rows, the table {len(x)}")
-    if not region.any():
-        return None
     vals = np.array([*target_xy, yaw, pitch], dtype=np.float64)
-    if not np.isfinite(vals).all():
-        raise ValueError(f"place: target and heading must be finite numbers, got {vals.tolist()}")
-    d = np.sqrt(((x[:, :2] - vals[:2]) ** 2).sum(axis=1) / XY_UNIT ** 2
-                + ((x[:, 2:] - vals[2:]) ** 2).sum(axis=1) / HEADING_UNIT ** 2)
-    d = np.where(region, d, np.inf)
-    i = int(np.argmin(d))
-    if d[i] <= 1.0:
-        return (float(vals[0]), float(vals[1])), float(yaw), float(pitch), q[i].copy(), float(d[i])
-    return (float(x[i, 0]), float(x[i, 1])), float(x[i, 2]), float(x[i, 3]), q[i].copy(), float(d[i])
+    found = nearest(x, vals, region)
+    if found is None:
+        return None
+    i, d = found
+    if d <= 1.0:
+        return (float(vals[0]), float(vals[1])), float(yaw), float(pitch), q[i].copy(), d
+    return (float(x[i, 0]), float(x[i, 1])), float(x[i, 2]), float(x[i, 3]), q[i].copy(), d

@@ -28,7 +28,7 @@ from ...core.arguments import ToolParser, check, check_size, count, path, run_re
 from .candidate import SEED0, candidate_key, measure, rank_key
 
 STUDY = "exp5-world"
-SAMPLING = "reachable"  # the postures' sampling (docs/world_calibration.md, second amendment)
+SAMPLING = "posture-1-first"  # the postures' sampling (docs/world_calibration.md, third amendment)
 STAGES = ("screen", "baseline", "confirm", "confirm-baseline", "report")
 PULL_LIKE_MIN, BEHIND_MAX = 0.01, 0.15  # stage 1's pull-path thresholds (docs/world_calibration.md)
 
@@ -75,8 +75,9 @@ def open_study(storage: Path, sizes: dict, sampler_seed: int, check_sampling: bo
         study.set_user_attr("sampling", SAMPLING)
         study.enqueue_trial({k: v for k, v in PRESENT.items() if k != "grip_pivot_deg"})  # the first trial
     elif check_sampling and study.user_attrs.get("sampling") != SAMPLING:
-        raise UserInputError(f"--storage {storage} was searched with the postures sampled without the reachability "
-                             "table (before the second amendment): its trials are another search; use a new journal")
+        raise UserInputError(f"--storage {storage} was searched with another sampling of the postures "
+                             f"({study.user_attrs.get('sampling')}, not {SAMPLING}): its trials are another search; "
+                             "use a new journal")
     elif kept != sizes:
         raise UserInputError(f"--storage {storage} was screened with {kept}, not {sizes}: "
                              "use its sizes or another journal")
