@@ -1,4 +1,4 @@
-"""The Exp 5 world's calibration search (``experiments.exp5_calibrate``, docs/world_calibration.md):
+"""The Exp 5 world's calibration search (``experiments.exp5.calibrate``, docs/world_calibration.md):
 a tiny search in a journal, resumed from it, an interrupted trial retried, and bad input."""
 from __future__ import annotations
 

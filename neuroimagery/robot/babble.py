@@ -102,7 +102,7 @@ def _piece(posture: int, n: int, seed: int, cfg: MovementConfig, config: WorldCo
     return kept_json(out / COUNTS_DIR / f"posture{posture}_seed{seed}.json", settings, compute)
 
 
-kept_counts = _piece  # the public name (exp5_calibrate's candidates)
+kept_counts = _piece  # the public name (exp5.calibrate's candidates)
 
 
 def measure(n_rollouts: int, seeds: int = 3, cfg: MovementConfig | None = None, world: ToolWorld | None = None,

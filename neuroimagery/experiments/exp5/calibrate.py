@@ -11,7 +11,7 @@ folder (``--work``, default ``FILE.d``), so a stopped trial is retried from wher
 
 Stages: ``screen`` runs ``--trials`` trials: stage 1 rejects a candidate by forward kinematics
 (``robot.world_candidate``, ``robot.pull_paths``), stage 2 screens the others (W1-W4 at screening
-size, ``exp5_candidate``); ``baseline`` screens the present world the same way; ``confirm``
+size, ``exp5.candidate``); ``baseline`` screens the present world the same way; ``confirm``
 measures the ``--confirm`` best screened candidates at acceptance size on the calibration seeds
 (``confirm-baseline`` the present world); ``report`` prints the history, the front and the budget.
 HP1 and HP2 are never run.

@@ -1,4 +1,4 @@
-"""The calibration's history as markdown (``exp5_calibrate --stage report``): the candidates
+"""The calibration's history as markdown (``exp5.calibrate --stage report``): the candidates
 rejected, screened and confirmed, the CPU-seconds spent, the front of W3 against W4 and the
 Table 7.1 cells, the best by the rule of docs/world_calibration.md, beside the present world."""
 from __future__ import annotations

@@ -64,7 +64,7 @@ def _kept_library(out: Path, seed: int, i: int, table_contact: str) -> dict:
 def one_library(seed: int, i: int, table_contact: str = "lift", world_config=None, env_kwargs: dict | None = None) -> dict:
     """Library ``i`` of ``seed`` and its W2-W4 measures, in the world of ``WorldParams`` with the
     table rule ``table_contact``, or in ``world_config`` (a ``WorldConfig``) with the environment's
-    ``env_kwargs`` updated (a candidate world of ``exp5_calibrate``)."""
+    ``env_kwargs`` updated (a candidate world of ``exp5.calibrate``)."""
     import torch
 
     from ...models.tool_use import AcquisitionParams, Outcomes, acquire_skills
