@@ -304,9 +304,8 @@ def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path):
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     """checkpoint=DIR tests the loaded model's participants; another `participants` is refused by name."""
     from neuroimagery.core import manifest as mf
-    from neuroimagery.config import validate
+    from neuroimagery.config import experiment, validate
     from neuroimagery.core.errors import UserInputError
-    from neuroimagery.experiments.exp2 import protocol as exp2
     from neuroimagery.app.run import RunDir, evaluate
 
     small = ("experiment.som.iterations=30", "experiment.hebb_steps=60", "experiment.c5_epochs=1", "logger=none")
@@ -315,7 +314,7 @@ def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     m = MotorRotationModel(e, 1, 0)
     m.fit({(o, a): (torch.rand(1024, generator=g) > 0.8).float() for o in (0, 1) for a in ANGLES})
     conf = validate(_cfg("participants=1", *small))
-    tr = RunDir(tmp_path / "tr", conf, manifest=mf.build(conf, exp2))
+    tr = RunDir(tmp_path / "tr", conf, manifest=mf.build(conf, experiment("exp2")))
     tr.save_checkpoint("model", m.compact_state())
     tr.close()  # a finished training run: complete, its lock released
     with pytest.raises(UserInputError, match="participants 1 \\(stored\\) vs 3"):

@@ -42,10 +42,10 @@ def as_run_of(d: Path, cfg, keys=()) -> None:
     """Make ``d`` a run directory of ``cfg`` (its manifest, and an index of ``keys`` when given), as a
     run that was stopped or finished would have left it."""
     from neuroimagery.core import manifest as mf
-    from neuroimagery.config import validate
+    from neuroimagery.config import experiment, validate
 
     conf = validate(cfg)
-    rd = R.RunDir(d, conf, manifest=mf.build(conf, exp5))
+    rd = R.RunDir(d, conf, manifest=mf.build(conf, experiment("exp5")))
     if keys:
         rd.save_checkpoint("exp5_index", {"keys": list(keys), "seed": conf.seed})
     rd.close(ok=bool(keys), stopped="stopped")  # finished (with its index) or stopped; the lock released
