@@ -3,14 +3,13 @@
 contract tests' same pairs (training objects and 4 held-out chains, 0-180 deg, picture plane and
 depth). Prints, per set and kind:
 
-* the fraction of estimates within half a step of the true alignment, with the default search, with
-  the option ``search.starts=[20,40]`` (and its CPU seconds per pair beside the default's), and with
-  the true whole volumes in place of the completed images (both searches);
+* the fraction of estimates within half a step of the true alignment (and the search's CPU seconds
+  per pair), and with the true whole volumes in place of the completed images;
 * the comparison's own bound: the fraction within half a step when the search's estimate competes
   with the true alignment refined by the same comparison (no search on this comparison can do better);
 * for each miss of the default search: the angle, the estimate's error, and whether the model's own
   coarse comparison scores the true alignment higher than the estimate (a search failure) or not
-  (the images do not favour the truth); the same count for the misses left with the option.
+  (the images do not favour the truth).
 
     python benchmarks/exp6_search_precision.py [seed]
 """
@@ -27,9 +26,6 @@ from neuroimagery.experiments.exp6 import data as data
 from neuroimagery.models import voxel_code as vc
 from neuroimagery.vision import shepard_metzler as sm
 
-STARTS = [20.0, 40.0]
-
-
 def truth(kind: str, angle: float) -> torch.Tensor:
     return torch.from_numpy(sm.rotation_matrix(sm.KIND_AXIS[kind], angle)).T
 
@@ -39,10 +35,10 @@ def whole_pairs(model, e, scene, cells_list, kind):
     t, c, T = [], [], []
     for cells in cells_list:
         x = sm.centred(cells)
-        _, w0 = data.view(scene, e, model.side, model.cube_voxels, x, sm.pose(None, 0.0, e.view_tilt_deg, e.view_turn_deg),
+        _, w0 = data.view(scene, e, model.side, model.cube_voxels, x, sm.pose(None, 0.0, e.view.tilt_deg, e.view.turn_deg),
                           whole=True)
         for a in e.test_angles:
-            _, w1 = data.view(scene, e, model.side, model.cube_voxels, x, sm.pose(kind, a, e.view_tilt_deg, e.view_turn_deg),
+            _, w1 = data.view(scene, e, model.side, model.cube_voxels, x, sm.pose(kind, a, e.view.tilt_deg, e.view.turn_deg),
                               whole=True)
             t.append(w0)
             c.append(w1)
@@ -51,8 +47,7 @@ def whole_pairs(model, e, scene, cells_list, kind):
     return code(t), code(c), torch.stack(T)
 
 
-def search(model, t, c, starts):
-    model.p.search.starts = starts
+def search(model, t, c):
     c0 = time.process_time()
     R, _ = model.search(t, c, torch.zeros(t.shape[0], dtype=torch.long))
     return R, (time.process_time() - c0) / t.shape[0]
@@ -75,16 +70,12 @@ def main(seed: int = 0) -> None:
         for kind in sm.KINDS:
             rows = [i for i, k in enumerate(a["kind"]) if k == kind and bool(a["same"][i])]
             t, c, T = a["res"]["target"][rows], a["comp"][rows], a["truth"][rows]
-            R0, s0 = search(model, t, c, [])
-            R1, s1 = search(model, t, c, STARTS)
+            R0, s0 = search(model, t, c)
             wt, wc, wT = whole_pairs(model, e, scene, sets[label], kind)
-            W0, _ = search(model, wt, wc, [])
-            W1, _ = search(model, wt, wc, STARTS)
-            model.p.search.starts = []
-            ok = [exp6_stages.angle_between(R, X) <= half for R, X in ((R0, T), (R1, T), (W0, wT), (W1, wT))]
-            print(f"{label} {kind}: within half a step: default {ok[0].double().mean():.3f}, starts {ok[1].double().mean():.3f} "
-                  f"(CPU {s0:.3f} / {s1:.3f} s per pair); whole volumes: default {ok[2].double().mean():.3f}, "
-                  f"starts {ok[3].double().mean():.3f}")
+            W0, _ = search(model, wt, wc)
+            ok = [exp6_stages.angle_between(R, X) <= half for R, X in ((R0, T), (W0, wT))]
+            print(f"{label} {kind}: within half a step: {ok[0].double().mean():.3f} (CPU {s0:.3f} s per pair); "
+                  f"whole volumes: {ok[1].double().mean():.3f}")
             # the comparison's own bound: also refined from the true alignment, whichever scores higher wins
             sT, s0r = model.coarse_match(t, c, T), model.coarse_match(t, c, R0)
             RT, sT = model.refine(t, c, T, sT)
@@ -92,15 +83,14 @@ def main(seed: int = 0) -> None:
             bound = (exp6_stages.angle_between(RB, T) <= half).double().mean()
             print(f"  the comparison's own bound (also refined from the true alignment): {bound:.3f}")
             angle = vc.axis_angle(T)[1]
-            for name, R, good in (("default", R0, ok[0]), ("starts", R1, ok[1])):
-                miss = (~good).nonzero().squeeze(-1)
-                if not miss.numel():
-                    continue
-                higher = model.coarse_match(t[miss], c[miss], T[miss]) > model.coarse_match(t[miss], c[miss], R[miss])
-                err = exp6_stages.angle_between(R[miss], T[miss])
-                print(f"  {name}: {int(higher.sum())} of {miss.numel()} misses score the truth higher (search failures); "
-                      "angle / error / search failure: "
-                      + ", ".join(f"{angle[i]:.0f}/{x:.0f}/{'y' if h else 'n'}" for i, x, h in zip(miss.tolist(), err, higher)))
+            miss = (~ok[0]).nonzero().squeeze(-1)
+            if not miss.numel():
+                continue
+            higher = model.coarse_match(t[miss], c[miss], T[miss]) > model.coarse_match(t[miss], c[miss], R0[miss])
+            err = exp6_stages.angle_between(R0[miss], T[miss])
+            print(f"  {int(higher.sum())} of {miss.numel()} misses score the truth higher (search failures); "
+                  "angle / error / search failure: "
+                  + ", ".join(f"{angle[i]:.0f}/{x:.0f}/{'y' if h else 'n'}" for i, x, h in zip(miss.tolist(), err, higher)))
 
 
 if __name__ == "__main__":

@@ -49,8 +49,8 @@ def user_set(conf) -> dict[str, Any]:
 
 def settings_named(conf, keys) -> str:
     """``key=value`` of every setting in ``keys`` (full paths) that a check derived from them
-    depends on, those the user set first: ``experiment.fov_deg=170 (set here), with
-    experiment.object_distance=0.5, ...`` (a refusal names all it depends on, the one changed first)."""
+    depends on, those the user set first: ``experiment.view.fov_deg=170 (set here), with
+    experiment.view.object_distance=0.5, ...`` (a refusal names all it depends on, the one changed first)."""
     values, changed = flatten(conf), user_set(conf)
 
     def show(k):

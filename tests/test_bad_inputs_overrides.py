@@ -58,10 +58,10 @@ def test_a_sweep_and_a_plain_value_pass(capsys, hydra_reporter):
 
 
 VIEW = [  # Exp 6: the check of the objects' size in the eye's image depends on five settings
-    (["experiment.fov_deg=179"], "experiment.fov_deg=179 (set here), with experiment.image_height=240, "
-     "experiment.object_distance=0.5, experiment.cube_edge=0.025: one cube covers"),
-    (["experiment.fov_deg=1"], "experiment.fov_deg=1 (set here), with experiment.image_width=320"),
-    (["experiment.cube_edge=0.1"], "experiment.cube_edge=0.1 (set here), with experiment.fov_deg=30"),
+    (["experiment.view.fov_deg=179"], "experiment.view.fov_deg=179 (set here), with experiment.view.image_height=240, "
+     "experiment.view.object_distance=0.5, experiment.view.cube_edge=0.025: one cube covers"),
+    (["experiment.view.fov_deg=1"], "experiment.view.fov_deg=1 (set here), with experiment.view.image_width=320"),
+    (["experiment.view.cube_edge=0.1"], "experiment.view.cube_edge=0.1 (set here), with experiment.view.fov_deg=30"),
 ]
 
 

@@ -27,14 +27,14 @@ SETTING_CASES = [
     (["experiment=exp5", "experiment.hp2_ages=[-5,14,16,18,20,22]"], "experiment.hp2_ages[0] must be >= 0"),
     (["experiment=exp5", "experiment.hp1_ages=[14,16,-18,20,22]"], "experiment.hp1_ages[2]"),
     (["experiment=exp5", "experiment.hp2_trials=[0,2,4,6,8,-10]"], "experiment.hp2_trials[5]"),
-    (["experiment=exp6", "participants=1", "experiment.red_threshold=300"], "experiment.red_threshold=300"),
-    (["experiment=exp6", "participants=1", "experiment.red_threshold=250"], "no pixel of the object is that red"),
-    (["experiment=exp6", "participants=1", "experiment.red_threshold=0"], "experiment.red_threshold"),
-    (["experiment=exp6", "participants=1", "experiment.object_distance=100"], "depth range"),
-    (["experiment=exp6", "participants=1", "experiment.object_distance=0.06"], "experiment.object_distance=0.06"),
-    (["experiment=exp6", "participants=1", "experiment.object_distance=0.5", "experiment.cube_edge=0.1"],
+    (["experiment=exp6", "participants=1", "experiment.view.red_threshold=300"], "experiment.view.red_threshold=300"),
+    (["experiment=exp6", "participants=1", "experiment.view.red_threshold=250"], "no pixel of the object is that red"),
+    (["experiment=exp6", "participants=1", "experiment.view.red_threshold=0"], "experiment.view.red_threshold"),
+    (["experiment=exp6", "participants=1", "experiment.view.object_distance=100"], "depth range"),
+    (["experiment=exp6", "participants=1", "experiment.view.object_distance=0.06"], "experiment.view.object_distance=0.06"),
+    (["experiment=exp6", "participants=1", "experiment.view.object_distance=0.5", "experiment.view.cube_edge=0.1"],
      "field of view"),
-    (["experiment=exp6", "participants=1", "experiment.object_distance=2.5", "experiment.cube_edge=0.0001"],
+    (["experiment=exp6", "participants=1", "experiment.view.object_distance=2.5", "experiment.view.cube_edge=0.0001"],
      "pixel"),
     (["experiment=exp6", "participants=1", "experiment.cube_voxels=1000"], "experiment.cube_voxels=1000"),
     (["experiment=exp6", "participants=1", "experiment.cube_voxels=2.5"], "scale rule"),
@@ -67,8 +67,8 @@ def test_reuse_libraries_must_name_a_run_of_exp5(tmp_path, capsys, no_training, 
 
 @pytest.mark.slow  # the generator tries its 100000 candidates first: about 4 s on an idle machine
 def test_the_objects_the_generator_cannot_find_are_refused_before_training(tmp_path, capsys, no_training):
-    refused(capsys, evaluating(tmp_path / "run", "experiment=exp6", "participants=1", "experiment.test_objects=20"),
-            "experiment.test_objects")
+    refused(capsys, evaluating(tmp_path / "run", "experiment=exp6", "participants=1", "experiment.objects.test=20"),
+            "experiment.objects.test")
 
 
 MESSAGE_CASES = [  # keys: misspelt, of a 0.x release, or an experiment's own key with a bad value
@@ -80,7 +80,7 @@ MESSAGE_CASES = [  # keys: misspelt, of a 0.x release, or an experiment's own ke
     (["experiment=exp3", "experiment.fm.imges=3"], "did you mean experiment.fm.images?", None),
     (["experiment=exp4", "participans=3"], "did you mean participants?", None),
     (["experiment=exp5", "experiment.brain.etta=0.1"], "did you mean experiment.brain.eta?", None),
-    (["experiment=exp6", "experiment.red_treshold=50"], "did you mean experiment.red_threshold?", None),
+    (["experiment=exp6", "experiment.view.red_treshold=50"], "did you mean experiment.view.red_threshold?", None),
     (["experiment=exp4", "experiment.posture_iterations=5"], "did you mean experiment.posture.iterations?", None),
     (["experiment=exp5", "experiment.c3_eta=5"], "(did you mean experiment.brain.c3_eta?); keys of 0.x releases: "
                                                  "CHANGELOG.md", None),

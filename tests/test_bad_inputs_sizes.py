@@ -32,7 +32,7 @@ SIZE_CASES = [  # the cases of the issue, then their neighbours
     (["experiment=exp4", "preset=quick", "participants=10000000"], "participants=10000000"),
     (["experiment=exp3", "participants=100000"], "participants=100000"),
     (["experiment=exp6", "preset=quick", "participants=1", "experiment.grid=400"], "experiment.grid=400"),
-    (["experiment=exp6", "participants=1", "experiment.test_objects=10000000"], "experiment.test_objects=10000000"),
+    (["experiment=exp6", "participants=1", "experiment.objects.test=10000000"], "experiment.objects.test=10000000"),
     (["experiment=exp6", "preset=quick", "participants=1", "experiment.quick.chains=1000000000"],
      "experiment.quick.chains=1000000000"),
     (["experiment=exp6", "participants=1", "experiment.fm.memory_mb=100000"], "experiment.fm.memory_mb=100000"),

@@ -28,7 +28,7 @@ def test_quick_trains_as_the_full_protocol(exp):
     full = mf.flatten(validate(make_cfg(f"experiment={exp}")))
     quick = mf.as_used(mf.flatten(validate(make_cfg(f"experiment={exp}", "preset=quick"))), exp)
     differ = {k for k in full if not k.startswith("experiment.quick.") and quick.get(k) != full[k]}
-    assert differ <= {"preset", "participants", "experiment.test_objects"}, differ
+    assert differ <= {"preset", "participants", "experiment.objects.test"}, differ
     if exp in ("exp1", "exp2"):  # the experiments' own code: the SOM steps they train
         from neuroimagery.experiments.exp1 import protocol as exp1
         from neuroimagery.experiments.exp2 import protocol as exp2
@@ -41,7 +41,7 @@ def test_quick_trains_as_the_full_protocol(exp):
 
 
 TINY6 = ("experiment.grid=10", "experiment.quick.fm_images=16",
-         "experiment.quick.chains=8", "experiment.quick.objects=1", "experiment.train_objects=1",
+         "experiment.quick.chains=8", "experiment.quick.objects=1", "experiment.objects.train=1",
          "experiment.test_angles=[0,60,120,180]", "experiment.step_deg=30", "experiment.search.iterations=20")
 
 

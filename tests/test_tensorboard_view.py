@@ -40,7 +40,7 @@ _SMALL = {
              "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2",
              "experiment.acquisition.explore_max_rollouts=120", "experiment.hp2_trials=[0,2]", "experiment.hp2_ages=[14,16]"),
     "exp6": ("participants=1", "experiment.grid=10", "experiment.quick.fm_images=16", "experiment.quick.chains=8",
-             "experiment.quick.objects=1", "experiment.train_objects=1", "experiment.test_angles=[0,60,120,180]",
+             "experiment.quick.objects=1", "experiment.objects.train=1", "experiment.test_angles=[0,60,120,180]",
              "experiment.step_deg=30", "experiment.search.iterations=20"),
     "demo": ("participants=2",),
 }

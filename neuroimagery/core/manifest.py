@@ -298,8 +298,9 @@ QUICK_VALUES = {
     "exp5": {"experiment.repetitions": lambda s: s["experiment.quick.repetitions"]},
     "exp6": {"experiment.fm.images": lambda s: s["experiment.quick.fm_images"],
              "experiment.image.chains": lambda s: s["experiment.quick.chains"],
-             "experiment.test_objects": lambda s: (min(s["experiment.test_objects"], s["experiment.quick.objects"])
-                                                   if s.get("experiment.test_cubes") is None else s["experiment.test_objects"])},
+             "experiment.objects.test": lambda s: (min(s["experiment.objects.test"], s["experiment.quick.objects"])
+                                                   if s.get("experiment.objects.test_cubes") is None
+                                                   else s["experiment.objects.test"])},
 }
 
 

@@ -1,6 +1,6 @@
 """The fixed layout of the Experiment 6 network (:mod:`neuroimagery.models.rotation_3d`): the camera
 axes and PMCm's move units, the forward models' receptive radius and the grid their memory budget
-allows, the completion map's receptive field, the hard-wired C20 weights, and the correspondence
+allows, the completion map's receptive field, and the correspondence
 that matched principal axes and one sign combination give. No learning here."""
 from __future__ import annotations
 
@@ -49,22 +49,6 @@ def fill_offsets(depth: int, lateral: int = 1) -> torch.Tensor:
     sight (dz = -1 .. depth toward the eye) and their lateral neighbours up to ``lateral`` voxels."""
     r = torch.arange(-lateral, lateral + 1)
     return torch.tensor([(dz, dy, dx) for dz in range(-1, depth + 1) for dy in r.tolist() for dx in r.tolist()])
-
-
-def c20_weights(units: int, axes: int = len(AXES)) -> torch.Tensor:
-    """Hard-wired PPCc -> PMCm weights ``(1 + 2 axes, axes * units^2)``: per axis the upper triangle
-    (done so far larger than required; rows = PPCt, columns = PPCp) to that axis's -step unit, the
-    lower triangle to +step, each diagonal with weight 1/axes to "still"."""
-    r = torch.arange(units).view(units, 1).expand(units, units)
-    c = torch.arange(units).view(1, units).expand(units, units)
-    upper, lower, diag = (r < c).float().reshape(-1), (r > c).float().reshape(-1), (r == c).float().reshape(-1)
-    W = torch.zeros(1 + 2 * axes, axes * units * units)
-    for a in range(axes):
-        sl = slice(a * units * units, (a + 1) * units * units)
-        W[0, sl] = diag / axes
-        W[1 + 2 * a, sl] = upper
-        W[2 + 2 * a, sl] = lower
-    return W
 
 
 def matched_axes(Et: torch.Tensor, Ec: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:

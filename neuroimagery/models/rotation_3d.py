@@ -12,15 +12,10 @@ Stages (docs/exp6.md):
 3. **Search** -- the rotation still required is estimated from a correspondence between the two
    images: each image's principal axes, learnt by Sanger's rule in a fast 3x3 connection (C_axes),
    are matched, each proper sign combination is refined locally by a coarse comparison of the two
-   images, and the best is chosen (``search.method='axes'``; ``'sweep'``: the best of turns about
-   the camera axes; ``search.starts``: more starting points, :mod:`.search_starts`). PPCt holds
-   the estimate; PPCp the net turn, composed from each step's
-   efference copy. Each move unit is driven by how close to identity the remaining rotation
+   images, and the best is chosen. PPCt holds the estimate; PPCp the net turn, composed from each
+   step's efference copy. Each move unit is driven by how close to identity the remaining rotation
    (PPCt composed with the inverse of PPCp) would be after its move; the most active wins and
-   "still" ends the transform (``move_rule='composed'``). ``move_rule='axis_sums'`` keeps Exp 4's
-   per-axis codes: rotation vectors, one population per camera axis, a gain field PPCt x PPCp per
-   axis and the hard-wired C20 (eq. 6.9-6.11). The wrist signal of the proprioception conditions
-   joins PPCp_z.
+   "still" ends the transform. The wrist signal of the proprioception conditions joins PPCp_z.
 4. **Confirm** -- once the transform stops, PMCd (leaky competing accumulator, eq. 6.12-6.13)
    takes YES evidence from the cosine of the turned image with the target and NO evidence from
    the largest cluster of mismatching voxels, in cubes; the cut between the two is fixed on the
@@ -37,16 +32,15 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from ..nn import Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, Sanger
+from ..nn import Delta, LeakyCompetingAccumulator, PopulationMap, Sanger
 from ..nn.connections import Connection
 from ..nn.decision import full_match_gain
-from ..nn.functional import gain_field, softmax_select
 from ..nn.local import LocalConnection
 from . import voxel_code as vc
-from .layout_3d import AXES, MOVES, SIGNS, WRIST_AXIS, c20_weights, fill_offsets, fm_bytes, grid_for_budget, matched_axes, move_angles, receptive_radius
+from .layout_3d import (AXES, MOVES, SIGNS, WRIST_AXIS, fill_offsets, fm_bytes,  # noqa: F401 (re-exported)
+                        grid_for_budget, matched_axes, move_angles, receptive_radius)
 from .recording import sample_indices
 from .rotation_embodied import check_proprioception
-from .search_starts import multi_start
 
 MATCH_CHUNK = 8  # rows of the coarse comparison formed together (speed only)
 COARSE_UNITS = 128  # blocks of a coarse image the search compares (the most active ones)
@@ -76,7 +70,6 @@ class Rotation3D(nn.Module):
                                                        for g in generators]))
         nu = int(round(360.0 / p.step_deg)) + 1  # units every step from -180 to 180 deg
         self.ppc = PopulationMap("PPC", (nu,), -180.0, 180.0, sigma=p.ppc.sigma * 360.0 / (nu - 1))
-        self.c20 = HardWired(c20_weights(nu), name="C20")
         self.pmcd = LeakyCompetingAccumulator(2, k=p.lca.k, w=p.lca.w, threshold=p.lca.threshold, dt=p.lca.dt)
         P = len(generators)
         self.register_buffer("cut", torch.full((P,), float("nan")))  # cubes: the mismatch cluster's cut (fit_confirm)
@@ -222,15 +215,10 @@ class Rotation3D(nn.Module):
         """The rotation still required ``(R, 3, 3)`` (turns the comparison image onto the target)
         and whether the best correspondence was proper (a rotation) or improper (a reflection).
         Each sign combination of the matched principal axes is refined locally (:meth:`refine`)
-        before the best is chosen (``search.starts``: also from turns of each,
-        :func:`~neuroimagery.models.search_starts.multi_start`)."""
-        if self.p.search.method == "sweep":
-            return self._sweep(target, comp), torch.ones(target.shape[0], dtype=torch.bool)
+        before the best is chosen."""
         E = self.principal_axes(torch.cat([target, comp]), torch.cat([part, part]))  # both images' rows at once
         Et, Ec = E[:target.shape[0]], E[target.shape[0]:]
         ct, cc = self.coarse_code(target), self.coarse_code(comp)
-        if self.p.search.starts and self.p.search.refine:
-            return multi_start(self, Et, Ec, ct, cc, proper)
         cands, dets, scores = [], [], []
         for s in SIGNS:
             R = matched_axes(Et, Ec, s)
@@ -251,17 +239,6 @@ class Rotation3D(nn.Module):
         Rb = torch.stack(cands, 1)[torch.arange(target.shape[0]), best]
         return Rb, det[torch.arange(target.shape[0]), best] > 0
 
-    def _sweep(self, target: torch.Tensor, comp: torch.Tensor) -> torch.Tensor:
-        """The option ``search.method='sweep'``: the best of the turns about each camera axis by each
-        multiple of the step (coarse comparison)."""
-        cands = [torch.eye(3, dtype=torch.float64)]
-        k = int(round(360.0 / self.p.step_deg))
-        for a in AXES:
-            cands += [vc.axis_rotation(a, j * self.p.step_deg) for j in range(1, k)]
-        R = torch.stack(cands)
-        scores = torch.stack([self.coarse_match(target, comp, r.expand(target.shape[0], 3, 3)) for r in R], -1)
-        return R[scores.argmax(-1)]
-
     def ppc_code(self, vec: torch.Tensor, proprioception: str = "none", wrist: torch.Tensor | None = None) -> torch.Tensor:
         """Population codes ``(R, 3, nu)`` of rotation vectors ``(R, 3)`` (deg per camera axis), plus
         the wrist signal on the line-of-sight axis: ``match`` a bump on the wrist's relative
@@ -277,36 +254,13 @@ class Rotation3D(nn.Module):
         code[:, a] = (code[:, a] + self.p.ppc.proprio_gain * bump).clamp(0.0, 1.0)
         return code
 
-    def select(self, ppct: torch.Tensor, ppcp: torch.Tensor, uniforms: torch.Tensor) -> torch.Tensor:
-        """PMCm move per row from the per-axis gain fields (eq. 6.9-6.11)."""
-        R, A, nu = ppct.shape
-        ppcc = torch.stack([gain_field(ppct[:, a], ppcp[:, a]) for a in range(A)], 1)
-        am = self.c20(ppcc.reshape(R, A * nu * nu))
-        return softmax_select(am, self.p.selection.tau, uniforms=uniforms)
-
     # ------------------------------------------------------------------ stage 4: confirm
     def mismatch(self, turned: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(match: cosine of the turned image with the target, largest mismatch cluster in cubes).
-        ``confirm.measure='opened'``: a voxel mismatches when one image is above ``confirm.level``
-        there and the other is not; only voxels of fully mismatched blocks of
-        ``max(2, round(cube_voxels))`` voxels a side are kept (an opening: the thin shell that blur and
-        misalignment leave is no missing part), and the largest 26-connected cluster is counted in
-        cubes. ``'pooled'``: the signed difference (target minus turned image) pooled at one cube's
-        scale (:func:`~neuroimagery.models.voxel_code.cube_pooled`, ``confirm.pool`` cube edges);
-        voxels where it exceeds ``confirm.level`` either way mismatch (missing or extra), and the
-        larger of the largest missing and extra clusters is counted; ``'pooled_two_sided'``: the
-        smaller. The pooled measures grow with any misfit of a voxel or more, a shift included.
-        ``'cluster'``: the largest 26-connected cluster of the mismatching voxels, not opened."""
-        c, lv, side = self.p.confirm, self.p.confirm.level, self.side
-        if c.measure in ("opened", "cluster"):
-            diff = ((turned > lv) != (target > lv)).float()
-            if c.measure == "opened":
-                diff = vc.opening(diff, side, max(2, int(round(self.cube_voxels))))
-            vox = vc.largest_cluster(diff, side)
-        else:
-            d = vc.cube_pooled((target - turned).float(), side, self.cube_voxels, c.pool)
-            missing, extra = (vc.largest_cluster((s * d > lv).float(), side) for s in (1.0, -1.0))
-            vox = torch.maximum(missing, extra) if c.measure == "pooled" else torch.minimum(missing, extra)
+        """(match: cosine of the turned image with the target, largest mismatch cluster in cubes): a
+        voxel mismatches when one image is above ``confirm.level`` there and the other is not, and the
+        largest 26-connected cluster of the mismatching voxels is counted in cubes."""
+        lv = self.p.confirm.level
+        vox = vc.largest_cluster(((turned > lv) != (target > lv)).float(), self.side)
         return vc.cosine(turned, target), vox.double() / self.cube_voxels ** 3
 
     @torch.no_grad()
@@ -331,15 +285,14 @@ class Rotation3D(nn.Module):
         return (gain * torch.stack([match.double(), no], -1)).float()
 
     # ------------------------------------------------------------------ trials
-    def composed_move(self, required: torch.Tensor, net: torch.Tensor, uniforms: torch.Tensor,
-                      proprioception: str = "none") -> torch.Tensor:
-        """PMCm move per row under ``move_rule='composed'``: the rotation still required is the search's
+    def composed_move(self, required: torch.Tensor, net: torch.Tensor, proprioception: str = "none") -> torch.Tensor:
+        """PMCm move per row: the rotation still required is the search's
         estimate ``required`` composed with the inverse of the net turn ``net`` made so far (both
         ``(R, 3, 3)``, the net turn composed from the steps' efference copies, PPCp); each move unit is
         driven by how close to identity that remaining rotation would be after its move (minus its
         geodesic angle, in steps; "still": the angle now); the most active unit wins, "still" unless a
-        move brings the remaining rotation closer to identity (``'composed_softmax'``: the softmax of
-        eq. 6.11 chooses). The wrist signal joins PPCp_z as in :meth:`ppc_code`; it shifts the sensed
+        move brings the remaining rotation closer to identity. The wrist signal joins PPCp_z as in
+        :meth:`ppc_code`; it shifts the sensed
         turn about the line of sight by what it moves that population's read-out."""
         sensed = net
         if proprioception != "none":
@@ -356,8 +309,6 @@ class Rotation3D(nn.Module):
         after = remaining.unsqueeze(1) @ turns.transpose(1, 2).unsqueeze(0)  # (R, moves, 3, 3): still first
         ang = vc.axis_angle(after.reshape(-1, 3, 3))[1].reshape(after.shape[0], -1)
         am = (-ang / self.p.step_deg).float()
-        if self.p.move_rule == "composed_softmax":
-            return softmax_select(am, self.p.selection.tau, uniforms=uniforms)
         return am.argmax(-1)  # the first of equals: "still" unless a move brings the remaining rotation closer
 
     @torch.no_grad()
@@ -366,9 +317,7 @@ class Rotation3D(nn.Module):
         """Search and transform for images ``(P, B, n)`` (already coded, completed and centred):
         the turned comparison images, steps, the net turn (``net``, composed from the steps'
         efference copies in their order; ``done``, its rotation vector), the required rotation, history.
-        ``move_rule='composed'`` chooses each move from the remaining rotation (:meth:`composed_move`);
-        ``'axis_sums'`` from per-axis gain fields of the estimate's rotation vector (PPCt) and the
-        per-axis sums of the steps (PPCp) through C20."""
+        Each move is chosen from the remaining rotation (:meth:`composed_move`)."""
         p = self.p
         P, B, n = target.shape
         if len(generators) != P:
@@ -377,31 +326,21 @@ class Rotation3D(nn.Module):
         part = torch.arange(P).repeat_interleave(B)
         pfct, poci = target.reshape(Q, n), comp.reshape(Q, n)
         required, proper = self.search(pfct, poci, part, proper=p.strategy != "parity")
-        composed = p.move_rule != "axis_sums"
-        ppct = None if composed else self.ppc_code(vc.rotation_vector(required))  # (Q, 3, nu)
-        sums = torch.zeros(Q, 3, dtype=torch.float64)  # per-axis sums of the steps (move_rule 'axis_sums')
         steps = torch.zeros(Q, dtype=torch.long)
         live = torch.ones(Q, dtype=torch.bool) if p.strategy == "rotate" else torch.zeros(Q, dtype=torch.bool)
         rec = sample_indices(record, B)
         hist: list[list[dict]] = [[] for _ in rec]
         img = poci.clone()
-        step_rot = [None] + [(AXES.index(a), d) for a, d in self.moves[1:]]
         turn = self.move_turns
         net = torch.eye(3, dtype=torch.float64).repeat(Q, 1, 1)
         for s in range(p.selection.max_steps):
-            draws = torch.stack([torch.rand(B, generator=g) for g in generators]).reshape(Q)
+            for g in generators:  # each step takes one (B,) draw of every stream: run()'s tie coin follows the steps' draws
+                torch.rand(B, generator=g)
             q = live.nonzero().squeeze(-1)
             if q.numel() == 0:
                 break
-            if composed:
-                move = self.composed_move(required[q], net[q], draws[q], proprioception)
-            else:
-                wrist = sums[q, AXES.index(WRIST_AXIS)]
-                move = self.select(ppct[q], self.ppc_code(sums[q], proprioception, wrist), draws[q])
+            move = self.composed_move(required[q], net[q], proprioception)
             img[q] = self.step(img[q], move, part[q])
-            for m in range(1, len(MOVES)):
-                a, d = step_rot[m]
-                sums[q, a] += d * (move == m).double()
             net[q] = turn[move] @ net[q]  # the efference copy of each step, composed in order
             moving = move > 0
             steps[q] += moving.long()
@@ -411,7 +350,7 @@ class Rotation3D(nn.Module):
                     h.append({"PFCt": pfct[k].clone(), "POCp": img[k].clone(),
                                     "PMCm": torch.nn.functional.one_hot(move[(q == k).nonzero()[0, 0]] if (q == k).any()
                                                                         else torch.tensor(0), len(MOVES)).float()})
-        done = vc.rotation_vector(net) if composed else sums
+        done = vc.rotation_vector(net)
         return {"turned": img, "steps": steps, "done": done, "net": net, "required": required, "proper": proper,
                 "timeout": live, "history": hist, "part": part, "target": pfct}
 

@@ -146,28 +146,6 @@ def largest_cluster(mask: torch.Tensor, side: int) -> torch.Tensor:
     return counts.max(-1).values
 
 
-def opening(mask: torch.Tensor, side: int, size: int = 2) -> torch.Tensor:
-    """Binary maps ``(N, G^3)`` keeping only the voxels of fully active ``size^3`` blocks (an erosion
-    then a dilation by the block): thin shells vanish, solid parts of a block or more stay."""
-    v = _grid(mask.float(), side)
-    er = -F.max_pool3d(-F.pad(v, (0, size - 1) * 3, value=0.0), size, stride=1)  # block starting at each voxel all on
-    back = F.max_pool3d(F.pad(er, (size - 1, 0) * 3, value=0.0), size, stride=1)  # every voxel of such a block
-    return back.reshape(mask.shape[0], -1)
-
-
-def cube_pooled(diff: torch.Tensor, side: int, cube_voxels: float, width: float) -> torch.Tensor:
-    """Maps ``(N, G^3)`` of a signed difference pooled at one cube's scale: smoothed by a Gaussian of
-    ``width`` cube edges, in units of a solid cube (a block of ``max(2, round(cube_voxels))`` voxels
-    a side, all 1, gives 1 at its peak)."""
-    sigma = width * cube_voxels
-    h = max(2, int(round(cube_voxels)))
-    block = torch.zeros(1, side, side, side, dtype=diff.dtype)
-    c = (side - h) // 2
-    block[0, c:c + h, c:c + h, c:c + h] = 1.0
-    peak = float(voxels.blur(block.reshape(1, -1), side, sigma).max())
-    return voxels.blur(diff, side, sigma) / peak
-
-
 def random_rotations(n: int, generator: torch.Generator) -> torch.Tensor:
     """``n`` rotation matrices ``(n, 3, 3)`` uniform over the rotations (QR of Gaussian matrices)."""
     a = torch.randn(n, 3, 3, generator=generator, dtype=torch.float64)

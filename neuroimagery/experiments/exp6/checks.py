@@ -12,7 +12,7 @@ Placement rules (fixed before they were checked, from the scene's geometry): the
 radius ``rho`` cube edges around its centre, must lie between the eye camera's clipping planes
 (0.05 m and 3 m) and inside its field of view, and one cube must cover at least one pixel; a
 probe view (the first training object in the general view, one render) must show pixels redder
-than ``red_threshold``. A set ``cube_voxels`` may not exceed the scale rule's (the largest at
+than ``view.red_threshold``. A set ``cube_voxels`` may not exceed the scale rule's (the largest at
 which every object fits the dot ball in every orientation): above it, rotations carry parts of
 the object out of the map and no comparison is decided.
 """
@@ -40,14 +40,14 @@ def _grid(e) -> int | None:
 
 
 def _test_objects(cfg) -> tuple[str, int]:
-    e = cfg.experiment
-    if e.test_cubes is not None:
-        return "experiment.test_cubes", len(e.test_cubes)
-    if e.test_set == "train":
-        return "experiment.train_objects", int(e.train_objects)
+    e, o = cfg.experiment, cfg.experiment.objects
+    if o.test_cubes is not None:
+        return "experiment.objects.test_cubes", len(o.test_cubes)
+    if o.test_set == "train":
+        return "experiment.objects.train", int(o.train)
     if cfg.preset == "quick":
         return "experiment.quick.objects", int(e.quick.objects)
-    return "experiment.test_objects", int(e.test_objects)
+    return "experiment.objects.test", int(o.test)
 
 
 def memory_estimate(cfg) -> list[Need]:
@@ -78,14 +78,15 @@ def memory_estimate(cfg) -> list[Need]:
 def _objects(e):
     from ...vision import shepard_metzler as sm
 
-    n = int(e.train_objects) + int(e.test_objects)
+    o = e.objects
+    n = int(o.train) + int(o.test)
     try:
-        return sm.generate(n, seed=e.object_seed, min_margin=e.mirror_cubes)
+        return sm.generate(n, seed=o.seed, min_margin=o.mirror_cubes)
     except ValueError:
-        raise UserInputError(f"experiment.train_objects + experiment.test_objects = {n}: the object generator "
-                             f"finds fewer distinct objects with object_seed={e.object_seed} and "
-                             f"mirror_cubes={e.mirror_cubes}; ask for fewer "
-                             "(or give experiment.test_cubes)") from None
+        raise UserInputError(f"experiment.objects.train + experiment.objects.test = {n}: the object generator "
+                             f"finds fewer distinct objects with objects.seed={o.seed} and "
+                             f"objects.mirror_cubes={o.mirror_cubes}; ask for fewer "
+                             "(or give experiment.objects.test_cubes)") from None
 
 
 def check_inputs(cfg) -> None:
@@ -93,32 +94,32 @@ def check_inputs(cfg) -> None:
     from ...models.rotation_3d import fm_bytes
     from ...vision import shepard_metzler as sm
 
-    e = cfg.experiment
+    e, v = cfg.experiment, cfg.experiment.view
     G = _grid(e)
     if G is None:
         raise UserInputError(f"experiment.fm.memory_mb={e.fm.memory_mb:g} holds no voxel grid: the smallest "
                              f"(8^3) needs {fm_bytes(8, e.step_deg) / 1e6:.2f} MB per participant")
     built = _objects(e)
-    shown = list(built) + [np.asarray(c, float) for c in (e.test_cubes or [])]
+    shown = list(built) + [np.asarray(c, float) for c in (e.objects.test_cubes or [])]
     rho = max(float(np.linalg.norm(sm.centred(c), axis=1).max()) for c in shown) + math.sqrt(3) / 2
-    radius = rho * e.cube_edge  # metres
-    d = float(e.object_distance)
-    depth = ("experiment.object_distance", "experiment.cube_edge")
-    view = ("experiment.fov_deg", "experiment.image_width", "experiment.image_height") + depth
+    radius = rho * v.cube_edge  # metres
+    d = float(v.object_distance)
+    depth = ("experiment.view.object_distance", "experiment.view.cube_edge")
+    view = ("experiment.view.fov_deg", "experiment.view.image_width", "experiment.view.image_height") + depth
     if not NEAR < d - radius or not d + radius < FAR:
         raise UserInputError(f"{settings_named(cfg, depth)}: the object (radius {radius:.3f} m) lies outside "
                              f"the eye's depth range ({NEAR} to {FAR} m): place it within "
                              f"[{NEAR + radius:.2f}, {FAR - radius:.2f}] m")
-    half_h = math.radians(e.fov_deg) / 2
-    half_w = math.atan(math.tan(half_h) * e.image_width / e.image_height)
+    half_h = math.radians(v.fov_deg) / 2
+    half_w = math.atan(math.tan(half_h) * v.image_width / v.image_height)
     seen = math.atan(radius / d)
     if seen > min(half_h, half_w):
         raise UserInputError(f"{settings_named(cfg, view)}: the object (radius {radius:.3f} m) does not fit the "
                              "eye's field of view; widen the view, move the object farther or make it smaller")
-    focal = 0.5 * e.image_height / math.tan(half_h)
-    if e.cube_edge * focal / d < 1.0:
+    focal = 0.5 * v.image_height / math.tan(half_h)
+    if v.cube_edge * focal / d < 1.0:
         raise UserInputError(f"{settings_named(cfg, view[:1] + view[2:])}: one cube covers "
-                             f"{e.cube_edge * focal / d:.2f} pixel of the eye's image; at least 1 is needed "
+                             f"{v.cube_edge * focal / d:.2f} pixel of the eye's image; at least 1 is needed "
                              "(a narrower view, a larger image, a nearer or larger object)")
     if e.cube_voxels is not None:
         most = (G / 2.0 - 1.5) / rho
@@ -132,7 +133,7 @@ def check_inputs(cfg) -> None:
 
 def _probe(e, cells) -> None:
     """Render the first training object once, in the general view; refuse when no pixel of it is
-    redder than ``red_threshold``."""
+    redder than ``view.red_threshold``."""
     from ...core.native import quiet_native_output
     from ...vision import shepard_metzler as sm
     from .data import make_scene
@@ -141,11 +142,11 @@ def _probe(e, cells) -> None:
         import pybullet  # noqa: F401
     scene = make_scene(e)
     try:
-        view = scene.look(sm.centred(cells), sm.pose(None, 0, e.view_tilt_deg, e.view_turn_deg))
+        view = scene.look(sm.centred(cells), sm.pose(None, 0, e.view.tilt_deg, e.view.turn_deg))
     finally:
         scene.close()
     b, g, r = (view.bgr[..., k].astype(np.float32) for k in range(3))
     redness = r - np.maximum(g, b)
-    if not (redness > e.red_threshold).any():
-        raise UserInputError(f"experiment.red_threshold={e.red_threshold:g}: no pixel of the object is that red "
+    if not (redness > e.view.red_threshold).any():
+        raise UserInputError(f"experiment.view.red_threshold={e.view.red_threshold:g}: no pixel of the object is that red "
                              f"(R - max(G, B) reaches {float(redness.max()):.0f} in a probe view); lower it")

@@ -1,4 +1,5 @@
-"""Experiment 6's configuration (``experiment=exp6``): the stimulus keys at the top level and one
+"""Experiment 6's configuration (``experiment=exp6``): the tests and the model's few global keys at
+the top level; the stimuli in ``objects`` (what is shown) and ``view`` (how the eye sees it); one
 group per stage (docs/exp6.md). Groups shared with Experiment 4 (:mod:`neuroimagery.models.params`):
 ``selection`` (the move's softmax and the steps before giving up; also Exp 3), ``lca`` (the
 accumulator PMCd) and ``ppc`` (the posture bump and the wrist signal); ``fm`` and ``quick`` hold
@@ -52,7 +53,6 @@ class FMParams:
 class SearchParams:
     """Stage 3 (``experiment.search``): the correspondence that estimates the rotation required."""
 
-    method: str = bounded("axes", choices=("axes", "sweep"))  # 'axes' = principal axes (Sanger's rule) + coarse comparison | 'sweep' = turns about x, y, z
     eta: float = bounded(0.5, gt=0, le=1)  # Sanger's rule, rate per update (divided by the inputs' mean squared norm)
     iterations: int = bounded(2000, ge=1)  # updates of the fast principal-axes connection per image (near-equal spreads converge slowly)
     coarse: int = bounded(2, ge=1)  # the coarse comparison pools blocks of coarse^3 voxels
@@ -60,10 +60,6 @@ class SearchParams:
     # camera axes, each scale while the match rises, at most refine_steps times; [] = none
     refine: List[float] = bounded(factory=lambda: [10.0, 5.0, 2.5, 1.25], gt=0, each=True)
     refine_steps: int = bounded(3, ge=1)
-    # more starting points (option; [] = none): each matched-axes candidate also turned by these angles (deg) about
-    # each camera axis either way; all refined at the first refine scale, the `keep` best of them at the others
-    starts: List[float] = bounded(factory=list, gt=0, each=True)
-    keep: int = bounded(8, ge=1)
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.search.")
@@ -71,14 +67,11 @@ class SearchParams:
 
 @dataclass
 class ConfirmParams:
-    """Stage 4 (``experiment.confirm``): the mismatch after the transform."""
+    """Stage 4 (``experiment.confirm``): the mismatch after the transform, the largest cluster of
+    mismatching voxels (docs/choices.md)."""
 
-    level: float = bounded(0.5, gt=0, lt=1)  # a voxel mismatches when the turned image and the target differ by more than this
-    # 'opened' = the opened voxel mismatch map | 'pooled' = the signed difference pooled at one cube's scale, the
-    # larger cluster of missing or extra voxels | 'pooled_two_sided' = the smaller of the two | 'cluster' = the
-    # voxel mismatch map's largest cluster, not opened (docs/choices.md)
-    measure: str = bounded("cluster", choices=("opened", "pooled", "pooled_two_sided", "cluster"))
-    pool: float = bounded(0.5, gt=0)  # width (sigma) of the pooling Gaussian, in cube edges
+    # a voxel mismatches when one of the turned image and the target is above this and the other is not
+    level: float = bounded(0.5, gt=0, lt=1)
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.confirm.")
@@ -90,7 +83,7 @@ class QuickParams:
 
     # the rule of docs/choices.md ("Quick presets"): the full protocol's training, a quarter of its participants
     participants: int = bounded(3, ge=1)  # a run tests the smaller of `participants` and this
-    objects: int = bounded(1, ge=1)  # test objects (the first of test_objects): 5 halved twice by rule 3 (seed 0, CPU only)
+    objects: int = bounded(1, ge=1)  # test objects (the first of objects.test): 5 halved twice by rule 3 (seed 0, CPU only)
     fm_images: int = bounded(3200, ge=1)  # forward-model images per move: the full protocol's (fm.images)
     chains: int = bounded(1200, ge=1)  # chain views for C_fill: the full protocol's (image.chains)
 
@@ -99,25 +92,37 @@ class QuickParams:
 
 
 @dataclass
-class Exp6Config:
-    name: str = "exp6"
-    # --- stimuli (docs/exp6.md, "Stimulus rules") -------------------------------------------
-    object_seed: int = bounded(0, ge=0)  # seed of the object generator
+class ObjectParams:
+    """The objects (``experiment.objects``, docs/exp6.md "Stimulus rules"): the generator's
+    training and test objects, or the user's own test objects."""
+
+    seed: int = bounded(0, ge=0)  # seed of the object generator
     # the mirror differs from the object, at its best proper lattice correspondence, by at least this many cubes
-    # (built-in objects, random chains and test_cubes alike); 1 = chirality alone (the earlier generator)
+    # (built-in objects, random chains and test_cubes alike); 1 = chirality alone
     mirror_cubes: int = bounded(2, ge=1)
-    train_objects: int = bounded(3, ge=1)  # first objects drawn: fix the confirm stage's cut
-    test_objects: int = bounded(5, ge=1)  # next objects: the test set (never seen in training)
+    train: int = bounded(3, ge=1)  # first objects drawn: fix the confirm stage's cut
+    test: int = bounded(5, ge=1)  # next objects: the test set (never seen in training)
     test_cubes: Optional[List[Any]] = None  # own test objects: a list of lists of [x, y, z] cube positions
     test_set: str = bounded("novel", choices=("novel", "train"))  # 'novel' = the test set | 'train' = the training objects
-    test_angles: List[float] = bounded(factory=lambda: [float(a) for a in range(0, 181, 20)], ge=0, le=180, each=True,
-                                       nonempty=True)
-    oblique_angles: List[float] = bounded(factory=lambda: [10.0, 50.0, 90.0, 130.0, 170.0], ge=0, le=180, each=True,
-                                          nonempty=True)  # test 'oblique'
-    tests: List[str] = bounded(factory=lambda: ["picture", "depth"], choices=TESTS, each=True, nonempty=True)
-    conditions: List[str] = bounded(factory=lambda: ["none"], choices=CONDITIONS, each=True)  # wrist conditions, as Exp 4
-    view_tilt_deg: float = bounded(25.0, ge=-90, le=90)  # general view: tilted toward the eye about the horizontal ...
-    view_turn_deg: float = bounded(35.0, ge=-90, le=90)  # ... then turned about the vertical
+
+    RULES = (
+        Rule("test_cubes", lambda c: c.test_cubes is None or (isinstance(c.test_cubes, (list, tuple)) and c.test_cubes),
+             "must be a list of objects, each a list of [x, y, z] cubes", show=False),
+    )
+
+    def __post_init__(self) -> None:
+        check_declared(self, "experiment.objects.")
+        for i, c in enumerate(self.test_cubes or ()):
+            sm.check_object(c, f"experiment.objects.test_cubes[{i}]", self.mirror_cubes)
+
+
+@dataclass
+class ViewParams:
+    """How the eye sees an object (``experiment.view``): the general view, the object's size and
+    place, the eye camera and the red pixels that count as the object."""
+
+    tilt_deg: float = bounded(25.0, ge=-90, le=90)  # general view: tilted toward the eye about the horizontal ...
+    turn_deg: float = bounded(35.0, ge=-90, le=90)  # ... then turned about the vertical
     cube_edge: float = bounded(0.025, gt=0)  # metres
     object_distance: float = bounded(0.5, gt=0)  # metres from the eye, straight ahead
     eye: str = bounded("left", choices=("left", "right"))
@@ -125,16 +130,28 @@ class Exp6Config:
     image_height: int = bounded(240, ge=48, le=2048)
     fov_deg: float = bounded(30.0, gt=0)
     red_threshold: float = bounded(60.0, gt=0)  # R - max(G, B) for a pixel to count as the object
+
+    def __post_init__(self) -> None:
+        check_declared(self, "experiment.view.")
+
+
+@dataclass
+class Exp6Config:
+    name: str = "exp6"
+    # --- the tests (docs/exp6.md, "Stimulus rules") -------------------------------------------
+    test_angles: List[float] = bounded(factory=lambda: [float(a) for a in range(0, 181, 20)], ge=0, le=180, each=True,
+                                       nonempty=True)
+    oblique_angles: List[float] = bounded(factory=lambda: [10.0, 50.0, 90.0, 130.0, 170.0], ge=0, le=180, each=True,
+                                          nonempty=True)  # test 'oblique'
+    tests: List[str] = bounded(factory=lambda: ["picture", "depth"], choices=TESTS, each=True, nonempty=True)
+    conditions: List[str] = bounded(factory=lambda: ["none"], choices=CONDITIONS, each=True)  # wrist conditions, as Exp 4
+    objects: ObjectParams = field(default_factory=ObjectParams)
+    view: ViewParams = field(default_factory=ViewParams)
     # --- the model ---------------------------------------------------------------------------
     strategy: str = bounded("rotate", choices=("rotate", "parity"))  # 'rotate' = search, transform, confirm | 'parity' = handedness of matched axes, no transform
     step_deg: float = bounded(20.0, gt=0, le=90)  # one forward-model step (divides 180)
     grid: Optional[int] = bounded(None, ge=8)  # side of the voxel map (even); None = the grid rule (fm.memory_mb)
     cube_voxels: Optional[float] = bounded(None, gt=0)  # voxels per cube edge; None = the scale rule
-    # how PMCm chooses each step: 'composed' = the move bringing the remaining rotation (the estimate composed
-    # with the inverse of the net turn so far) closest to identity, still when none brings it closer |
-    # 'composed_softmax' = the softmax of selection.tau on the same activations | 'axis_sums' = per-axis gain
-    # fields and C20 on the estimate's rotation vector and the per-axis sums of the steps
-    move_rule: str = bounded("composed", choices=("composed", "composed_softmax", "axis_sums"))
     init_high: float = bounded(0.01, gt=0)  # initial weights U[0, init_high] (as Exp 4)
     image: ImageParams = field(default_factory=ImageParams)
     fm: FMParams = field(default_factory=FMParams)
@@ -151,11 +168,7 @@ class Exp6Config:
              f"must be distinct names of {list(CONDITIONS)}, 'none' among them"),
         Rule("step_deg", lambda c: abs(180.0 / c.step_deg - round(180.0 / c.step_deg)) <= 1e-6, "must divide 180"),
         Rule("grid", lambda c: c.grid is None or c.grid % 2 == 0, "must be an even number >= 8 (or null for the rule)"),
-        Rule("test_cubes", lambda c: c.test_cubes is None or (isinstance(c.test_cubes, (list, tuple)) and c.test_cubes),
-             "must be a list of objects, each a list of [x, y, z] cubes", show=False),
     )
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.", recursive=False)
-        for i, c in enumerate(self.test_cubes or ()):
-            sm.check_object(c, f"experiment.test_cubes[{i}]", self.mirror_cubes)

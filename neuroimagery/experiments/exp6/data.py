@@ -23,18 +23,20 @@ def grid_side(e) -> int:
 
 def built_objects(e) -> list[np.ndarray]:
     """The generator's objects in the order drawn: the training objects, then the test set."""
-    return sm.generate(e.train_objects + e.test_objects, seed=e.object_seed, min_margin=e.mirror_cubes)
+    o = e.objects
+    return sm.generate(o.train + o.test, seed=o.seed, min_margin=o.mirror_cubes)
 
 
 def objects(e) -> tuple[list[np.ndarray], list[str], list[np.ndarray], list[str]]:
     """(training objects, names, test objects, names)."""
-    built = built_objects(e)
-    train, test = built[:e.train_objects], built[e.train_objects:]
+    o, built = e.objects, built_objects(e)
+    train, test = built[:o.train], built[o.train:]
     tnames = [f"T{i + 1}" for i in range(len(train))]
-    if e.test_cubes is not None:
-        test = [sm.check_object(c, f"experiment.test_cubes[{i}]", e.mirror_cubes) for i, c in enumerate(e.test_cubes)]
+    if o.test_cubes is not None:
+        test = [sm.check_object(c, f"experiment.objects.test_cubes[{i}]", o.mirror_cubes)
+                for i, c in enumerate(o.test_cubes)]
         return train, tnames, test, [f"U{i + 1}" for i in range(len(test))]
-    if e.test_set == "train":
+    if o.test_set == "train":
         return train, tnames, list(train), list(tnames)
     return train, tnames, test, [f"S{i + 1}" for i in range(len(test))]
 
@@ -54,8 +56,9 @@ def cube_voxels(e, side: int) -> float:
 
 
 def make_scene(e) -> sm.SMScene:
-    return sm.SMScene(eye=e.eye, width=e.image_width, height=e.image_height, fov_deg=e.fov_deg,
-                      distance=e.object_distance, cube_edge=e.cube_edge)
+    v = e.view
+    return sm.SMScene(eye=v.eye, width=v.image_width, height=v.image_height, fov_deg=v.fov_deg,
+                      distance=v.object_distance, cube_edge=v.cube_edge)
 
 
 def _volume_points(centres: np.ndarray, rot: np.ndarray, e) -> np.ndarray:
@@ -63,16 +66,16 @@ def _volume_points(centres: np.ndarray, rot: np.ndarray, e) -> np.ndarray:
     t = (np.arange(4) - 1.5) / 4.0
     sub = np.stack(np.meshgrid(t, t, t, indexing="ij"), -1).reshape(-1, 3)
     pts = (np.asarray(centres)[:, None, :] + sub[None]).reshape(-1, 3)
-    return (pts @ np.asarray(rot).T) * e.cube_edge + np.array([0.0, 0.0, -e.object_distance])
+    return (pts @ np.asarray(rot).T) * e.view.cube_edge + np.array([0.0, 0.0, -e.view.object_distance])
 
 
 def view(scene, e, side: int, scale: float, centres: np.ndarray, rot: np.ndarray, whole: bool = False):
     """The surface map ``(G^3,)`` of centred cube centres ``centres`` turned by ``rot`` as the eye sees
     them, centred on what is seen; with ``whole`` also the map of the whole volume in the same frame."""
-    pts = sm.red_points(scene.look(centres, rot), e.red_threshold)
+    pts = sm.red_points(scene.look(centres, rot), e.view.red_threshold)
     if len(pts) == 0:
         raise UserInputError("exp6: the eye sees no red pixels of an object (is it in the field of view?)")
-    vox = e.cube_edge / scale
+    vox = e.view.cube_edge / scale
     surf = voxels.points_to_map(pts, side, vox)
     if not whole:
         return surf
@@ -82,13 +85,14 @@ def view(scene, e, side: int, scale: float, centres: np.ndarray, rot: np.ndarray
 def see(scene, e, side: int, scale: float, cells: np.ndarray, appearance: str, kind, angle: float) -> torch.Tensor:
     """The surface map of one test view: ``angle`` deg of rotation ``kind`` from the general view."""
     c = sm.centred(cells) if appearance == "basic" else sm.mirror(cells)
-    return view(scene, e, side, scale, c, sm.pose(kind, angle, e.view_tilt_deg, e.view_turn_deg))
+    return view(scene, e, side, scale, c, sm.pose(kind, angle, e.view.tilt_deg, e.view.turn_deg))
 
 
 def chains(e, count: int, seed: int, stream: int) -> list[np.ndarray]:
     """Random cube chains (never a built-in object) that fit the map as the built-in objects do."""
     rng = np.random.default_rng([seed, stream, 6])
-    return sm.random_chains(count, rng, exclude=built_objects(e), max_radius=reach(e), min_margin=e.mirror_cubes)
+    return sm.random_chains(count, rng, exclude=built_objects(e), max_radius=reach(e),
+                            min_margin=e.objects.mirror_cubes)
 
 
 def chain_views(scene, e, side: int, scale: float, count: int, seed: int, stream: int, mirror: bool = False):

@@ -23,10 +23,10 @@ from .config import CONDITIONS, TESTS, Exp6Config  # noqa: F401  (the schema)
 from .data import cube_voxels, grid_side, make_scene, objects, pair_bank, see  # noqa: F401
 
 CONFIG = Exp6Config
-INPUTS = ()  # the eye camera of this experiment is set by its own keys (eye, fov_deg, image_*)
+INPUTS = ()  # the eye camera of this experiment is set by its own keys (experiment.view)
 CHECKPOINTS = ("exp6",)
-TEST_KEYS = ("test_objects", "test_cubes", "test_set", "test_angles", "oblique_angles", "tests", "conditions",
-             "ppc.proprio_gain", "selection.tau", "selection.max_steps", "strategy", "search.method", "search.eta",
+TEST_KEYS = ("objects.test", "objects.test_cubes", "objects.test_set", "test_angles", "oblique_angles", "tests",
+             "conditions", "ppc.proprio_gain", "selection.tau", "selection.max_steps", "strategy", "search.eta",
              "search.iterations", "search.coarse", "ppc.sigma", "lca.k", "lca.w", "lca.threshold", "lca.dt",
              "lca.cycles", "lca.input_gain", "quick.objects")
 RUNTIME_KEYS = ("train_threads",)
@@ -34,11 +34,11 @@ RUNTIME_KEYS = ("train_threads",)
 
 def ineffective_keys(cfg) -> dict[str, str]:
     e, out = cfg.experiment, {}
-    if e.test_cubes is not None:
-        for k in ("test_objects", "quick.objects", "test_set"):
-            out[k] = "test_cubes replaces the built-in test set"
-    elif e.test_set == "train":
-        out["test_objects"] = "test_set=train shows the training objects"
+    if e.objects.test_cubes is not None:
+        for k in ("objects.test", "quick.objects", "objects.test_set"):
+            out[k] = "objects.test_cubes replaces the built-in test set"
+    elif e.objects.test_set == "train":
+        out["objects.test"] = "objects.test_set=train shows the training objects"
     if cfg.preset == "quick":
         out["fm.images"] = "preset=quick trains on quick.fm_images"
         out["image.chains"] = "preset=quick trains on quick.chains"
@@ -48,6 +48,7 @@ def ineffective_keys(cfg) -> dict[str, str]:
         out["oblique_angles"] = "the oblique test is not among experiment.tests"
     if e.strategy == "parity":
         out["selection.max_steps"] = "strategy=parity does not turn the image"
+    out["selection.tau"] = "PMCm takes the most active move (no softmax)"
     return {f"experiment.{k}": v for k, v in out.items()}
 
 
@@ -217,7 +218,7 @@ def rotated_ok(kind: str, angle: np.ndarray, turned: np.ndarray, step: float) ->
 def test_names(cfg):
     e = cfg.experiment
     _, _, test, names = objects(e)
-    if cfg.preset == "quick" and e.test_cubes is None:
+    if cfg.preset == "quick" and e.objects.test_cubes is None:
         test, names = test[:e.quick.objects], names[:e.quick.objects]
     return test, names
 
@@ -298,7 +299,7 @@ def evaluate(cfg, run, trained) -> dict:
         used = sorted(set(df["target_object"]), key=names.index)  # the test objects of this run (preset)
         extra = [u for u in used if u not in tnames]
         sm.contact_sheet(scene, list(train_objs) + [test_objs[names.index(u)] for u in extra], list(tnames) + extra,
-                         run.figures / "exp6_stimuli.png", tilt_deg=e.view_tilt_deg, turn_deg=e.view_turn_deg)
+                         run.figures / "exp6_stimuli.png", tilt_deg=e.view.tilt_deg, turn_deg=e.view.turn_deg)
     finally:
         scene.close()
     run.write_csv("trials.csv", df)

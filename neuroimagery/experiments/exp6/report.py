@@ -245,7 +245,7 @@ def report(cfg, run, summary) -> None:
     e = cfg.experiment
     r = Report("Experiment 6: 3-D mental rotation of Shepard-Metzler objects")
     r.p(f"{summary['participants']} simulated participants; preset `{cfg.preset}`; objects seen by the iCub's "
-        f"{e.eye} eye (pybullet, colour + depth). RT in accumulator cycles (10 per rotation step of {e.step_deg:g} deg). "
+        f"{e.view.eye} eye (pybullet, colour + depth). RT in accumulator cycles (10 per rotation step of {e.step_deg:g} deg). "
         + reproducibility_note(cfg.seed))
     _beside_humans(r, summary)
     r.h("Effects, the participant as the unit")
@@ -307,8 +307,7 @@ def _stages(r: Report, e, summary: dict) -> None:
     r.bullets([
         f"3-D map {gr['side']}^3 voxels (grid rule, `fm.memory_mb`), {gr['cube_voxels']:.3g} voxels per cube edge; forward "
         f"models with receptive-field radius {gr['receptive_radius']} ({gr['offsets']} weights per voxel, "
-        f"{gr['fm_mb_per_participant']} MB per participant for the {gr['moves']} models). Strategy `{e.strategy}`, "
-        f"search `{e.search.method}`.",
+        f"{gr['fm_mb_per_participant']} MB per participant for the {gr['moves']} models). Strategy `{e.strategy}`.",
         f"6.1 image: completed map of held-out chains against the whole volume, cosine {st['image']['cosine']} "
         f"(the seen surface alone {st['image']['surface_cosine']}; contract >= 0.85).",
         f"6.2 transform: {st['transform']['steps']} chained steps against one turn, cosine "
