@@ -38,6 +38,7 @@ from ..core.arguments import ToolParser, path
 from ..analysis.summary import TRIAL_COLUMNS, summarise_test
 from ..analysis.tables import read_whole_csv
 from ..config import EXPERIMENTS, experiment
+from ..core.checkpoints import read_json
 from ..core.errors import UserInputError
 from ..core.files import writable_folder, write_atomic
 
@@ -85,15 +86,9 @@ def find_runs(dirs: list[str | Path]) -> list[Path]:
 
 
 def _json(path: Path, what: str) -> dict:
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise UserInputError(f"{path.parent}: no {path.name} ({what})") from None
-    except (OSError, UnicodeDecodeError, ValueError) as err:
-        raise UserInputError(f"{path}: cannot be read ({getattr(err, 'strerror', None) or err})") from None
-    if not isinstance(data, dict):
-        raise UserInputError(f"{path}: not a JSON object")
-    return data
+    if not path.exists():
+        raise UserInputError(f"{path.parent}: no {path.name} ({what})")
+    return read_json(path)
 
 
 def read_run(d: Path) -> Run:

@@ -21,14 +21,16 @@ _UNSAFE_ADVICE = ("weights_only", "trust the source", "torch.serialization", "ad
                   "In PyTorch", "Check the documentation", "https://")
 
 
-def read_json(path: Path, what: str) -> dict:
-    """A JSON object from ``path``; a missing, unreadable or corrupt file is a :class:`UserInputError`."""
+def read_json(path: Path, what: str = "") -> dict:
+    """A JSON object from ``path``; a missing, unreadable or corrupt file is a :class:`UserInputError`
+    naming ``what`` and the path."""
+    name = f"{what} {path}".strip()
     try:
         data = json.loads(Path(path).read_text())
     except (OSError, UnicodeDecodeError, ValueError) as err:
-        raise UserInputError(f"{what} {path}: cannot be read ({getattr(err, 'strerror', None) or err})") from None
+        raise UserInputError(f"{name}: cannot be read ({getattr(err, 'strerror', None) or err})") from None
     if not isinstance(data, dict):
-        raise UserInputError(f"{what} {path}: not a JSON object")
+        raise UserInputError(f"{name}: not a JSON object")
     return data
 
 
