@@ -106,3 +106,41 @@ def test_a_journal_searched_before_the_reachability_table_is_only_reported(tmp_p
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:") and "new journal" in err[0]
     assert cal.main(["--storage", str(journal), "--stage", "report", *TINY]) == 0
+
+
+def test_a_resized_journal_screens_its_former_screens_again_and_compares_only_one_size(tmp_path, monkeypatch, capsys):
+    """The fourth amendment: a journal screened at one size is refused at another unless
+    ``--resize``; then its screen of the former size is screened again at the new one with the
+    same parameters, and the front and the rule see only the new size's screens."""
+    from neuroimagery.robot.config import WorldConfig
+
+    monkeypatch.setattr(cal, "stage1", lambda p, folder, n: (WorldConfig(), [], None, []))
+    seen = []
+
+    def fake(cfg, sigma, folder, babble, bseeds, libraries, lseeds):
+        seen.append((folder.name, babble, libraries))
+        return dict(w1=20 + babble % 3, w2=20, w3=0.0, w4=1.0, pull_alone=0, with_pull=1, routes=1,
+                    libraries=libraries)
+
+    monkeypatch.setattr(cal, "measure", fake)
+    journal = tmp_path / "j.journal"
+    assert cal.main(["--storage", str(journal), "--trials", "1", *TINY]) == 0
+    small = ["--babble", "10", "--libraries", "2", "--fk-movements", "60"]
+    assert cal.main(["--storage", str(journal), "--trials", "1", *small]) == 2
+    assert "--resize" in capsys.readouterr().err
+    assert cal.main(["--storage", str(journal), "--trials", "2", "--resize", *small]) == 0
+    study = cal.open_study(journal, dict(babble=10, libraries=2, fk_movements=60), 0)
+    trials = study.get_trials(deepcopy=False)
+    assert len(trials) == 3 and trials[1].params == trials[0].params and trials[2].params != trials[0].params
+    assert seen[0][1:] == (20, 1) and seen[1] == (seen[0][0], 10, 2) and seen[2][1:] == (10, 2)
+    assert study.user_attrs["sizes_history"] == [dict(sizes=dict(babble=20, libraries=1, fk_movements=60),
+                                                      before_trial=1)]
+    assert [t.number for t in cal.screened_at(study, dict(babble=10, libraries=2, fk_movements=60))] == [1, 2]
+    assert cal.screen_sizes(study, trials[0])["babble"] == 20
+    assert cal.main(["--storage", str(journal), "--trials", "1", *small]) == 0  # enqueued once only
+    assert len(cal.open_study(journal, dict(babble=10, libraries=2, fk_movements=60), 0).get_trials()) == 4
+    capsys.readouterr()
+    assert cal.main(["--storage", str(journal), "--stage", "report", *small]) == 0
+    out = capsys.readouterr().out
+    front, former = out.split("Screened at former sizes")
+    assert "| trial 0 " not in front and "| trial 0 (" in former and "| trial 1 |" in front

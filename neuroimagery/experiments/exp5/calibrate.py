@@ -25,6 +25,7 @@ from pathlib import Path
 
 from ...core.errors import UserInputError
 from ...core.arguments import ToolParser, check, check_size, count, path, run_resumable, seed
+from .calibration_report import screen_sizes, screened_at
 from .candidate import SEED0, candidate_key, measure, rank_key
 
 STUDY = "exp5-world"
@@ -43,9 +44,10 @@ def _optuna():
     return optuna
 
 
-def open_study(storage: Path, sizes: dict, sampler_seed: int, check_sampling: bool = True):
+def open_study(storage: Path, sizes: dict, sampler_seed: int, check_sampling: bool = True, resize: bool = False):
     """The study in the journal ``storage`` (created with ``sizes`` if new; an existing one must have
-    been screened at the same sizes)."""
+    been screened at the same sizes, unless ``resize``: then its screens from now on have ``sizes``,
+    the former ones are kept in ``sizes_history``, docs/world_calibration.md's fourth amendment)."""
     optuna = _optuna()
     from optuna.storages import JournalStorage
     from optuna.storages.journal import JournalFileBackend
@@ -78,9 +80,13 @@ def open_study(storage: Path, sizes: dict, sampler_seed: int, check_sampling: bo
         raise UserInputError(f"--storage {storage} was searched with another sampling of the postures "
                              f"({study.user_attrs.get('sampling')}, not {SAMPLING}): its trials are another search; "
                              "use a new journal")
+    elif kept != sizes and resize and check_sampling:
+        study.set_user_attr("sizes_history", study.user_attrs.get("sizes_history", [])
+                            + [dict(sizes=kept, before_trial=len(study.get_trials(deepcopy=False)))])
+        study.set_user_attr("sizes", sizes)
     elif kept != sizes:
         raise UserInputError(f"--storage {storage} was screened with {kept}, not {sizes}: "
-                             "use its sizes or another journal")
+                             "use its sizes, --resize, or another journal")
     return study
 
 
@@ -138,6 +144,7 @@ def objective(trial, work: Path, sizes: dict):
     trial.set_user_attr("postures", [list(q) for q in cfg.postures])
     trial.set_user_attr("toy_xy", list(cfg.toy_xy))
     m = measure(cfg, p["weight_sigma"], folder, sizes["babble"], [SEED0], sizes["libraries"], [SEED0])
+    trial.set_user_attr("sizes", sizes)
     trial.set_user_attr("stage", "screened")
     trial.set_user_attr("measures", m)
     trial.set_user_attr("cpu_s", round(time.process_time() - t0, 1))
@@ -168,8 +175,22 @@ def retry_failed(study) -> None:
         study.set_user_attr("retried", sorted(done | {t.number for t in failed}))
 
 
+def rescreen_former(study, sizes: dict) -> None:
+    """Enqueue once, with the same parameters, each candidate screened only at sizes other than
+    ``sizes`` (a journal resized by the fourth amendment): its kept libraries are reused."""
+    done = set(study.user_attrs.get("rescreened", []))
+    now = {candidate_key(t.params) for t in screened_at(study, sizes)}
+    former = [t for t in study.get_trials(deepcopy=False) if t.user_attrs.get("stage") == "screened"
+              and screen_sizes(study, t) != sizes and t.number not in done and candidate_key(t.params) not in now]
+    for t in former:
+        study.enqueue_trial(t.params)
+    if former:
+        study.set_user_attr("rescreened", sorted(done | {t.number for t in former}))
+
+
 def screen(study, work: Path, sizes: dict, trials: int) -> None:
     retry_failed(study)
+    rescreen_former(study, sizes)
     study.optimize(lambda t: objective(t, work, sizes), n_trials=trials, callbacks=[_line],
                    show_progress_bar=sys.stderr.isatty())
 
@@ -189,8 +210,7 @@ def confirm(study, work: Path, sizes: dict, k: int, babble_seeds: int, library_s
     from ...robot.world_candidate import build
 
     done = {n for n in (a[len("confirmed_"):] for a in study.user_attrs) if n.isdigit()}
-    screened = sorted((t for t in study.get_trials(deepcopy=False) if t.user_attrs.get("stage") == "screened"),
-                      key=lambda t: rank_key(t.user_attrs["measures"]))
+    screened = sorted(screened_at(study, sizes), key=lambda t: rank_key(t.user_attrs["measures"]))
     for t in [t for t in screened if str(t.number) not in done][:k]:
         t0 = time.process_time()
         folder = work / candidate_key(t.params | {"grip_pivot_deg": t.params.get("grip_pivot_deg", 10.0)})
@@ -218,11 +238,13 @@ def parse(argv):
     parser.add_argument("--confirm", type=count, default=1, help="confirm: best screened candidates to confirm")
     parser.add_argument("--confirm-seeds", type=count, nargs=2, default=[10, 5], metavar=("BABBLE", "LIBRARY"),
                         help="confirm: calibration seeds of babbling and of libraries (acceptance size: 10 5)")
-    parser.add_argument("--babble", type=count, default=10_000, help="exploration movements per posture and seed")
-    parser.add_argument("--libraries", type=count, default=16, help="skill libraries per seed")
+    parser.add_argument("--babble", type=count, default=2000, help="exploration movements per posture and seed")
+    parser.add_argument("--libraries", type=count, default=8, help="skill libraries per seed")
     parser.add_argument("--fk-movements", type=count, default=2000, help="stage 1: movements of the pull paths")
     parser.add_argument("--sampler-seed", type=seed, default=0, help="the sampler's seed (one per worker)")
     parser.add_argument("--work", type=_path, default=None, help="folder of the kept pieces (default FILE.d)")
+    parser.add_argument("--resize", action="store_true",
+                        help="screen a journal of other sizes at these from now on (its former screens are screened again)")
     parser.add_argument("--allow-large", action="store_true", help="allow sizes past the limits of --help's defaults")
     args = parser.parse_args(argv)
     for name in ("trials", "confirm", "babble", "libraries", "fk_movements"):
@@ -241,7 +263,8 @@ def run(args) -> None:
         raise UserInputError(f"--storage {args.storage}: no such journal (the stage {args.stage} reads a search)")
     sizes = dict(babble=args.babble, libraries=args.libraries, fk_movements=args.fk_movements)
     work = args.work or args.storage.with_name(args.storage.name + ".d")
-    study = open_study(args.storage, sizes, args.sampler_seed, check_sampling=args.stage != "report")
+    study = open_study(args.storage, sizes, args.sampler_seed, check_sampling=args.stage != "report",
+                       resize=args.resize)
     work.mkdir(parents=True, exist_ok=True)
     if args.stage == "screen":
         screen(study, work, sizes, args.trials)
