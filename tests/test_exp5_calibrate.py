@@ -144,3 +144,23 @@ def test_a_resized_journal_screens_its_former_screens_again_and_compares_only_on
     out = capsys.readouterr().out
     front, former = out.split("Screened at former sizes")
     assert "| trial 0 " not in front and "| trial 0 (" in former and "| trial 1 |" in front
+
+
+def test_confirm_measures_the_first_by_the_rule_at_the_confirmation_size_not_the_screens(tmp_path, monkeypatch):
+    """The fifth amendment: candidates ranked among the journal's screens, measured at
+    ``--confirm-size`` per seed on the calibration seeds."""
+    monkeypatch.setattr(cal, "BEHIND_MAX", 1.0)
+    journal = tmp_path / "j.journal"
+    assert cal.main(["--storage", str(journal), "--trials", "1", *TINY]) == 0
+    calls = []
+
+    def fake(cfg, sigma, folder, babble_n, babble_seeds, libraries_n, library_seeds):
+        calls.append((babble_n, babble_seeds, libraries_n, library_seeds))
+        return dict(w1=1, w2=2, w3=1.0, w4=0.0, pull_alone=1, with_pull=1, routes=0, libraries=libraries_n * 2)
+
+    monkeypatch.setattr(cal, "measure", fake)
+    assert cal.main(["--storage", str(journal), "--stage", "confirm", "--confirm", "1", "--confirm-seeds", "3", "2",
+                     "--confirm-size", "40", "3", *TINY]) == 0
+    assert calls == [(40, [100, 101, 102], 3, [100, 101])]
+    study, trials = _trials(journal)
+    assert study.user_attrs[f"confirmed_{trials[0].number}"]["libraries"] == 6

@@ -196,7 +196,7 @@ def screen(study, work: Path, sizes: dict, trials: int) -> None:
 
 
 def present(work: Path, sizes: dict, key: str, babble_seeds: int, library_seeds: int) -> dict:
-    """The present world (docs/robot.md) measured as a candidate is."""
+    """The present world (docs/robot.md) measured as a candidate is, at ``sizes`` per seed."""
     from ...robot.config import WorldConfig
 
     t0 = time.process_time()
@@ -205,8 +205,10 @@ def present(work: Path, sizes: dict, key: str, babble_seeds: int, library_seeds:
     return dict(m, cpu_s=round(time.process_time() - t0, 1))
 
 
-def confirm(study, work: Path, sizes: dict, k: int, babble_seeds: int, library_seeds: int) -> None:
-    """The ``k`` best screened candidates not yet confirmed, at acceptance size (calibration seeds)."""
+def confirm(study, work: Path, sizes: dict, k: int, babble_seeds: int, library_seeds: int, at: dict) -> None:
+    """The ``k`` best screened candidates (the rule, among the screens at the journal's ``sizes``) not
+    yet confirmed, measured at ``at`` per seed (acceptance size, the fifth amendment) on the
+    calibration seeds."""
     from ...robot.world_candidate import build
 
     done = {n for n in (a[len("confirmed_"):] for a in study.user_attrs) if n.isdigit()}
@@ -215,8 +217,8 @@ def confirm(study, work: Path, sizes: dict, k: int, babble_seeds: int, library_s
         t0 = time.process_time()
         folder = work / candidate_key(t.params | {"grip_pivot_deg": t.params.get("grip_pivot_deg", 10.0)})
         cfg, _ = build(t.params | {"grip_pivot_deg": t.params.get("grip_pivot_deg", 10.0)}, folder / "urdf")
-        m = measure(cfg, t.params["weight_sigma"], folder, sizes["babble"], list(range(SEED0, SEED0 + babble_seeds)),
-                    sizes["libraries"], list(range(SEED0, SEED0 + library_seeds)))
+        m = measure(cfg, t.params["weight_sigma"], folder, at["babble"], list(range(SEED0, SEED0 + babble_seeds)),
+                    at["libraries"], list(range(SEED0, SEED0 + library_seeds)))
         study.set_user_attr(f"confirmed_{t.number}", dict(m, cpu_s=round(time.process_time() - t0, 1)))
         print(f"trial {t.number} confirmed: W1 {m['w1']}, W2 {m['w2']}, W3 {m['pull_alone']}/{m['with_pull']}, "
               f"W4 {m['routes']}/{m['libraries']}", flush=True)
@@ -238,6 +240,8 @@ def parse(argv):
     parser.add_argument("--confirm", type=count, default=1, help="confirm: best screened candidates to confirm")
     parser.add_argument("--confirm-seeds", type=count, nargs=2, default=[10, 5], metavar=("BABBLE", "LIBRARY"),
                         help="confirm: calibration seeds of babbling and of libraries (acceptance size: 10 5)")
+    parser.add_argument("--confirm-size", type=count, nargs=2, default=[10_000, 16], metavar=("BABBLE", "LIBRARIES"),
+                        help="confirm: exploration movements per posture and libraries per seed (acceptance size)")
     parser.add_argument("--babble", type=count, default=2000, help="exploration movements per posture and seed")
     parser.add_argument("--libraries", type=count, default=8, help="skill libraries per seed")
     parser.add_argument("--fk-movements", type=count, default=2000, help="stage 1: movements of the pull paths")
@@ -250,6 +254,7 @@ def parse(argv):
     for name in ("trials", "confirm", "babble", "libraries", "fk_movements"):
         check(f"--{name.replace('_', '-')}", getattr(args, name), ge=1)
     check("--confirm-seeds", min(args.confirm_seeds), ge=1)
+    check("--confirm-size", min(args.confirm_size), ge=1)
     check_size("--trials", args.trials, MAX_TRIALS, args.allow_large)
     for name, most in MAX_SIZE.items():
         check_size(f"--{name.replace('_', '-')}", getattr(args, name), most, args.allow_large)
@@ -262,6 +267,7 @@ def run(args) -> None:
     if args.stage in ("confirm", "report") and not args.storage.is_file():
         raise UserInputError(f"--storage {args.storage}: no such journal (the stage {args.stage} reads a search)")
     sizes = dict(babble=args.babble, libraries=args.libraries, fk_movements=args.fk_movements)
+    at = dict(babble=args.confirm_size[0], libraries=args.confirm_size[1])
     work = args.work or args.storage.with_name(args.storage.name + ".d")
     study = open_study(args.storage, sizes, args.sampler_seed, check_sampling=args.stage != "report",
                        resize=args.resize)
@@ -272,9 +278,9 @@ def run(args) -> None:
         if "baseline" not in study.user_attrs:
             study.set_user_attr("baseline", present(work, sizes, "present", 1, 1))
     elif args.stage == "confirm":
-        confirm(study, work, sizes, args.confirm, *args.confirm_seeds)
+        confirm(study, work, sizes, args.confirm, *args.confirm_seeds, at=at)
     elif args.stage == "confirm-baseline":
-        study.set_user_attr("confirmed_baseline", present(work, sizes, "present", *args.confirm_seeds))
+        study.set_user_attr("confirmed_baseline", present(work, at, "present", *args.confirm_seeds))
     print(report(study))
 
 
