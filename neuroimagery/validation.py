@@ -23,6 +23,10 @@ An experiment (:class:`neuroimagery.core.experiment.Experiment`) may add its own
 ``ineffective_keys(conf) -> {key: reason}``, ``memory_estimate(conf) -> [resources.Need]`` and
 ``check_inputs(conf)``, and declare ``inputs`` (the groups of what it sees: ``vision``,
 ``stimuli``) and ``min_objects`` (how many shapes a user folder must hold).
+
+:func:`prepare` is what ``train.py`` and ``evaluate.py`` run before anything else: it reads only the
+light modules of the experiment (its schema and checks), so a refusal comes before torch and the
+experiment's protocol are imported.
 """
 from __future__ import annotations
 
@@ -30,8 +34,9 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from .config import Config, check_finite
+from .config import Config, check_finite, experiment, validate
 from .core.errors import UserInputError
+from .core.experiment import Experiment
 from .core.manifest import flatten
 
 CAMERA_KEYS = ("robot_model", "eye", "image_width", "image_height", "fov_deg", "screen_distance",
@@ -151,3 +156,12 @@ def check_run(conf, module) -> None:
     if extra is not None:
         extra(conf)
     check_stimulus_folder(conf, module)
+
+
+def prepare(cfg) -> tuple[Config, Experiment]:
+    """A run's configuration as checked objects and its experiment: :func:`~neuroimagery.config.validate`
+    then :func:`check_run`; a refusal raises :class:`UserInputError`."""
+    conf = validate(cfg)
+    module = experiment(conf.experiment.name)
+    check_run(conf, module)
+    return conf, module

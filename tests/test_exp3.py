@@ -8,6 +8,7 @@ from conftest import make_cfg
 
 from neuroimagery.config import validate
 from neuroimagery.experiments.exp3 import protocol as exp3
+from neuroimagery.experiments.exp3.config import Exp3Config
 from neuroimagery.experiments.chapter6 import protocol as pc
 from neuroimagery.nn import seeding
 from neuroimagery.app.run import evaluate
@@ -21,9 +22,9 @@ def _cfg(*overrides, quick=True):
 
 def test_config_rejects_bad_values():
     with pytest.raises(ValueError, match="match_threshold"):
-        exp3.Exp3Config(match_threshold=2.0)
+        Exp3Config(match_threshold=2.0)
     with pytest.raises(ValueError, match="m1_centre_sigma"):
-        exp3.Exp3Config(m1_centre_sigma=0.0)
+        Exp3Config(m1_centre_sigma=0.0)
 
 
 def test_m1_2_prefers_the_triangle_holding_the_activity():

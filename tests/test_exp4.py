@@ -9,6 +9,7 @@ from conftest import make_cfg
 
 from neuroimagery.config import validate
 from neuroimagery.experiments.exp4 import protocol as exp4
+from neuroimagery.experiments.exp4.config import Exp4Config
 from neuroimagery.experiments.chapter6 import protocol as pc
 from neuroimagery.nn import AllToAll, Delta
 from neuroimagery.nn.binary import binary_matmul
@@ -25,11 +26,11 @@ def test_config_rejects_bad_values():
     from neuroimagery.models.rotation_embodied import EmbodiedLcaParams, EmbodiedPpcParams
 
     with pytest.raises(ValueError, match=r"experiment\.lca\.k"):
-        exp4.Exp4Config(lca=EmbodiedLcaParams(k=-0.1))
+        Exp4Config(lca=EmbodiedLcaParams(k=-0.1))
     with pytest.raises(ValueError, match="noise_tests"):
-        exp4.Exp4Config(noise_tests=["nope"])
+        Exp4Config(noise_tests=["nope"])
     with pytest.raises(ValueError, match=r"experiment\.ppc\.angles"):
-        exp4.Exp4Config(ppc=EmbodiedPpcParams(angles=[30.0, 0.0]))
+        Exp4Config(ppc=EmbodiedPpcParams(angles=[30.0, 0.0]))
 
 
 def test_binary_matmul_equals_bmm():
@@ -200,7 +201,7 @@ def _tiny_model(**over):
     from neuroimagery.models.rotation_embodied import EmbodiedPostureParams, EmbodiedPpcParams
 
     post = {"tau": over.pop("posture_tau")} if "posture_tau" in over else {}
-    e = exp4.Exp4Config(map_size=8, fm=ForwardModelParams(dot_inner=4), posture=EmbodiedPostureParams(**post),
+    e = Exp4Config(map_size=8, fm=ForwardModelParams(dot_inner=4), posture=EmbodiedPostureParams(**post),
                         ppc=EmbodiedPpcParams(), **over)
     return RotationEmbodied(e, seeding.participant_generators(0, [0], stream=0))
 

@@ -23,6 +23,7 @@ from conftest import make_cfg  # noqa: E402
 import neuroimagery.app.run as R  # noqa: E402
 from neuroimagery.app.cli import friendly_errors  # noqa: E402
 from neuroimagery.app import pool  # noqa: E402
+from neuroimagery.config import validate  # noqa: E402
 from neuroimagery.core.errors import UserInputError  # noqa: E402
 from neuroimagery.experiments.exp5 import protocol as exp5, pool as exp5_pool, tasks as exp5_tasks  # noqa: E402
 from neuroimagery.core.files import tmp_path as tmp_name  # noqa: E402
@@ -94,7 +95,7 @@ def test_a_planted_task_file_is_refused_and_nothing_in_it_runs(tmp_path, capsys,
     if where == "resumed run":
         as_run_of(run, compose())
     elif where == "checkpoint":
-        as_run_of(other, compose(), keys=[t["key"] for t in exp5.tasks(R.validate(compose()))])
+        as_run_of(other, compose(), keys=[t["key"] for t in exp5.tasks(validate(compose()))])
     plant(planted, marker)
     with pytest.raises(SystemExit) as ex:
         friendly_errors(R.evaluate)(compose(*extra), out_dir=run)

@@ -11,7 +11,7 @@ from support_bad_inputs import hydra_reporter  # noqa: F401 (fixture)
 
 from neuroimagery.config import validate
 from neuroimagery.experiments.exp6 import protocol as exp6
-from neuroimagery.experiments.exp6.config import ObjectParams
+from neuroimagery.experiments.exp6.config import Exp6Config, ObjectParams
 from neuroimagery.models import voxels
 from neuroimagery.models import voxel_code as vc
 from neuroimagery.models.rotation_3d import Rotation3D, fm_bytes, grid_for_budget
@@ -97,13 +97,13 @@ def test_check_object_refuses_flat_and_broken_objects():
     with pytest.raises(ValueError, match="experiment.objects.test_cubes"):
         ObjectParams(test_cubes=[[[0, 0, 0], [0, 0, 0], [1, 0, 0], [1, 1, 0]]])
     with pytest.raises(ValueError, match="strategy"):
-        exp6.Exp6Config(strategy="guess")
+        Exp6Config(strategy="guess")
 
 
 def test_grid_rule_fits_the_memory_budget():
     g = grid_for_budget(20.0, 20.0)
     assert g == 18 and fm_bytes(g, 20.0) <= 20e6 < fm_bytes(g + 2, 20.0)
-    assert exp6.grid_side(exp6.Exp6Config()) == g
+    assert exp6.grid_side(Exp6Config()) == g
     # ten participants' forward models stay far below the 8 GB the protocol may use; a dense 24^3
     # forward model would need about 0.76 GB on its own
     assert 10 * fm_bytes(g, 20.0) < 0.3e9 and (24 ** 3) ** 2 * 4 > 0.75e9
@@ -192,7 +192,7 @@ def test_search_finds_an_exact_turn_of_whole_objects():
 
 
 def test_views_are_3d_maps_and_the_mirror_looks_different():
-    e = exp6.Exp6Config()
+    e = Exp6Config()
     with exp6.make_scene(e) as scene:
         cells = sm.generate(1)[0]
         a = exp6.see(scene, e, 18, 1.8, cells, "basic", "depth", 0)
@@ -386,7 +386,7 @@ def test_the_config_keeps_few_flat_keys():
     """The stimulus and view settings live in groups: at most 12 keys at the top level (groups apart)."""
     import dataclasses
 
-    e = exp6.Exp6Config()
+    e = Exp6Config()
     flat = [f.name for f in dataclasses.fields(e) if not dataclasses.is_dataclass(getattr(e, f.name))]
     assert len(flat) <= 12, flat
     assert {"objects", "view"} <= {f.name for f in dataclasses.fields(e)} - set(flat)

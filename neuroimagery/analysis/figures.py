@@ -2,25 +2,34 @@
 
 Every curve and bar is the mean over participants of each participant's mean, with error bars of
 one standard error of that mean over participants (``SEM``); the thesis's stated values are drawn
-dashed in black (``thesis=``), labelled "thesis"."""
+dashed in black (``thesis=``), labelled "thesis". matplotlib is imported by :func:`pyplot`, when
+the first figure is drawn."""
 from __future__ import annotations
 
 import functools
 import textwrap
 import time
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import TYPE_CHECKING, Mapping, Sequence
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+from ..core.files import save_figure
+from ..core.logger import COLOUR_MAP, own_range
 
-from ..core.files import save_figure  # noqa: E402
-from ..core.logger import COLOUR_MAP, own_range  # noqa: E402
+if TYPE_CHECKING:
+    import pandas as pd
 
+
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend, imported with the first figure (a run imports no
+    plotting library before it draws)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 THESIS_STYLE = dict(color="black", linestyle="--", linewidth=1.2)
 
@@ -89,6 +98,7 @@ def rt_by_disparity(df: pd.DataFrame, path: str | Path, groups: Sequence[str] = 
                     thesis: Mapping[str, Sequence[tuple[float, float]]] | None = None, x: str | None = None,
                     xlabel: str = "disparity (deg)") -> Path:
     """Mean RT (+- SEM over participants) against disparity (or the column ``x``), one line per group."""
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4))
     xcol = x or ("signed_disparity" if signed and "signed_disparity" in df else "disparity")
     for key, g in df.groupby(list(groups), sort=False):
@@ -107,6 +117,7 @@ def rate_by_disparity(df: pd.DataFrame, path: str | Path, column: str = "correct
                       groups: Sequence[str] = ("test", "condition"), title: str = "",
                       thesis: Mapping[str, Sequence[tuple[float, float]]] | None = None) -> Path:
     """Error (or correct) rate (+- SEM over participants) against disparity, one line per group."""
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4))
     for key, g in df.groupby(list(groups), sort=False):
         v = g[column].astype(float)
@@ -122,6 +133,7 @@ def rate_bars(df: pd.DataFrame, path: str | Path, title: str = "", by: str = "te
               error: bool = False, thesis: Mapping[str, float] | None = None) -> Path:
     """Correct (or error) rate per level of ``by`` (+- SEM over participants); the thesis's value of a
     level, where it states one, as a dashed black line across its bar."""
+    plt = pyplot()
     v = df[column].astype(float)
     m, s = participant_means(df.assign(_v=1.0 - v if error else v), by, "_v")
     order = list(dict.fromkeys(df[by]))
@@ -170,6 +182,7 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
     it), with the map names above, the row labels on the left, a colour bar on the right and, for
     the 1-D maps named in ``units``, each unit's label under its column (e.g. PMCm: l, s, r);
     cheap however long the trial."""
+    plt = pyplot()
     names = list(steps[0].keys())
     units = {n: list(u) for n, u in (units or {}).items() if n in names}
     R, C = len(steps), len(names)
@@ -206,7 +219,7 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
                 fig.text((left + c * pitch + (k + 0.5) * CELL / w) / fw, (bottom - 4) / fh, lab, ha="center",
                          va="top", fontsize=6, rotation=90 if w > 3 or max(map(len, labs)) > 3 else 0)
     cax = fig.add_axes([(left + W + 14) / fw, (bottom + H - bar_h) / fh, 12 / fw, bar_h / fh])
-    bar = fig.colorbar(plt.cm.ScalarMappable(cmap=COLOUR_MAP, norm=matplotlib.colors.Normalize(0, 1)), cax=cax)
+    bar = fig.colorbar(plt.cm.ScalarMappable(cmap=COLOUR_MAP, norm=plt.Normalize(0, 1)), cax=cax)
     bar.set_ticks([0, 0.5, 1], labels=["min", "", "max"])
     bar.ax.tick_params(labelsize=6)
     bar.set_label("activity, each map\nscaled to its own range", fontsize=6)
@@ -245,6 +258,7 @@ def _unclutter(fig) -> None:
 
 @timed
 def save(fig, path: str | Path) -> Path:
+    plt = pyplot()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()

@@ -15,9 +15,6 @@ from typing import Iterable
 
 import numpy as np
 import pandas as pd
-from scipy import optimize, stats
-from statsmodels.stats.multitest import multipletests
-from statsmodels.stats.weightstats import DescrStatsW
 
 TRIAL_COLUMNS = [
     "participant", "test", "condition", "target_object", "target_angle", "target_appearance",
@@ -47,6 +44,8 @@ def rt_profile(df: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
 
 def summarise_test(df: pd.DataFrame) -> dict:
     """The per-test figures of summary.json for the trials of one ``<test>/<condition>``."""
+    from scipy import stats
+
     n = len(df)
     correct = float(df["correct"].astype(float).mean()) if n else float("nan")
     x, y = rt_profile(df)
@@ -83,6 +82,8 @@ def summarise_trials(df: pd.DataFrame) -> dict:
 
 def compare_rt(a: Iterable[float], b: Iterable[float]) -> dict:
     """Welch's t-test of two RT samples: means, difference, t and two-sided p."""
+    from scipy import stats
+
     a, b = np.asarray(list(a), float), np.asarray(list(b), float)
     with warnings.catch_warnings():  # two samples of (nearly) one value, as at a ceiling: p is still defined
         warnings.filterwarnings("ignore", "Precision loss occurred", RuntimeWarning)
@@ -93,6 +94,8 @@ def compare_rt(a: Iterable[float], b: Iterable[float]) -> dict:
 
 def compare_rates(a: Iterable[bool], b: Iterable[bool]) -> dict:
     """Two proportions compared by a chi-square test (Fisher's exact test for small counts)."""
+    from scipy import stats
+
     a, b = np.asarray(list(a), float), np.asarray(list(b), float)
     table = np.array([[a.sum(), a.size - a.sum()], [b.sum(), b.size - b.sum()]])
     if table.min() < 5:
@@ -107,6 +110,8 @@ def dz_interval(values: np.ndarray, level: float = 0.95) -> tuple[float, list[fl
     noncentral t distribution of the observed t, inverted at both tails, over sqrt(n). Where that
     distribution cannot be evaluated (a very large t with few participants), the large-sample
     interval d +- z sqrt(1/n + d^2 / 2n)."""
+    from scipy import optimize, stats
+
     n = values.size
     if n < 2 or values.std(ddof=1) == 0:
         return None, None
@@ -129,6 +134,8 @@ def dz_interval(values: np.ndarray, level: float = 0.95) -> tuple[float, list[fl
 def one_sample(values, test_value: float = 0.0) -> dict:
     """t-test of ``values`` (one per participant) against ``test_value`` (statsmodels): mean, its
     95 % interval, t, two-sided p, d_z and its 95 % interval."""
+    from statsmodels.stats.weightstats import DescrStatsW
+
     v = np.asarray(values, float)
     out = {"n": int(v.size), "mean": rounded(v.mean(), 5) if v.size else None, "t": None, "p": None, "ci95": None,
            "d_z": None, "d_z_ci95": None, "sd": float(v.std(ddof=1)) if v.size >= 2 else None}
@@ -198,6 +205,8 @@ def tost(mean: float | None, sd: float | None, n: int | None, bound: float) -> f
     equivalence bounds ``-bound`` and ``+bound``: the larger one-sided p (statsmodels'
     ``DescrStatsW.ttost_mean`` from the summary figures). Equivalence at level alpha when it is
     below alpha. With no spread, 0 inside the bounds and 1 outside; None when nothing to test."""
+    from scipy import stats
+
     if mean is None or n is None or n < 2 or sd is None or not bound > 0:
         return None
     if sd == 0:
@@ -265,6 +274,8 @@ def holm(rows: list[dict]) -> list[dict]:
     """Add ``p_holm``: Holm's step-down correction (statsmodels ``multipletests``) over the family
     ``rows`` (their ``p``: the two-sided p of a signed effect, the TOST p of a ``'~0'`` claim);
     every claim then holds on the corrected p."""
+    from statsmodels.stats.multitest import multipletests
+
     idx = [i for i, r in enumerate(rows) if r.get("p") is not None]
     if idx:
         adj = multipletests([rows[i]["p"] for i in idx], method="holm")[1]
@@ -284,6 +295,8 @@ def custom_vs_chance(df: pd.DataFrame) -> dict | None:
     """A user's stimuli (test ``custom``, condition ``none``) against chance: each participant's
     correct rate, a one-sided one-sample t-test of the rates against 0.5 over the participants.
     ``above_chance`` is a mean above 0.5 with p < 0.05. None when the run has no custom test."""
+    from scipy import stats
+
     c = df[(df["test"] == "custom") & (df["condition"] == "none")]
     if c.empty:
         return None

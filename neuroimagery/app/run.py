@@ -17,7 +17,7 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 
 from ..core import console, manifest as mf, memory, progress
-from ..config import Config, experiment, validate
+from ..config import Config
 from ..nn import monitor
 from ..nn.functional import intra_op_threads
 from ..core.threads import auto_threads
@@ -26,14 +26,15 @@ from ..core.checkpoints import load_model, read_json, verify_run
 from ..core.files import remove_stale_temporaries, torch_save, write_atomic
 from ..core.lock import RunLock
 from ..core.logger import NullLogger, make_logger
-from ..validation import check_run
+from ..validation import prepare
 
 _STARTUP_TAKEN = []  # the first run of a process records its startup; later runs of a sweep have none
 
 
 def process_age_s() -> float | None:
     """Seconds since this process started (Linux: from ``/proc``; None elsewhere): in a run's
-    ``runtime_s`` the startup, i.e. the interpreter, the imports and composing the configuration."""
+    ``runtime_s`` the startup, i.e. the interpreter, the imports (the experiment's protocol
+    included), composing the configuration and the checks before work."""
     try:
         with open("/proc/self/stat") as f:
             start_ticks = int(f.read().rsplit(")", 1)[1].split()[19])
@@ -280,13 +281,12 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-def _prepare(cfg: DictConfig | Config, checkpoint: bool = False):
-    """Validate everything (config, stimulus folder, the checkpoint named) before any work. The
-    run directory is claimed later, by :class:`RunDir`, when work starts."""
+def _prepare(cfg: DictConfig | Config, checkpoint: bool = False, checked: tuple | None = None):
+    """Validate everything (config, stimulus folder, the checkpoint named) before any work; ``checked``:
+    what :func:`~neuroimagery.validation.prepare` returned for ``cfg``, if it ran already. The run
+    directory is claimed later, by :class:`RunDir`, when work starts."""
     raw = cfg if isinstance(cfg, DictConfig) else None
-    conf = validate(cfg)
-    module = experiment(conf.experiment.name)
-    check_run(conf, module)
+    conf, module = checked if checked is not None else prepare(cfg)
     manifest = mf.build(conf, module)
     if conf.checkpoint and not checkpoint:
         raise UserInputError("checkpoint= has no effect in training: it names a trained run for evaluate.py")
@@ -324,9 +324,11 @@ def _train_phase(conf, module, run) -> tuple[Any, dict]:
     return trained, {"train": memory.peak_rss_mb()}
 
 
-def train(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
-    """Train experiment ``cfg.experiment.name`` and save its checkpoints. Returns a small summary."""
-    conf, module, manifest, raw = _prepare(cfg)
+def train(cfg: DictConfig | Config, out_dir: str | Path | None = None, checked: tuple | None = None) -> dict:
+    """Train experiment ``cfg.experiment.name`` and save its checkpoints. Returns a small summary.
+    ``checked``: :func:`~neuroimagery.validation.prepare`'s answer for ``cfg``, when it ran already."""
+    conf, module, manifest, raw = _prepare(cfg, checked=checked)
+    module.import_phases()  # before the training's clock starts
     with intra_op_threads(conf.threads or auto_threads()):  # restored afterwards
         run = RunDir(_output_dir(out_dir), conf, raw, manifest)
         with _recorded(run):
@@ -340,14 +342,17 @@ def train(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
         return info
 
 
-def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None) -> dict:
+def evaluate(cfg: DictConfig | Config, out_dir: str | Path | None = None, checked: tuple | None = None) -> dict:
     """Test experiment ``cfg.experiment.name``; trains first unless ``cfg.checkpoint`` names a run.
+    ``checked``: :func:`~neuroimagery.validation.prepare`'s answer for ``cfg``, when it ran already.
 
     Writes ``trials.csv`` / ``individuals.csv``, ``summary.json``, ``report.md``, ``figures/``, ``tb/``.
     """
-    started = None if _STARTUP_TAKEN else process_age_s()
+    first = not _STARTUP_TAKEN
     _STARTUP_TAKEN.append(True)
-    conf, module, manifest, raw = _prepare(cfg, checkpoint=True)
+    conf, module, manifest, raw = _prepare(cfg, checkpoint=True, checked=checked)
+    module.import_phases()  # part of the startup, not of the training's time
+    started = process_age_s() if first else None
     with intra_op_threads(conf.threads or auto_threads()):  # restored afterwards
         trained = load_model(module, conf, conf.checkpoint) if conf.checkpoint else None  # before any claim
         run = RunDir(_output_dir(out_dir), conf, raw, manifest)

@@ -4,11 +4,50 @@ An experiment is a subpackage ``neuroimagery.experiments.<name>`` whose ``__init
 ``EXPERIMENT = Experiment(...)``, plus its configuration ``conf/experiment/<name>.yaml``; nothing
 else is registered anywhere. The runner (``neuroimagery.app.run``), the checks before any work
 (``neuroimagery.validation``, ``neuroimagery.core.resources``), the manifest and the pooling read
-these fields and nothing else of the package."""
+these fields and nothing else of the package.
+
+What the checks read (the schema, the declarations, ``memory_estimate``, ``check_inputs``,
+``ineffective_keys``) comes from light modules of the package (its ``config``), so that a refused
+setting is answered without importing torch or the analysis libraries; the phases (``train``,
+``load``, ``evaluate``, ``report``, ...) are :class:`lazy` references to its ``protocol`` module,
+imported on their first call."""
 from __future__ import annotations
 
+import dataclasses
+import importlib
 from dataclasses import dataclass
 from typing import Any, Callable, Optional
+
+
+class lazy:
+    """The function ``name`` of module ``module``, imported on its first call:
+    ``lazy("neuroimagery.experiments.exp4.protocol", "train")(conf, run)``."""
+
+    __slots__ = ("module", "name", "_target")
+
+    def __init__(self, module: str, name: str) -> None:
+        self.module, self.name, self._target = module, name, None
+
+    def resolve(self) -> Callable[..., Any]:
+        """The function itself (its module imported now if it was not yet)."""
+        if self._target is None:
+            self._target = getattr(importlib.import_module(self.module), self.name)
+        return self._target
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return self.resolve()(*args, **kwargs)
+
+    def __repr__(self) -> str:
+        return f"lazy({self.module!r}, {self.name!r})"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, lazy) and (self.module, self.name) == (other.module, other.name)
+
+    def __hash__(self) -> int:
+        return hash((self.module, self.name))
+
+    def __reduce__(self):
+        return lazy, (self.module, self.name)
 
 
 @dataclass(frozen=True)
@@ -17,7 +56,9 @@ class Experiment:
 
     Required: ``name``, the configuration schema ``config`` (a dataclass: the ``experiment.*``
     keys), ``train(conf, run) -> trained``, ``load(conf, checkpoint_dir) -> trained`` and
-    ``evaluate(conf, run, trained) -> summary``. The rest is optional:
+    ``evaluate(conf, run, trained) -> summary``. The rest is optional. Any function may be given
+    as a :class:`lazy` reference; those the checks before work call should live in a module that
+    imports nothing heavy.
 
     - ``report(conf, run, summary)``: writes ``report.md`` (a generic one otherwise);
     - ``checkpoints``: the checkpoint files a trained run holds (``checkpoints/<name>.pt``);
@@ -53,3 +94,11 @@ class Experiment:
     effects: Optional[Callable[..., list]] = None
     pool_runs: Optional[Callable[..., tuple]] = None
     pool_free_keys: tuple[str, ...] = ()
+
+    def import_phases(self) -> None:
+        """Import now what the :class:`lazy` fields refer to (the protocol), so that the time of a
+        phase does not hold the imports."""
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, lazy):
+                value.resolve()

@@ -13,8 +13,6 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-import torch
-
 _TMP = re.compile(r"\.\d+\.tmp$")
 
 
@@ -87,6 +85,8 @@ def torch_save(obj, path: Path) -> None:
     """``torch.save`` into memory, then the bytes into ``path`` with an ordinary write, flushed to
     disk before the rename: a failed write (a full disk) is an ``OSError`` naming ``path`` (torch
     writing to a file itself reports it as a ``RuntimeError`` about stream positions)."""
+    import torch  # here: modules the checks before any work read import this one
+
     buf = io.BytesIO()
     torch.save(obj, buf)
     with open(path, "wb") as f:

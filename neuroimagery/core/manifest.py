@@ -19,8 +19,6 @@ import dataclasses
 import hashlib
 from typing import Any, Mapping
 
-import torch
-
 FORMAT = 1
 # top-level keys that change neither a trained model nor a result
 NEUTRAL = ("checkpoint", "progress", "threads", "overwrite", "allow_large", "logger")
@@ -71,6 +69,8 @@ def differences(ours: Mapping[str, Any], theirs: Mapping[str, Any]) -> list[str]
 
 def tensor_hash(state: Any) -> str:
     """SHA-256 of every tensor in a (nested) checkpoint state, in key order, with its dtype and shape."""
+    import torch  # here: the checks before any work read this module without torch
+
     h = hashlib.sha256()
 
     def walk(x: Any, path: str) -> None:

@@ -14,7 +14,7 @@ from ..nn import AllToAll, DynamicField, Hebbian, PopulationMap, monitor, partic
 
 
 class AngleRotationModel(torch.nn.Module):
-    """The demo's model; ``e`` holds the settings of :class:`neuroimagery.experiments.demo.protocol.DemoConfig`."""
+    """The demo's model; ``e`` holds the settings of :class:`neuroimagery.experiments.demo.config.DemoConfig`."""
 
     def __init__(self, e, participants: int, seed: int) -> None:
         super().__init__()

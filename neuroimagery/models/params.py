@@ -30,10 +30,9 @@ class FieldParams:
 
     def __post_init__(self) -> None:
         check_declared(self, "experiment.field.")
-        from ..nn.decision import DynamicField
-        from ..nn.functional import check_bounds
+        from ..nn.limits import FIELD_BOUNDS, check_bounds  # the bounds of nn.decision.DynamicField
 
-        check_bounds(DynamicField.BOUNDS, self.field_kwargs(), {k: f"experiment.field.{k}" for k in self.KEYS})
+        check_bounds(FIELD_BOUNDS, self.field_kwargs(), {k: f"experiment.field.{k}" for k in self.KEYS})
 
     def field_kwargs(self) -> dict:
         """The keyword arguments of ``DynamicField``."""
@@ -129,10 +128,9 @@ class LcaParams:
     KEYS = ("k", "w", "threshold", "dt")  # the accumulator's own arguments
 
     def __post_init__(self) -> None:
-        from ..nn.decision import LeakyCompetingAccumulator
-        from ..nn.functional import check_bounds
+        from ..nn.limits import LCA_BOUNDS, check_bounds  # the bounds of nn.decision.LeakyCompetingAccumulator
 
-        check_bounds({k: LeakyCompetingAccumulator.BOUNDS[k] for k in self.KEYS},
+        check_bounds({k: LCA_BOUNDS[k] for k in self.KEYS},
                      {k: getattr(self, k) for k in self.KEYS}, {k: f"experiment.lca.{k}" for k in self.KEYS})
         check_declared(self, "experiment.lca.")
 

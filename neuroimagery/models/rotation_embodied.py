@@ -35,7 +35,7 @@ from .rotation_embodied_trials import FusedTrials
 from ..nn.decision import Decision, full_match_gain, smallest_deciding_gain
 from .pmcd_leak import leak_by_rule
 from .posture_ch6 import fit_posture_soms, posture_maps, posture_order  # noqa: F401  (re-exported)
-from .rotation_embodied_params import EmbodiedLcaParams, EmbodiedParams, EmbodiedPostureParams, EmbodiedPpcParams
+from .rotation_embodied_params import PROPRIOCEPTION, EmbodiedLcaParams, EmbodiedParams, EmbodiedPostureParams, EmbodiedPpcParams
 
 MOVES = ("Ml", "Ms", "Mr")
 
@@ -45,9 +45,6 @@ def triangle_weights(n: int) -> torch.Tensor:
     r = torch.arange(n).view(n, 1).expand(n, n)
     c = torch.arange(n).view(1, n).expand(n, n)
     return torch.stack([(r > c), (r == c), (r < c)]).reshape(3, n * n).float()
-
-
-PROPRIOCEPTION = ("none", "match", "mismatch")  # the wrist conditions
 
 
 def check_proprioception(value: str) -> None:

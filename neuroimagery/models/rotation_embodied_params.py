@@ -10,6 +10,8 @@ from typing import List
 from ..core.bounds import Rule, bounded, check_declared
 from .params import ForwardModelParams, LcaParams, PostureMapParams, PpcParams, SelectionParams
 
+PROPRIOCEPTION = ("none", "match", "mismatch")  # the wrist conditions
+
 
 @dataclass
 class EmbodiedPostureParams(PostureMapParams):

@@ -7,14 +7,14 @@ decided; on the ``meta`` device, where there are no values to look at, it runs a
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Sequence
 
 import torch
 from torch import nn
 
-from .functional import check_bounds, check_floating, check_rate, check_tensor, grid_coords, softmax_probabilities, softmax_select
+from .functional import check_floating, check_tensor, grid_coords, softmax_probabilities, softmax_select
+from .limits import FIELD_BOUNDS, LCA_BOUNDS, check_bounds
 
 
 @dataclass
@@ -50,9 +50,8 @@ class DynamicField(nn.Module):
         threshold: activity a unit must reach to win.
     """
 
-    # bounds of the parameters (keyword arguments of nn.functional.check_rate); schemas check with these
-    BOUNDS = {"tau": dict(low=1.0), "h": dict(low=-math.inf), "a_exc": {}, "sigma_exc": dict(open_low=True),
-              "a_inh": {}, "threshold": dict(open_low=True)}
+    # bounds of the parameters (keyword arguments of nn.limits.check_rate); schemas check with these
+    BOUNDS = FIELD_BOUNDS
 
     def __init__(self, shape: Sequence[int], tau: float = 10.0, h: float = 0.0, a_exc: float = 0.6,
                  sigma_exc: float = 1.5, a_inh: float = 0.15, threshold: float = 0.9, name: str = "") -> None:
@@ -126,7 +125,7 @@ class LeakyCompetingAccumulator(nn.Module):
             (0 = deterministic).
     """
 
-    BOUNDS = {"k": {}, "w": {}, "threshold": dict(open_low=True), "dt": dict(open_low=True, high=1.0), "noise": {}}
+    BOUNDS = LCA_BOUNDS
 
     def __init__(self, n: int = 2, k: float = 0.2, w: float = 0.5, threshold: float = 1.2, dt: float = 0.1,
                  noise: float = 0.0, name: str = "") -> None:

@@ -9,12 +9,12 @@ block of code), the code is not being traced by ``torch.compile``, and the tenso
 from __future__ import annotations
 
 import contextlib
-import math
 from typing import Callable, Sequence
 
 import torch
 
 from ..core.errors import UserInputError
+from .limits import check_rate
 
 CHECKS = True  # run the value checks that synchronise with the device (see checks_enabled)
 
@@ -64,29 +64,6 @@ def transfer(name: str) -> Callable[[torch.Tensor], torch.Tensor]:
         return TRANSFER[name]
     except KeyError:
         raise ValueError(f"unknown transfer function {name!r}; choose one of {sorted(TRANSFER)}") from None
-
-
-def check_rate(name: str, value: float, low: float = 0.0, high: float | None = None, open_low: bool = False) -> float:
-    """Raise ValueError naming ``name`` unless ``low <= value (<= high)`` and finite."""
-    v = float(value)
-    if not math.isfinite(v) or v < low or (open_low and v == low) or (high is not None and v > high):
-        rng = f"({low}, {high}]" if open_low else f"[{low}, {'inf' if high is None else high}]"
-        raise ValueError(f"{name} must be in {rng}, got {value!r}")
-    return v
-
-
-def check_bounds(bounds: dict, values: dict, names: dict | None = None) -> dict:
-    """:func:`check_rate` of each of ``values`` with its entry of ``bounds`` (keyword arguments of
-    :func:`check_rate`); an error names ``names[key]`` (e.g. the config key a block's parameter
-    comes from), so a schema and the block it feeds share one set of bounds."""
-    names = names or {}
-    out = {}
-    for key, value in values.items():
-        try:
-            out[key] = check_rate(names.get(key, key), value, **bounds[key])
-        except TypeError:
-            raise ValueError(f"{names.get(key, key)} must be a number, got {value!r}") from None
-    return out
 
 
 def check_tensor(name: str, x: torch.Tensor, last_dims: Sequence[int] | None = None, finite: bool = True) -> torch.Tensor:

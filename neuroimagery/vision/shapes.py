@@ -14,7 +14,6 @@ sets follow (0.375 before, a scale fixed after its effect had been seen).
 """
 from __future__ import annotations
 
-import cv2
 import numpy as np
 
 __all__ = [
@@ -81,6 +80,8 @@ class Shape:
         centre.  Drawn at a resolution >= ``_MIN_WORK`` and area-averaged, so edges are
         anti-aliased.
         """
+        import cv2  # here: the names of the builtin sets (BUILTIN_GRIDS) are read without OpenCV
+
         if not 0.0 < radius_fraction <= 0.5:
             raise ValueError(f"radius_fraction must lie in (0, 0.5], got {radius_fraction}")
         ss = max(1, int(np.ceil(_MIN_WORK / canvas)))

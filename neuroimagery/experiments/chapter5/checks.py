@@ -7,6 +7,7 @@ the run asks for more participants than the default (10), so a run of the usual 
 """
 from __future__ import annotations
 
+from ...core.experiment import lazy
 from ...core.resources import Need, human
 
 DEFAULT_PARTICIPANTS = 10
@@ -23,3 +24,14 @@ def weights_estimate(cfg, model_cls) -> list[Need]:
         one = model_cls(cfg.experiment, 1, cfg.seed)
     each = sum(t.numel() * t.element_size() for t in (*one.parameters(), *one.buffers()))
     return [Need(f"participants={P}", float(each) * P, f"weights, {P} x {human(each)} per participant")]
+
+
+def weights_of(module: str, model: str):
+    """The ``memory_estimate(cfg)`` of an experiment whose size is its weights: :func:`weights_estimate`
+    with the class ``model`` of ``module``, imported only when a run asks for more participants
+    than the default."""
+
+    def memory_estimate(cfg) -> list[Need]:
+        return weights_estimate(cfg, lazy(module, model))
+
+    return memory_estimate

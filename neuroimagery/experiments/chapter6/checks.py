@@ -44,9 +44,9 @@ def memory_estimate(cfg) -> list[Need]:
 
 def check_set_name(key: str, name: str) -> None:
     """``name`` is a builtin stimulus set or a folder."""
-    from ...vision.stimulus_sets import list_stimulus_sets
+    from ...vision.shapes import BUILTIN_GRIDS  # the builtin sets (vision.list_stimulus_sets), read without OpenCV
 
-    known = list_stimulus_sets()
+    known = list(BUILTIN_GRIDS)
     if name in known or os.path.isdir(name):
         return
     lower = {k.lower(): k for k in known}

@@ -1,16 +1,23 @@
-"""A small demonstration built from the blocks alone: mental rotation of a population-coded angle. The protocol: :mod:`.protocol`."""
-from ...core.experiment import Experiment
-from . import protocol
+"""A small demonstration built from the blocks alone: mental rotation of a population-coded angle.
+
+The schema and what the checks before any work read: :mod:`.config` (nothing heavy imported); the
+phases: :mod:`.protocol`, imported when one first runs."""
+import functools
+
+from ...core.experiment import Experiment, lazy
+from . import config
+
+_phase = functools.partial(lazy, f"{__name__}.protocol")  # a function of the protocol, imported on first call
 
 EXPERIMENT = Experiment(
     name="demo",
-    config=protocol.CONFIG,
-    train=protocol.train,
-    load=protocol.load,
-    evaluate=protocol.evaluate,
-    report=protocol.report,
-    checkpoints=protocol.CHECKPOINTS,
-    inputs=protocol.INPUTS,
-    test_keys=protocol.TEST_KEYS,
-    memory_estimate=protocol.memory_estimate,
+    config=config.CONFIG,
+    train=_phase("train"),
+    load=_phase("load"),
+    evaluate=_phase("evaluate"),
+    report=_phase("report"),
+    checkpoints=config.CHECKPOINTS,
+    inputs=config.INPUTS,
+    test_keys=config.TEST_KEYS,
+    memory_estimate=config.memory_estimate,
 )

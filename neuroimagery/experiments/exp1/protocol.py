@@ -9,8 +9,6 @@ their U[0, 0.1] initial weights and the SOM's sample order).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 import pandas as pd
 
@@ -19,43 +17,10 @@ from ...analysis import figures
 from ...analysis.report import Report
 from ...analysis.summary import effect, holm, slope_by_participant, summarise_trials
 from ...core.thesis import EXP1 as THESIS
-from ...core.bounds import bounded, check_declared
-from ...models.params import FieldParams, SomParams
-from ...models.rotation_affordance import AffordanceParams, AffordanceRotationModel
-from ..chapter5.checks import weights_estimate
+from ...models.rotation_affordance import AffordanceRotationModel
+from .config import Exp1Config
 from ..chapter5.protocol import auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of, record_figures_and_scalars, stimulus_set, to_np, train_and_save, trials_frame
 
-
-@dataclass
-class Exp1Quick:
-    """What ``preset=quick`` shrinks (``experiment.quick``)."""
-
-    # the rule of docs/choices.md ("Quick presets"): the full protocol's training, a quarter of its participants
-    som_iterations: int = bounded(2000, ge=1)  # PFC_2's SOM steps (at most som.iterations): the full protocol's
-    participants: int = bounded(3, ge=1)  # a run tests the smaller of `participants` and this
-
-    def __post_init__(self) -> None:
-        check_declared(self, "experiment.quick.")
-
-
-@dataclass
-class Exp1Config(AffordanceParams):
-    """The model's parameters (:class:`AffordanceParams`) and the run's."""
-
-    name: str = "exp1"
-    quick: Exp1Quick = field(default_factory=Exp1Quick)  # what preset=quick shrinks
-    auto_threads: int = bounded(0, ge=0)  # intra-op threads for training and testing when the run's `threads` is 0; 0: the free cores measured at start (see docs)
-
-
-
-CONFIG = Exp1Config
-
-# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.core.manifest)
-INPUTS = ("vision", "stimuli")
-MIN_OBJECTS = 2  # a user folder must hold a shape and its mirror
-CHECKPOINTS = ("model",)
-RUNTIME_KEYS = ("som.threads", "auto_threads")  # thread counts: speed only
-TEST_KEYS = ()  # the model is built from every key, so each one counts as a training setting
 
 def _t(key: str) -> float:
     return THESIS[key].value
@@ -263,8 +228,3 @@ def report(cfg, run, summary) -> None:
             "knows the two objects it was trained on: C1 and C2 associate whole edge maps with postures and "
             "images of those objects, so an unseen shape is mapped to whichever trained image it overlaps most "
             "and its 'rotation' replays the trained L. These numbers measure that limit, not a skill."))
-
-
-def memory_estimate(cfg):
-    """The weights of every participant (checks before work: neuroimagery.validation)."""
-    return weights_estimate(cfg, AffordanceRotationModel)

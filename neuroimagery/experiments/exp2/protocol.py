@@ -8,7 +8,7 @@ simulated robots, once per proprioception condition (``none``, ``match``, ``mism
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field as dc_field, replace
+from dataclasses import replace
 
 import numpy as np
 import torch
@@ -16,45 +16,12 @@ import torch
 from ...core import progress
 from ...analysis import figures
 from ...analysis.report import Report, fmt_p
-from ...analysis.summary import compare_rates, compare_rt, effect, equivalent_levels, holm, paired_by_participant, repeated_anova, slope_by_participant, summarise_trials
+from ...analysis.summary import compare_rates, compare_rt, effect, equivalent_levels, holm, paired_by_participant, slope_by_participant, summarise_trials
 from ...core.thesis import EXP2 as THESIS
-from ...core.bounds import bounded, check_declared
-from ...models.params import FieldParams, SomParams
-from ...models.rotation_motor import ANGLES, MotorRotationModel, MotorRotationParams
-from ..chapter5.checks import weights_estimate
+from ...models.rotation_motor import ANGLES, MotorRotationModel
+from .config import Exp2Config
 from ..chapter5.protocol import auto_threads, count_trials, edge_maps, finish_report, load_model, objects_of, record_figures_and_scalars, stimulus_set, to_np, train_and_save, trials_frame
 
-
-@dataclass
-class Exp2Quick:
-    """What ``preset=quick`` shrinks (``experiment.quick``)."""
-
-    # the rule of docs/choices.md ("Quick presets"): the full protocol's training, a quarter of its participants
-    som_iterations: int = bounded(10000, ge=1)  # SOM steps (at most som.iterations): the full protocol's
-    participants: int = bounded(3, ge=1)  # a run tests the smaller of `participants` and this
-
-    def __post_init__(self) -> None:
-        check_declared(self, "experiment.quick.")
-
-
-@dataclass
-class Exp2Config(MotorRotationParams):
-    """The model's parameters (:class:`MotorRotationParams`) and the run's."""
-
-    name: str = "exp2"
-    auto_threads: int = bounded(0, ge=0)  # intra-op threads for training and testing when the run's `threads` is 0; 0: the free cores measured at start (see docs)
-    quick: Exp2Quick = dc_field(default_factory=lambda: Exp2Quick())  # what preset=quick shrinks
-
-
-
-CONFIG = Exp2Config
-
-# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.core.manifest)
-INPUTS = ("vision", "stimuli")
-MIN_OBJECTS = 2  # a user folder must hold a shape and its mirror
-CHECKPOINTS = ("model",)
-RUNTIME_KEYS = ("som.threads", "auto_threads")  # thread counts: speed only
-TEST_KEYS = ()  # the model is built from every key, so each one counts as a training setting
 CONDITIONS = ("none", "match", "mismatch")
 TARGETS = {"all/none": {"rotation_success_rate": THESIS["rotation success"].value,
                         "correct_rate": THESIS["correct answers"].value}}
@@ -271,8 +238,3 @@ def report(cfg, run, summary) -> None:
     finish_report(r, cfg, run, summary, ("The model only knows "
             "the two trained objects: C2 can only imagine those, so a user's shape is replaced by the trained L "
             "during rotation. These numbers show that limit."))
-
-
-def memory_estimate(cfg):
-    """The weights of every participant (checks before work: neuroimagery.validation)."""
-    return weights_estimate(cfg, MotorRotationModel)

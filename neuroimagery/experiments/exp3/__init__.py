@@ -1,19 +1,27 @@
-"""Experiment 3 (thesis section 6.1): mental rotation with generalising forward models. The protocol: :mod:`.protocol`."""
-from ...core.experiment import Experiment
-from . import protocol
+"""Experiment 3 (thesis section 6.1): mental rotation with generalising forward models.
+
+The schema and what the checks before any work read: :mod:`.config` (nothing heavy imported); the
+phases: :mod:`.protocol`, imported when one first runs."""
+import functools
+
+from ...core.experiment import Experiment, lazy
+from . import config
+from ..chapter6.checks import check_inputs, memory_estimate
+
+_phase = functools.partial(lazy, f"{__name__}.protocol")  # a function of the protocol, imported on first call
 
 EXPERIMENT = Experiment(
     name="exp3",
-    config=protocol.CONFIG,
-    train=protocol.train,
-    load=protocol.load,
-    evaluate=protocol.evaluate,
-    report=protocol.report,
-    checkpoints=protocol.CHECKPOINTS,
-    inputs=protocol.INPUTS,
-    test_keys=protocol.TEST_KEYS,
-    memory_estimate=protocol.memory_estimate,
-    check_inputs=protocol.check_inputs,
-    ineffective_keys=protocol.ineffective_keys,
-    effects=protocol.effects,
+    config=config.CONFIG,
+    train=_phase("train"),
+    load=_phase("load"),
+    evaluate=_phase("evaluate"),
+    report=_phase("report"),
+    checkpoints=config.CHECKPOINTS,
+    inputs=config.INPUTS,
+    test_keys=config.TEST_KEYS,
+    memory_estimate=memory_estimate,
+    check_inputs=check_inputs,
+    ineffective_keys=config.ineffective_keys,
+    effects=_phase("effects"),
 )

@@ -10,8 +10,6 @@ imagined image (PMC_2; a target unit counts as covered by an image unit within
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import pandas as pd
 import torch
 
@@ -19,47 +17,12 @@ from ...core import progress
 from ...analysis import figures
 from ...analysis.report import Report, reproducibility_note
 from ...analysis.summary import effect, holm, paired_by_participant, slope_by_participant, summarise_trials
-from ...models.rotation_generalising import GeneralisingParams
 from ...nn import seeding
 from ..chapter6 import protocol as pc
-from ..chapter6.checks import check_inputs, memory_estimate  # noqa: F401  (checks before work: neuroimagery.validation)
 from ...core.thesis import EXP3 as THESIS_TARGETS
 
 TESTS = ("recog", "gen1", "gen2")
 THESIS = {k.removesuffix(" error rate"): t.value for k, t in THESIS_TARGETS.items() if k.endswith("error rate")}
-
-
-@dataclass
-class Exp3Config(GeneralisingParams):
-    """The model's parameters (:class:`GeneralisingParams`) and the run's: the stimulus sets, what
-    ``preset=quick`` shrinks."""
-
-    name: str = "exp3"
-    train_set: str = "exp3-a"  # set whose images train C2/C3 (thesis: set a)
-    recog_set: str = "exp3-a"  # Recog
-    gen1_set: str = "exp3-b"  # Gen-I
-    gen2_set: str = "exp3-c"  # Gen-II
-    quick: pc.QuickParams = field(default_factory=pc.QuickParams)  # what preset=quick shrinks
-    percept: pc.PerceptParams = field(default_factory=pc.PerceptParams)  # how the percept varies (rule R4)
-
-
-CONFIG = Exp3Config
-
-# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.core.manifest)
-INPUTS = ("vision", "stimuli")
-CHECKPOINTS = ("exp3",)
-# read only by the tests: a trained model (forward model C6, posture maps C2/C3) does not depend on them
-TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "m1_centre_sigma", "match_threshold", "match_tolerance",
-             "selection.max_steps", "posture.code_sigma", "quick.objects", "percept.looks", "selection.tau")
-
-
-def ineffective_keys(cfg) -> dict[str, str]:
-    out = {}
-    if cfg.stimuli.kind == "folder":
-        out.update({k: "stimuli=folder tests the user's folder only" for k in ("gen1_set", "gen2_set")})
-    if cfg.preset == "quick":
-        out["fm.images"] = "preset=quick trains on quick.fm_images"
-    return {f"experiment.{k}": v for k, v in out.items()}
 
 
 def _model(cfg, ids):

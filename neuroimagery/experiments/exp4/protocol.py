@@ -9,65 +9,23 @@ in each condition on the tests listed in ``noise_tests``. RT = accumulator cycle
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import List
-
 import pandas as pd
 import torch
 
 from ...core import progress
-from ...core.bounds import bounded
 from ...analysis import figures
-from ...models.rotation_embodied import PROPRIOCEPTION as CONDITIONS, EmbodiedParams
+from ...models.rotation_embodied_params import PROPRIOCEPTION as CONDITIONS
 from ...analysis.report import Report, fmt_p, reproducibility_note
 from ...analysis.summary import compare_rates, compare_rt, effect, holm, paired_by_participant, slope_by_participant, summarise_trials
 from ...nn import seeding
 from ..chapter6 import protocol as pc
-from ..chapter6.checks import check_inputs, memory_estimate  # noqa: F401  (checks before work: neuroimagery.validation)
+from .config import TESTS
 from ...core.thesis import EXP4 as THESIS_TARGETS
 
-TESTS = ("recog", "gen1", "gen2")
 UNITS = {"PMCm": ["l", "s", "r"], "PMCd": ["YES", "NO"]}  # what each unit of the 1-D maps stands for
 RT_BOUND = 10.0  # equivalence bound of an RT difference: one rotation step, 10 accumulator cycles (docs/choices.md)
 THESIS = {k.removesuffix(" correct rate"): t.value for k, t in THESIS_TARGETS.items() if k.endswith("correct rate")}
 
-
-@dataclass
-class Exp4Config(EmbodiedParams):
-    """The model's parameters (:class:`EmbodiedParams`) and the run's: the stimulus sets, what
-    ``preset=quick`` shrinks."""
-
-    name: str = "exp4"
-    train_set: str = "exp4-A"  # set whose images train C16/C17 (thesis: set A)
-    recog_set: str = "exp4-A"  # Recog test set
-    gen1_set: str = "exp4-B"  # Gen1 test set
-    gen2_set: str = "exp4-C"  # Gen2 test set
-    noise_tests: List[str] = bounded(factory=lambda: ["recog", "gen1"], choices=TESTS, each=True)  # tests repeated with noise
-    quick: pc.QuickParams = field(default_factory=pc.QuickParams)  # objects per test set (full: all 3), images
-    percept: pc.PerceptParams = field(default_factory=pc.PerceptParams)  # how the percept varies (rule R4)
-
-
-CONFIG = Exp4Config
-
-
-
-# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.core.manifest)
-INPUTS = ("vision", "stimuli")
-CHECKPOINTS = ("exp4",)
-# read only by the tests: a trained model (forward models, posture maps C16/C17) does not depend on them
-TEST_KEYS = ("recog_set", "gen1_set", "gen2_set", "posture.tau", "ppc.sigma", "selection.tau",
-             "selection.max_steps", "ppc.proprio_gain", "ppc.noise_amplitude", "noise_tests", "quick.objects", "percept.looks")
-
-
-def ineffective_keys(cfg) -> dict[str, str]:
-    e, out = cfg.experiment, {"lca.k": "PMCd's leak is set per participant after training (rule R2, docs/choices.md)"}
-    if cfg.stimuli.kind == "folder":
-        out.update({k: "stimuli=folder tests the user's folder only" for k in ("gen1_set", "gen2_set", "noise_tests")})
-    elif not e.noise_tests:
-        out["ppc.noise_amplitude"] = "noise_tests is empty"
-    if cfg.preset == "quick":
-        out["fm.images"] = "preset=quick trains on quick.fm_images"
-    return {f"experiment.{k}": v for k, v in out.items()}
 
 def _ids(cfg) -> list[int]:
     return list(range(cfg.participants))

@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Optional
 
 from ...core.bounds import Rule, bounded, check_declared
-from ...models.tool_use import EVENTS, AcquisitionParams, BrainParams, SequencingParams
+from ...models.tool_use.params import AcquisitionParams, BrainParams, SequencingParams
+from ...robot.events import EVENTS
 from ...robot.config import TABLE_CONTACTS
 from ...core.thesis import EXP5, EXP5_TABLE_7_1
 
@@ -153,4 +154,20 @@ def dotted(config: dict) -> dict:
             out.update({f"{k}.{kk}": vv for kk, vv in dotted(v).items()})
         else:
             out[k] = v
+    return out
+
+
+CONFIG = Exp5Config
+
+# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.core.manifest)
+INPUTS = ()  # the robot's eye is part of the world (neuroimagery.robot), not the vision group
+CHECKPOINTS = ("exp5_index",)
+RUNTIME_KEYS = ("engine.n_jobs", "engine.reuse_libraries", "engine.filmstrip_repetition")  # speed, reuse, who is filmed
+TEST_KEYS = ()
+
+
+def ineffective_keys(cfg) -> dict[str, str]:
+    out = {"participants": "exp5 simulates experiment.repetitions robots per group and situation"}
+    if cfg.preset == "quick":
+        out["experiment.repetitions"] = "preset=quick runs experiment.quick.repetitions"
     return out

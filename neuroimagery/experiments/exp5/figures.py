@@ -8,9 +8,11 @@ import numpy as np
 import pandas as pd
 
 from ...analysis import figures
-from ...analysis.figures import plt, save
+from ...analysis.figures import pyplot, save
 from ...models.tool_use import N_POSTURES
 from .config import THESIS
+
+plt = pyplot()  # imported with this module, which only draws
 
 COLOURS = {"behind": "tab:blue", "far": "tab:red"}
 

@@ -32,26 +32,10 @@ from ...core.errors import UserInputError
 from ...models.tool_use import N_POSTURES
 from . import tasks as task_files
 from .task import groups, imagined_routes, make_environment, routes_available, run_task  # noqa: F401 (public names)
-from .checks import check_inputs  # noqa: F401  (checks before work: neuroimagery.validation)
 from .config import ENGINE_KEYS, POOL_FREE_KEYS, SITUATIONS, THESIS, THESIS_TABLE_7_1, Exp5Config, dotted
 from .summary import ROUTES, STRATEGIES, group_rates, library_columns, success_route, success_routes, summarise, table_7_1, thesis_claims
 
-
-CONFIG = Exp5Config
-
-# what validation and the manifests need to know (neuroimagery.validation, neuroimagery.core.manifest)
-INPUTS = ()  # the robot's eye is part of the world (neuroimagery.robot), not the vision group
-CHECKPOINTS = ("exp5_index",)
 POOL_ROWS = "individuals.csv"  # the pooled rows (neuroimagery.app.pool, with POOL_FREE_KEYS and pool_runs)
-RUNTIME_KEYS = ("engine.n_jobs", "engine.reuse_libraries", "engine.filmstrip_repetition")  # speed, reuse, who is filmed
-TEST_KEYS = ()
-
-
-def ineffective_keys(cfg) -> dict[str, str]:
-    out = {"participants": "exp5 simulates experiment.repetitions robots per group and situation"}
-    if cfg.preset == "quick":
-        out["experiment.repetitions"] = "preset=quick runs experiment.quick.repetitions"
-    return out
 
 
 # ---------------------------------------------------------------------------------- helpers
@@ -256,5 +240,5 @@ def pool_runs(run_dirs: list) -> tuple:
     return exp5_pool.pool_runs(run_dirs)
 
 
-__all__ = ["Exp5Config", "CONFIG", "train", "load", "evaluate", "report", "run_task", "groups", "tasks",
+__all__ = ["Exp5Config", "train", "load", "evaluate", "report", "run_task", "groups", "tasks",
            "thesis_claims", "success_route", "success_routes", "summarise", "group_rates", "routes_available", "imagined_routes"]

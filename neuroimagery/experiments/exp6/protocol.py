@@ -18,38 +18,8 @@ from ...core import progress
 from ...nn import monitor, seeding
 from ...vision import shepard_metzler as sm
 from . import data as data
-from .checks import check_inputs, memory_estimate  # noqa: F401  (checks before work: neuroimagery.validation)
-from .config import CONDITIONS, TESTS, Exp6Config  # noqa: F401  (the schema)
+from .config import CONDITIONS, TESTS  # noqa: F401  (the schema)
 from .data import cube_voxels, grid_side, make_scene, objects, pair_bank, see  # noqa: F401
-
-CONFIG = Exp6Config
-INPUTS = ()  # the eye camera of this experiment is set by its own keys (experiment.view)
-CHECKPOINTS = ("exp6",)
-TEST_KEYS = ("objects.test", "objects.test_cubes", "objects.test_set", "test_angles", "oblique_angles", "tests",
-             "conditions", "ppc.proprio_gain", "selection.tau", "selection.max_steps", "strategy", "search.eta",
-             "search.iterations", "search.coarse", "ppc.sigma", "lca.k", "lca.w", "lca.threshold", "lca.dt",
-             "lca.cycles", "lca.input_gain", "quick.objects")
-RUNTIME_KEYS = ("train_threads",)
-
-
-def ineffective_keys(cfg) -> dict[str, str]:
-    e, out = cfg.experiment, {}
-    if e.objects.test_cubes is not None:
-        for k in ("objects.test", "quick.objects", "objects.test_set"):
-            out[k] = "objects.test_cubes replaces the built-in test set"
-    elif e.objects.test_set == "train":
-        out["objects.test"] = "objects.test_set=train shows the training objects"
-    if cfg.preset == "quick":
-        out["fm.images"] = "preset=quick trains on quick.fm_images"
-        out["image.chains"] = "preset=quick trains on quick.chains"
-    if e.grid is not None:
-        out["fm.memory_mb"] = "grid is set, so the grid rule is not used"
-    if "oblique" not in e.tests:
-        out["oblique_angles"] = "the oblique test is not among experiment.tests"
-    if e.strategy == "parity":
-        out["selection.max_steps"] = "strategy=parity does not turn the image"
-    out["selection.tau"] = "PMCm takes the most active move (no softmax)"
-    return {f"experiment.{k}": v for k, v in out.items()}
 
 
 # ------------------------------------------------------------------------------ training

@@ -32,16 +32,25 @@ Algorithms
 The model talks to the world through the small :class:`Environment` protocol (``common``), so the
 same code runs on the pybullet rake-and-toy world (``robot.environment.ToolWorldEnvironment``) and
 on cheap stand-ins in the tests.  Weight tensors live in buffers of :class:`ToolUseBrain` (one individual).
+
+The names below are imported from their modules on first use, so that the parameters
+(:mod:`.params`, read by Experiment 5's schema) are read without torch or the robot world.
 """
 from __future__ import annotations
 
-from ...robot.environment import ToolWorldEnvironment
-from .acquisition import AcquisitionParams, Library, acquire_skills, build_brain
-from .brain import BrainParams, GatedHebbian, ToolUseBrain
-from .common import EVENTS, N_POSTURES, SKILL_LETTERS, Environment, Result, State
-from .sequencing import SequencingParams, TrialRecord, run_trial, sequence_trial
-from .skills import Outcomes, Skill
+from ...core.imports import lazy_names
 
+_WHERE = {  # name -> the module of this package (or of neuroimagery) that defines it
+    **dict.fromkeys(("AcquisitionParams", "BrainParams", "SequencingParams"), ".params"),
+    **dict.fromkeys(("Library", "acquire_skills", "build_brain"), ".acquisition"),
+    **dict.fromkeys(("GatedHebbian", "ToolUseBrain"), ".brain"),
+    **dict.fromkeys(("EVENTS", "N_POSTURES", "SKILL_LETTERS", "Environment", "Result", "State"), ".common"),
+    **dict.fromkeys(("TrialRecord", "run_trial", "sequence_trial"), ".sequencing"),
+    **dict.fromkeys(("Outcomes", "Skill"), ".skills"),
+    "ToolWorldEnvironment": "neuroimagery.robot.environment",
+}
 __all__ = ["EVENTS", "SKILL_LETTERS", "N_POSTURES", "State", "Result", "Environment",
            "ToolUseBrain", "BrainParams", "GatedHebbian", "AcquisitionParams", "SequencingParams", "run_trial", "Skill", "Library", "acquire_skills", "build_brain",
            "Outcomes", "TrialRecord", "sequence_trial", "ToolWorldEnvironment"]
+
+__getattr__ = lazy_names(__name__, _WHERE)

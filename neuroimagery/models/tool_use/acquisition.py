@@ -14,35 +14,9 @@ import torch
 
 from ...motor.pibb import PIBB, event_costs
 from .brain import ToolUseBrain
-from ...core.bounds import bounded, check_declared
+from .params import AcquisitionParams
 from .common import EVENTS, N_POSTURES, Environment, Result, State
 from .skills import Skill
-
-
-@dataclass
-class AcquisitionParams:
-    """Parameters of skill acquisition, Fig. 7.5 (``experiment.acquisition`` of Exp 5). The
-    exploration noise the world draws (its DMP goals and weights) is the world's
-    (``experiment.world``)."""
-
-    n_dmps: int = bounded(10, ge=len(EVENTS), why="one primitive per event")  # M1 / PMC units, the free DMPs (thesis: 10)
-    pibb_samples: int = bounded(10, ge=2)  # K samples per posture and update (thesis: 10)
-    pibb_temperature: float = bounded(0.1, gt=0)  # tau of eq. 7.7 on the 0/1 costs (not given)
-    pibb_decay: float = bounded(0.9, gt=0, le=1)  # exploration covariance factor per PI^BB update (not given)
-    max_epochs: int = bounded(10, ge=1)  # PI^BB epochs at most (thesis: 10)
-    competence_tolerance: float = bounded(0.05, ge=0, le=1)  # stop when the competence changes by less (thesis: 0.05)
-    c1_repeats: int = bounded(10, ge=0)  # C1 updates per PI^BB update (thesis: 10)
-    c2_repeats: int = bounded(10, ge=0)  # C2 updates per successful competence check (thesis: 10)
-    c3_repeats: int = bounded(50, ge=0)  # C3 updates per successful competence check (thesis: 50)
-    hip_threshold: float = bounded(0.5, ge=0, le=1)  # a distal goal (C2 -> HIP) this active makes an event "not new"
-    explore_batch: int = bounded(8, ge=1)  # exploration movements rolled out per batch (the first new event wins)
-    explore_max_rollouts: int = bounded(400, ge=1)  # give up looking for further events after this many movements
-    # rollouts of one DMP without a new event before it is given back with fresh random
-    # parameters (one PI^BB epoch's worth: 4 postures x 10 samples; docs/exp5.md)
-    explore_patience: int = bounded(40, ge=1)
-
-    def __post_init__(self) -> None:
-        check_declared(self, "experiment.acquisition.")
 
 
 @dataclass

@@ -1,32 +1,14 @@
 """One infant robot's maps and connections C1-C4 (thesis Fig. 7.4), in :class:`ToolUseBrain`."""
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import torch
 from torch import nn
 
 from ...nn.connections import AllToAll
 from ...nn.rules import GatedHebbian, QLearning
 from ...nn.som import BidirectionalSOM
-from ...core.bounds import bounded, check_declared
+from .params import BrainParams
 from .common import EVENTS, N_POSTURES
-
-
-@dataclass
-class BrainParams:
-    """The learning rates and read-outs of C1-C4 (``experiment.brain`` of Exp 5)."""
-
-    c1_eta: float = bounded(0.1, gt=0, le=1)  # C1 Hebbian rate (not given)
-    c2_eta: float = bounded(0.1, gt=0, le=1)  # C2 Hebbian rate (not given)
-    c3_eta: float = bounded(0.1, gt=0, le=1)  # C3 SOM rate (not given); 50 steps make the prototype the last outcome
-    c3_sigma: float = bounded(0.1, gt=0)  # C3 neighbourhood width in units; small: each pair keeps its own unit
-    c3_action_gain: float = bounded(100.0, gt=0)  # weight of the primitive's code against the image in C3's input
-    eta: float = bounded(1e-4, gt=0, le=1)  # C4 Q-learning rate (thesis: 0.0001) on the 2 x 240 x 320 binary PC map
-    gamma: float = bounded(0.8, ge=0, le=1)  # discount (thesis: 0.8)
-
-    def __post_init__(self) -> None:
-        check_declared(self, "experiment.brain.")
 
 
 class ToolUseBrain(nn.Module):

@@ -10,24 +10,8 @@ import torch
 
 from ...nn.functional import softmax_select
 from .brain import ToolUseBrain
-from ...core.bounds import bounded, check_declared
+from .params import SequencingParams
 from .skills import Outcomes, Skill
-
-
-@dataclass
-class SequencingParams:
-    """Parameters of action sequencing, Fig. 7.6 (``experiment.sequencing`` of Exp 5)."""
-
-    attempts: int = bounded(5, ge=1)  # primitives per trial (thesis: 5)
-    temperature: float = bounded(0.1, gt=0)  # softmax temperature of action selection in training trials (not given)
-    test_temperature: float = bounded(0.1, gt=0)  # softmax temperature in the test trial (not given)
-    # Fig. 7.6 "select one active neuron of PMC": a unit is active when its PMC activity (C1 + C4)
-    # is above this; 0 = above the maps' resting level (the default, docs/exp5.md). A child with
-    # no active unit does not move.
-    active_threshold: float = bounded(0.0, ge=0, lt=1)
-
-    def __post_init__(self) -> None:
-        check_declared(self, "experiment.sequencing.")
 
 
 @dataclass
