@@ -197,6 +197,7 @@ def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
     assert "Must-show claims on the pooled individuals" in capsys.readouterr().out
     saved = json.loads((tmp_path / "pool" / "summary.json").read_text())
     assert saved["groups"] == summary["groups"] and (tmp_path / "pool" / "report.md").exists()
+    assert (tmp_path / "pool" / "individuals.csv").exists() and not (tmp_path / "pool" / "trials.csv").exists()
     # runs of another configuration, the same seed twice, or a directory that is not a run: clear errors
     other = tmp_path / "eta"
     import shutil

@@ -304,12 +304,12 @@ def check_out(out: str | Path) -> Path:
 
 
 def write(out: str | Path, summary: dict, df: pd.DataFrame, rep: Report) -> Path:
-    """Write the pooled table (``trials.csv``, or the hook's ``POOL_ROWS``), ``summary.json`` and
+    """Write the pooled table (``trials.csv``, or the experiment's ``pool_rows``), ``summary.json`` and
     ``report.md`` into ``out``, each atomically; returns the report's path."""
     out = check_out(out)
     hook = _hook(summary["experiment"])
     if hook is not None:
-        _write(out / getattr(hook, "POOL_ROWS", "trials.csv"), frame=df)
+        _write(out / hook.pool_rows, frame=df)
     else:  # as a run writes its trials.csv
         _write(out / "trials.csv", frame=df, float_format="%.6g")
     _write(out / "summary.json", json.dumps(summary, indent=2) + "\n")

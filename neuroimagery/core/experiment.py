@@ -73,7 +73,8 @@ class Experiment:
     - ``trained_count(conf) -> (count, unit)``: what the training phase reports it trained;
     - ``effects(trials) -> [row]``: the effects a pooled report tests;
     - ``pool_runs(run_dirs) -> (summary, rows, report)``: the experiment pools its runs itself,
-      with ``pool_free_keys``: the ``experiment.*`` settings its runs may differ in besides the seed.
+      with ``pool_free_keys``: the ``experiment.*`` settings its runs may differ in besides the seed,
+      and ``pool_rows``: the file its pooled rows are written to.
     """
 
     name: str
@@ -94,6 +95,7 @@ class Experiment:
     effects: Optional[Callable[..., list]] = None
     pool_runs: Optional[Callable[..., tuple]] = None
     pool_free_keys: tuple[str, ...] = ()
+    pool_rows: str = "trials.csv"
 
     def import_phases(self) -> None:
         """Import now what the :class:`lazy` fields refer to (the protocol), so that the time of a

@@ -26,4 +26,5 @@ EXPERIMENT = Experiment(
     trained_count=_phase("trained_count"),
     pool_runs=_phase("pool_runs"),
     pool_free_keys=config.POOL_FREE_KEYS,
+    pool_rows=config.POOL_ROWS,
 )

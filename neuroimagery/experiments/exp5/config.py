@@ -28,6 +28,7 @@ ENGINE_KEYS = ("engine.n_jobs", "engine.reuse_libraries")
 # settings that may differ between pooled runs besides the seed: how the work was spread, and how
 # many robots (neuroimagery.app.pool)
 POOL_FREE_KEYS = ENGINE_KEYS + ("engine.filmstrip_repetition", "repetitions", "quick.repetitions")
+POOL_ROWS = "individuals.csv"  # the pooled rows (neuroimagery.app.pool, with POOL_FREE_KEYS and pool_runs)
 
 
 @dataclass

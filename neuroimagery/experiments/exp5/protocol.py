@@ -35,7 +35,6 @@ from .task import groups, imagined_routes, make_environment, routes_available, r
 from .config import ENGINE_KEYS, POOL_FREE_KEYS, SITUATIONS, THESIS, THESIS_TABLE_7_1, Exp5Config, dotted
 from .summary import ROUTES, STRATEGIES, group_rates, library_columns, success_route, success_routes, summarise, table_7_1, thesis_claims
 
-POOL_ROWS = "individuals.csv"  # the pooled rows (neuroimagery.app.pool, with POOL_FREE_KEYS and pool_runs)
 
 
 # ---------------------------------------------------------------------------------- helpers
