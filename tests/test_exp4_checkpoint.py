@@ -12,7 +12,7 @@ from neuroimagery.core.errors import UserInputError
 from neuroimagery.experiments.exp4 import protocol as exp4
 from neuroimagery.core.manifest import tensor_hash
 from neuroimagery.models import sequence_checkpoint as sc
-from neuroimagery.app.run import evaluate, train
+from neuroimagery.app.run import evaluate
 
 SMALL = ("experiment=exp4", "preset=quick", "participants=2", "logger=none", "progress=false",
          "experiment.quick.fm_images=200", "experiment.posture.iterations=50", "experiment.noise_tests=[]",

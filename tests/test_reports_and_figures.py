@@ -8,7 +8,6 @@ import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-import pytest
 from support_figures import checking_overlaps, text_overlaps
 
 from conftest import make_cfg
