@@ -1,6 +1,9 @@
-"""Shared fixtures: compose the real Hydra config and shrink it."""
+"""Shared fixtures: compose the real Hydra config and shrink it. How the suite spreads over the
+cores (pytest-xdist): see :func:`pytest_cmdline_main`."""
 from __future__ import annotations
 
+import os
+import re
 from pathlib import Path
 
 import pytest
@@ -12,6 +15,58 @@ from neuroimagery.config import register_configs
 CONF = str(Path(__file__).resolve().parents[1] / "conf")
 register_configs()
 torch.set_num_threads(1)  # small tensors: one thread avoids OpenMP spin-waits on a busy machine
+
+
+# ------------------------------------------------------------------ the suite on several cores
+MAX_WORKERS = 4  # -n auto: a worker holds up to about 2 GB (Exp 2's full-size model is 465 MB a copy)
+# files that share one process-wide trained model (tests/contracts/conftest.py, tests/support_exp6.py):
+# one worker runs each group, so each model is trained once
+SHARED_MODELS = re.compile(r"(?:^|/)contracts/test_(exp[346])_")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_cmdline_main(config):
+    """The whole suite (no file or test named: ``make test``, ``pytest``) runs on the free cores,
+    ``-n auto --dist loadfile``, unless ``-n`` or ``--dist`` say otherwise; named files or tests run
+    in this process (``-n 2`` spreads them too). ``-n 0`` or ``-p no:xdist`` keep the whole suite in
+    one process. ``loadfile``: each file's tests run in one worker, in order, so a module
+    fixture (a trained model, a finished run) is made once, not once per worker."""
+    if not config.pluginmanager.hasplugin("xdist") or hasattr(config, "workerinput"):
+        return
+    if config.option.numprocesses is None and config.args_source == pytest.Config.ArgsSource.TESTPATHS:
+        config.option.numprocesses = "auto"
+    if config.option.numprocesses and config.option.dist == "no":
+        config.option.dist = "loadfile"
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: one worker per core this process may run on (not psutil's count of physical
+    cores, one on many two-vCPU machines), at most ``MAX_WORKERS``; one core: no workers.
+    ``PYTEST_XDIST_AUTO_NUM_WORKERS=N`` sets the number."""
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
+        return None  # pytest-xdist's own hook reads it
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return min(cores, MAX_WORKERS) if cores > 1 else 0
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadfile`` with the files of ``SHARED_MODELS`` kept together, group by group."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class SharedModels(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = super()._split_scope(nodeid)
+            shared = SHARED_MODELS.search(path)
+            return f"contracts {shared.group(1)}" if shared else path
+
+    return SharedModels(config, log)
 
 
 def make_cfg(*overrides: str):

@@ -128,6 +128,7 @@ def test_an_unwritable_home_puts_nothing_before_the_error_line(tmp_path):
     home = tmp_path / "home"
     home.write_text("a file where HOME should be a folder")
     env = {k: v for k, v in os.environ.items() if k not in ("MPLCONFIGDIR", "XDG_CONFIG_HOME", "XDG_CACHE_HOME")}
-    p = subprocess.run([sys.executable, str(ROOT / "evaluate.py"), "experiment=demo", "seed=-1"], capture_output=True,
+    p = subprocess.run([sys.executable, str(ROOT / "evaluate.py"), "experiment=demo", "seed=-1",
+                        f"hydra.run.dir={tmp_path / 'r'}"], capture_output=True,
                        text=True, cwd=ROOT, timeout=120, env={**env, "HOME": str(home)})
     _one_error_line(p, "seed must be")

@@ -2,6 +2,7 @@
 import os
 import re
 from dataclasses import replace
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -248,35 +249,49 @@ def test_trial_lookups_agree_with_direct_computation():
     assert m._lookups()[2] is not motor  # rebuilt after the weights change
 
 
-def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path):
-    """The checkpoint written by training holds the trainer's factors, not the weights; loading
-    forms every weight again by the trainer's own products: in the same process (the same kernels
-    on the same shapes, at the same thread count) every state tensor comes back bit for bit. The
-    check on load allows for the rounding of another CPU or thread count (probe rows one ulp off
-    load) and no more (a probe row off by twice the rounding bound is refused). An unknown format,
-    or factors that do not rebuild the saved weights (other settings), fail with the file named. A
-    full state_dict checkpoint still loads."""
-    from neuroimagery.models.factor_checkpoint import PROBE_ROWS, probe_bound
-    from types import SimpleNamespace
-
-    from neuroimagery.core.errors import UserInputError
-    from neuroimagery.experiments.chapter5.protocol import load_model
-
+@pytest.fixture(scope="module")
+def compact_trained():
+    """(settings, a model of 2 participants fitted on random images, its compact checkpoint),
+    shared by the compact checkpoint's tests below (each one builds its own models to load into)."""
     e = Exp2Config(som=SomParams(iterations=30, cutoff=0.01, cluster_sigma=1.0), hebb_steps=60, c5_epochs=1)
     g = torch.Generator().manual_seed(3)
     images = {(o, a): (torch.rand(1024, generator=g) > 0.8).float() for o in (0, 1) for a in ANGLES}
     m = MotorRotationModel(e, 2, 0)
     m.fit(images)
-    ref = m.state_dict()
+    return e, m, m.compact_state()
+
+
+def _saved(tmp_path, state) -> Path:
     path = tmp_path / "checkpoints" / "model.pt"
-    path.parent.mkdir()
-    torch.save(m.compact_state(), path)
+    path.parent.mkdir(exist_ok=True)
+    torch.save(state, path)
+    return path
+
+
+def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path, compact_trained):
+    """The checkpoint written by training holds the trainer's factors, not the weights; loading
+    forms every weight again by the trainer's own products: in the same process (the same kernels
+    on the same shapes, at the same thread count) every state tensor comes back bit for bit."""
+    from types import SimpleNamespace
+
+    from neuroimagery.experiments.chapter5.protocol import load_model
+
+    e, m, _ = compact_trained
+    ref = m.state_dict()
+    path = _saved(tmp_path, m.compact_state())
     assert path.stat().st_size < sum(v.numel() * v.element_size() for v in ref.values()) / 5
     loaded = load_model(SimpleNamespace(seed=0), tmp_path, MotorRotationModel, e).state_dict()
     assert loaded.keys() == ref.keys()
     for k, v in ref.items():
         assert loaded[k].dtype == v.dtype and torch.equal(loaded[k], v), k
-    ck = m.compact_state()
+
+
+def test_compact_checkpoint_allows_one_rounding_and_refuses_twice_its_bound(compact_trained):
+    """The check on load allows for the rounding of another CPU or thread count (probe rows one ulp
+    off load) and no more (a probe row off by twice the rounding bound is refused)."""
+    from neuroimagery.models.factor_checkpoint import PROBE_ROWS, probe_bound
+
+    e, _, ck = compact_trained
     ulp = {k: torch.nextafter(v, torch.full_like(v, float("inf"))) for k, v in ck["probe"].items()}
     MotorRotationModel(e, 2, 0).load_compact_state({**ck, "probe": ulp})  # as another CPU may round them
     init = MotorRotationModel(e, 2, 0).state_dict()
@@ -288,6 +303,18 @@ def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path):
         far[0, 0, 0] += 2 * float(probe_bound(ck["factors"][k], init[k][:, PROBE_ROWS], ck["probe"][k])[0, 0, 0])
         with pytest.raises(ValueError, match=re.escape(f"more than float rounding ({k})")):
             MotorRotationModel(e, 2, 0).load_compact_state({**ck, "probe": {**ck["probe"], k: far}})
+
+
+def test_compact_checkpoint_of_other_settings_or_format_is_refused_and_a_full_one_loads(tmp_path, compact_trained):
+    """An unknown format, or factors that do not rebuild the saved weights (other settings), fail
+    with the file named. A full state_dict checkpoint still loads."""
+    from types import SimpleNamespace
+
+    from neuroimagery.core.errors import UserInputError
+    from neuroimagery.experiments.chapter5.protocol import load_model
+
+    e, m, ck = compact_trained
+    path = _saved(tmp_path, ck)
     # other settings draw other initial weights: the rebuilt weights would differ, and loading says so
     with pytest.raises(UserInputError, match="model.pt.*differ"):
         load_model(SimpleNamespace(seed=0), tmp_path, MotorRotationModel, replace(e, init_high=0.2))
@@ -296,6 +323,7 @@ def test_compact_checkpoint_round_trip_is_bit_exact(tmp_path):
     torch.save({"format": "neuroimagery.exp2.factors/999", "participants": 2}, path)
     with pytest.raises(UserInputError, match=r"model\.pt: unknown format 'neuroimagery\.exp2\.factors/999'"):
         load_model(SimpleNamespace(seed=0), tmp_path, MotorRotationModel, e)
+    ref = m.state_dict()
     torch.save({"state_dict": ref, "participants": 2}, path)  # the full form of earlier checkpoints
     loaded = load_model(SimpleNamespace(seed=0), tmp_path, MotorRotationModel, e).state_dict()
     assert all(torch.equal(loaded[k], v) for k, v in ref.items())

@@ -255,10 +255,14 @@ def test_rt_by_required_steps_groups_by_disparity_not_by_steps_made():
 # one tiny participant: the condition comparisons run on nearly equal RTs, which scipy warns about
 @pytest.mark.filterwarnings("ignore:Precision loss occurred in moment calculation:RuntimeWarning")
 def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
+    """checkpoint=DIR: the summary counts the loaded model's participants, another count is refused.
+    (The tests build 2 looks per item and stop a trial after 3 rotation steps: what is counted does
+    not depend on either.)"""
     from neuroimagery.core.errors import UserInputError
     from neuroimagery.app.run import train
 
-    small = ("logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100", "experiment.noise_tests=[]")
+    small = ("logger=none", "experiment.quick.fm_images=300", "experiment.posture.iterations=100", "experiment.noise_tests=[]",
+             "experiment.percept.looks=2", "experiment.selection.max_steps=3")
     train(_cfg("participants=1", *small), out_dir=tmp_path / "tr")
     with pytest.raises(UserInputError, match="participants 1 \\(stored\\) vs 3"):
         evaluate(_cfg("participants=3", f"checkpoint={tmp_path / 'tr'}", *small), out_dir=tmp_path / "ev")

@@ -12,11 +12,20 @@ from neuroimagery.core.errors import UserInputError
 from neuroimagery.experiments.exp4 import protocol as exp4
 from neuroimagery.core.manifest import tensor_hash
 from neuroimagery.models import sequence_checkpoint as sc
-from neuroimagery.app.run import evaluate, train
+from neuroimagery.app.run import evaluate
 
 SMALL = ("experiment=exp4", "preset=quick", "participants=2", "logger=none", "progress=false",
          "experiment.quick.fm_images=200", "experiment.posture.iterations=50", "experiment.noise_tests=[]",
-         "experiment.selection.max_steps=3")
+         "experiment.selection.max_steps=3", "experiment.percept.looks=2")
+# (2 looks per test item instead of 16: what a checkpoint holds and how its run tests do not depend
+# on how many looks the tests build, and building them is a third of a run's time)
+
+
+@pytest.fixture(scope="module")
+def trained():
+    """The two participants of ``SMALL``, trained once for the tests that only read the model."""
+    cfg = validate(make_cfg(*SMALL))
+    return cfg, exp4.train_model(cfg, [0, 1])
 
 
 def test_active_units_round_trip():
@@ -31,9 +40,8 @@ def test_active_units_round_trip():
         sc.active_units(X * 0.5)
 
 
-def test_a_compact_checkpoint_rebuilds_the_trained_model():
-    cfg = validate(make_cfg(*SMALL))
-    model = exp4.train_model(cfg, [0, 1])
+def test_a_compact_checkpoint_rebuilds_the_trained_model(trained):
+    cfg, model = trained
     ck = sc.compact_state(model)
     assert ck["format"] == sc.FORMAT and not set(sc.KEYS) & set(ck["state"])
     full = sum(v.numel() * v.element_size() for v in model.state_dict().values())
@@ -53,7 +61,9 @@ def test_a_compact_checkpoint_rebuilds_the_trained_model():
         sc.compact_state(exp4._model(cfg, [0, 1]))
 
 
-def test_checkpoint_from_compact_tests_as_the_training_run(tmp_path):
+def test_checkpoint_from_compact_tests_as_the_training_run(tmp_path, monkeypatch):
+    """The three runs compare their trials.csv: they draw no figures (nearly half a run's time)."""
+    monkeypatch.setattr(exp4, "_figures", lambda *a, **k: None)
     s = evaluate(make_cfg(*SMALL), out_dir=tmp_path / "run")
     state = torch.load(tmp_path / "run" / "checkpoints" / "exp4.pt", weights_only=True)
     assert state["format"] == sc.FORMAT and "state_dict" not in state
@@ -70,9 +80,8 @@ def test_checkpoint_from_compact_tests_as_the_training_run(tmp_path):
     assert filecmp.cmp(tmp_path / "run" / "trials.csv", tmp_path / "from_full" / "trials.csv", shallow=False)
 
 
-def test_a_compact_checkpoint_of_other_participants_is_refused_with_its_path(tmp_path):
-    cfg = validate(make_cfg(*SMALL))
-    model = exp4.train_model(cfg, [0, 1])
+def test_a_compact_checkpoint_of_other_participants_is_refused_with_its_path(tmp_path, trained):
+    cfg, model = trained
     ck = sc.compact_state(model)
     (tmp_path / "checkpoints").mkdir()
     torch.save({**ck, "participants": [0, 1, 2]}, tmp_path / "checkpoints" / "exp4.pt")

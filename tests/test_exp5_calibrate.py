@@ -17,15 +17,36 @@ def _trials(path):
     return study, study.get_trials(deepcopy=False)
 
 
-def test_a_tiny_search_screens_the_present_world_first_and_resumes_from_its_journal(tmp_path, monkeypatch, capsys):
-    """Two trials at tiny sizes: the first is the present world re-expressed (stage 1's pull-path
+@pytest.fixture(scope="module")
+def present_screened(tmp_path_factory):
+    """A journal (``j.journal`` and its work folder) whose one trial is the present world screened
+    at the tiny sizes, stage 1's pull-path threshold lifted so that it reaches the screen. Made once
+    for the tests of this file that start from it (each works on a copy): the present world's
+    screen is the search's costliest trial."""
+    d = tmp_path_factory.mktemp("present")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(cal, "BEHIND_MAX", 1.0)
+        assert cal.main(["--storage", str(d / "j.journal"), "--trials", "1", *TINY]) == 0
+    return d
+
+
+def _copy(present_screened, tmp_path):
+    import shutil
+
+    shutil.copytree(present_screened, tmp_path, dirs_exist_ok=True)
+    return tmp_path / "j.journal"
+
+
+def test_a_tiny_search_screens_the_present_world_first_and_resumes_from_its_journal(present_screened, tmp_path,
+                                                                                     monkeypatch, capsys):
+    """At tiny sizes the first trial is the present world re-expressed (stage 1's pull-path
     threshold lifted so that it reaches the screen), measured with the acceptance code; a rerun
-    adds a trial to the same journal and keeps the first two."""
+    adds two trials to the same journal and keeps the first. (The first call, one trial, is the
+    file's shared journal.)"""
     monkeypatch.setattr(cal, "BEHIND_MAX", 1.0)
-    journal = tmp_path / "j.journal"
-    assert cal.main(["--storage", str(journal), "--trials", "2", *TINY]) == 0
+    journal = _copy(present_screened, tmp_path)
     study, trials = _trials(journal)
-    assert len(trials) == 2
+    assert len(trials) == 1
     first = trials[0]
     assert {k: first.params[k] for k in PRESENT if k in first.params} == {k: v for k, v in PRESENT.items() if k in first.params}
     assert first.user_attrs["stage"] == "screened"
@@ -34,11 +55,11 @@ def test_a_tiny_search_screens_the_present_world_first_and_resumes_from_its_jour
     assert first.values == [m["w3"], m["w4"], m["w1"] + m["w2"]]
     assert first.user_attrs["pulls"]["movements"] == 60
     assert [d["moved"] for d in first.user_attrs["placed"]] == [False] * 4  # the present world is reachable
-    assert "2 candidates" in capsys.readouterr().out
     kept = sorted(p.name for p in (tmp_path / "j.journal.d").rglob("*.json"))
     assert "posture1_seed100.json" in kept and "seed100_0000.json" in kept
 
-    assert cal.main(["--storage", str(journal), "--trials", "1", *TINY]) == 0
+    assert cal.main(["--storage", str(journal), "--trials", "2", *TINY]) == 0
+    assert "3 candidates" in capsys.readouterr().out
     _, again = _trials(journal)
     assert len(again) == 3
     assert again[0].values == first.values and again[0].params == first.params
@@ -146,12 +167,12 @@ def test_a_resized_journal_screens_its_former_screens_again_and_compares_only_on
     assert "| trial 0 " not in front and "| trial 0 (" in former and "| trial 1 |" in front
 
 
-def test_confirm_measures_the_first_by_the_rule_at_the_confirmation_size_not_the_screens(tmp_path, monkeypatch):
-    """The fifth amendment: candidates ranked among the journal's screens, measured at
-    ``--confirm-size`` per seed on the calibration seeds."""
-    monkeypatch.setattr(cal, "BEHIND_MAX", 1.0)
-    journal = tmp_path / "j.journal"
-    assert cal.main(["--storage", str(journal), "--trials", "1", *TINY]) == 0
+def test_confirm_measures_the_first_by_the_rule_at_the_confirmation_size_not_the_screens(present_screened, tmp_path,
+                                                                                         monkeypatch):
+    """The fifth amendment: candidates ranked among the journal's screens (here the present
+    world's, the file's shared journal), measured at ``--confirm-size`` per seed on the
+    calibration seeds."""
+    journal = _copy(present_screened, tmp_path)
     calls = []
 
     def fake(cfg, sigma, folder, babble_n, babble_seeds, libraries_n, library_seeds):

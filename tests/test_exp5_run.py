@@ -136,22 +136,39 @@ def test_success_routes_count_each_far_group():
         exp5.success_route("")
 
 
-def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, monkeypatch):
+# a small stand-in run: one repetition, two levels and two ages of each hypothesis
+SMALL = ("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
+         "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2", "experiment.acquisition.explore_max_rollouts=120",
+         "experiment.hp1_levels=[2,6]", "experiment.hp1_ages=[14,22]", "experiment.hp2_trials=[0,4]",
+         "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    """Two finished ``SMALL`` runs, seeds 0 and 1, laid out like a Hydra sweep (``-m seed=0,1``):
+    ``(sweep directory, [run directories], [their summaries])``, made once for the tests that
+    only read them (the seed-0 run is also the default seed's)."""
+    import neuroimagery.app.run as R
+
+    d = tmp_path_factory.mktemp("exp5") / "sweep"
+    runs = [d / str(s) for s in (0, 1)]
+    return d, runs, [R.evaluate(compose(*SMALL, f"seed={s}"), out_dir=r) for s, r in zip((0, 1), runs)]
+
+
+def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, monkeypatch, sweep):
     import dataclasses
 
     from omegaconf import OmegaConf
 
     import neuroimagery.app.run as R
 
-    args = ("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
-            "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2", "experiment.acquisition.explore_max_rollouts=120",
-            "experiment.hp1_levels=[2,6]", "experiment.hp1_ages=[14,22]", "experiment.hp2_trials=[0,4]",
-            "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
-    R.evaluate(compose(*args), out_dir=tmp_path / "a")
+    args = SMALL
+    assert compose(*args).seed == 0
+    stored = sweep[1][0]  # the run of these settings at the default seed
     full = R.evaluate(compose(*args, "experiment.brain.eta=0.01"), out_dir=tmp_path / "b")  # acquires again
     assert full["cost"]["libraries_reused"] == 0
     monkeypatch.setattr(exp5_task, "acquire_skills", lambda *a, **k: pytest.fail("a stored library was acquired again"))
-    reused = R.evaluate(compose(*args, "experiment.brain.eta=0.01", f"experiment.engine.reuse_libraries={tmp_path / 'a'}"),
+    reused = R.evaluate(compose(*args, "experiment.brain.eta=0.01", f"experiment.engine.reuse_libraries={stored}"),
                         out_dir=tmp_path / "c")
     assert reused["cost"]["libraries_reused"] == reused["cost"]["tasks"] == 2
     assert reused["groups"] == full["groups"]
@@ -159,29 +176,23 @@ def test_sequencing_only_rerun_reuses_libraries_and_equals_a_full_run(tmp_path, 
     pd.testing.assert_frame_equal(a, pd.read_csv(tmp_path / "c" / "individuals.csv"))
     # a setting of skill acquisition differs: nothing is reused
     with pytest.raises(pytest.fail.Exception, match="acquired again"):
-        R.evaluate(compose(*args, "experiment.acquisition.pibb_samples=5", f"experiment.engine.reuse_libraries={tmp_path / 'a'}"),
+        R.evaluate(compose(*args, "experiment.acquisition.pibb_samples=5", f"experiment.engine.reuse_libraries={stored}"),
                    out_dir=tmp_path / "d")
     # how the work is spread changes no result: a finished task stays valid
     e = OmegaConf.to_object(compose(*args).experiment)
-    path = exp5._task_path(tmp_path / "a", "rep000_far")
+    path = exp5._task_path(stored, "rep000_far")
     assert exp5._valid(path, dataclasses.replace(e, engine=dataclasses.replace(e.engine, n_jobs=3)), 0) is not None
     assert exp5._valid(path, dataclasses.replace(e, brain=dataclasses.replace(e.brain, eta=0.01)), 0) is None
     with pytest.raises(ValueError, match="experiment.engine.reuse_libraries"):
         dataclasses.replace(e.engine, reuse_libraries=str(tmp_path / "nowhere"))
 
 
-def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
-    import neuroimagery.app.run as R
+def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys, sweep):
     from neuroimagery.core.errors import UserInputError
     from neuroimagery.app import pool
     from neuroimagery.experiments.exp5 import pool as exp5_pool
 
-    args = ("preset=quick", f"experiment.world.environment={STANDIN}", "experiment.engine.n_jobs=1",
-            "experiment.quick.repetitions=1", "experiment.acquisition.max_epochs=2", "experiment.acquisition.explore_max_rollouts=120",
-            "experiment.hp1_levels=[2,6]", "experiment.hp1_ages=[14,22]", "experiment.hp2_trials=[0,4]",
-            "experiment.hp2_ages=[14,16]", "logger=none", "progress=false")
-    runs = [tmp_path / "sweep" / str(s) for s in (0, 1)]  # laid out like a Hydra sweep (-m seed=0,1)
-    singles = [R.evaluate(compose(*args, f"seed={s}"), out_dir=d) for s, d in zip((0, 1), runs)]
+    swept, runs, singles = sweep
     summary, df = exp5_pool.pool(runs)
     both = pd.concat([pd.read_csv(d / "individuals.csv") for d in runs])
     assert len(df) == len(both) and set(df.run) == {str(d) for d in runs}
@@ -192,7 +203,7 @@ def test_pooled_runs_are_judged_on_all_their_individuals(tmp_path, capsys):
     assert [r["claims_holding"] for r in summary["runs"]] == [sum(c["holds"] for c in s["claims"]) for s in singles]
     assert [r["groups"] for r in summary["runs"]] == [s["groups"] for s in singles]
     assert len(summary["claims"]) == len(singles[0]["claims"])
-    assert exp5_pool.pool([tmp_path / "sweep"])[0] == summary  # the sweep directory stands for its runs
+    assert exp5_pool.pool([swept])[0] == summary  # the sweep directory stands for its runs
     pool.main([*map(str, runs), "--out", str(tmp_path / "pool")])
     assert "Must-show claims on the pooled individuals" in capsys.readouterr().out
     saved = json.loads((tmp_path / "pool" / "summary.json").read_text())

@@ -8,7 +8,6 @@ import cv2
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-import pytest
 from support_figures import checking_overlaps, text_overlaps
 
 from conftest import make_cfg
@@ -65,8 +64,11 @@ def test_mosaic_has_a_colour_bar_and_unit_labels_without_overlaps(tmp_path):
 
 
 def _exp4(*overrides):
+    """A quick Exp 4 run of two participants; its tests build 2 looks per item instead of 16 (what
+    the figures, the report and TensorBoard show does not depend on it; building them is a fifth of
+    the run)."""
     cfg = validate(make_cfg("experiment=exp4", "participants=2", "logger.sample_trials=2",
-                            "experiment.quick.fm_images=2000", *overrides))
+                            "experiment.quick.fm_images=2000", "experiment.percept.looks=2", *overrides))
     cfg.preset = "quick"
     return cfg
 

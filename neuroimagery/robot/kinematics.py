@@ -18,6 +18,7 @@ the hand frame, so ``rake_head_position(q)`` is one matrix product after FK.
 """
 from __future__ import annotations
 
+import copy
 import functools
 import re
 from pathlib import Path
@@ -70,6 +71,18 @@ def icub_urdf_text(model: str = ICUB_MODEL, keep_geometry: bool = True) -> str:
     return text
 
 
+@functools.lru_cache(maxsize=2)
+def _chains(default_dtype: torch.dtype) -> tuple:
+    """The pytorch-kinematics chains ``chest -> r_hand``, ``chest -> head`` and ``root_link -> chest``
+    of the URDF, parsed once per process (at the default dtype they are built in); every
+    :class:`ArmKinematics` takes copies of its own (``Chain.to`` changes a chain in place)."""
+    import pytorch_kinematics as pk
+
+    text = icub_urdf_text(ICUB_MODEL, keep_geometry=False)
+    return tuple(pk.build_serial_chain_from_urdf(text, end_link_name=end, root_link_name=root)
+                 for end, root in (("r_hand", "chest"), ("head", "chest"), ("chest", "root_link")))
+
+
 def world_T_root(root_height: float) -> torch.Tensor:
     """World pose of the URDF root frame (a half turn about z, lifted by ``root_height``)."""
     return _world_T_root(root_height)
@@ -109,17 +122,10 @@ class ArmKinematics(torch.nn.Module):
         dtype: torch.dtype = torch.float32,
     ) -> None:
         super().__init__()
-        import pytorch_kinematics as pk
-
-        text = icub_urdf_text(ICUB_MODEL, keep_geometry=False)
-        self.arm = pk.build_serial_chain_from_urdf(text, end_link_name="r_hand", root_link_name="chest").to(
-            dtype=dtype
-        )
+        self.arm, self.head, torso = (copy.deepcopy(c).to(dtype=dtype) for c in _chains(torch.get_default_dtype()))
         if tuple(self.arm.get_joint_parameter_names()) != ARM_JOINTS:
             raise RuntimeError(f"unexpected arm joints {self.arm.get_joint_parameter_names()}")
-        self.head = pk.build_serial_chain_from_urdf(text, end_link_name="head", root_link_name="chest").to(dtype=dtype)
         self._arm_end, self._head_end = _end_frame(self.arm, "r_hand", 7), _end_frame(self.head, "head", 3)
-        torso = pk.build_serial_chain_from_urdf(text, end_link_name="chest", root_link_name="root_link").to(dtype=dtype)
         root_T_chest = torso.forward_kinematics(torch.zeros(1, 3, dtype=dtype)).get_matrix()[0]
         lo, hi = self.arm.get_joint_limits()
         self.register_buffer("joint_limits", torch.tensor([lo, hi], dtype=dtype).T.contiguous())
