@@ -29,6 +29,7 @@ import torch
 from torch import nn
 
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM, population_cover
+from ..nn.binary import ActiveRows
 from ..nn.functional import softmax_select
 from ..vision.reflection import reflection_index
 from .rotation_embodied_trials import FusedTrials
@@ -80,17 +81,12 @@ def identical_share_gain(pmcd, pairs: torch.Tensor, cycles: int, leak: torch.Ten
     return g.view(P, N).sort(dim=1).values[:, need - 1]
 
 
-def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int) -> tuple[torch.Tensor, torch.Tensor]:
+def images_of_move(X: ActiveRows, Y: ActiveRows, moves: torch.Tensor, m: int) -> tuple[ActiveRows, ActiveRows]:
     """The training pairs whose randomly drawn movement is ``m``, in their order, per participant
     (padded at the end with empty images, which the delta rule leaves without effect), so each
     forward model sees mini-batches of its own images."""
-    P = X.shape[0]
-    rows = [(moves[k] == m).nonzero().squeeze(-1) for k in range(P)]
-    L = max(int(r.numel()) for r in rows)
-    Xm, Ym = torch.zeros(P, L, X.shape[-1]), torch.zeros(P, L, Y.shape[-1])
-    for k, r in enumerate(rows):
-        Xm[k, :r.numel()], Ym[k, :r.numel()] = X[k, r], Y[k, r]
-    return Xm, Ym
+    keep = moves == m
+    return X.select(keep), Y.select(keep)
 
 
 class RotationEmbodied(nn.Module):
@@ -128,14 +124,16 @@ class RotationEmbodied(nn.Module):
         return self.c16.participants
 
     # ------------------------------------------------------------------ learning
-    def fit_forward_models(self, X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, batch: int,
-                           progress=None) -> None:
+    def fit_forward_models(self, X, Y, moves: torch.Tensor, batch: int, progress=None) -> None:
         """C1-C3 by the delta rule (eq. 6.4) in mini-batches of ``batch``: forward model ``m`` on the
-        pairs ``X`` ``(P, N, n)`` -> ``Y`` ``(P, N, n)`` whose drawn movement ``moves`` ``(P, N)`` is
-        ``m`` (:func:`images_of_move`); ``progress`` optionally wraps each one's mini-batches. The
-        sequence is kept, compactly, in ``fm_sequence`` (what a compact checkpoint stores)."""
-        from .sequence_checkpoint import record
+        0/1 pairs ``X`` ``(P, N, n)`` -> ``Y`` ``(P, N, n)`` (tensors, or :class:`ActiveRows` of them)
+        whose drawn movement ``moves`` ``(P, N)`` is ``m`` (:func:`images_of_move`); ``progress``
+        optionally wraps each one's mini-batches. The sequence is kept, compactly, in
+        ``fm_sequence`` (what a compact checkpoint stores)."""
+        from .sequence_checkpoint import active_units, record
 
+        rows = lambda x: x if isinstance(x, ActiveRows) else ActiveRows(active_units(x), x.shape[-1])  # noqa: E731
+        X, Y = rows(X), rows(Y)
         self.train()
         self.fm_sequence = record(X, Y, moves, batch)
         for m, conn in enumerate(self.fm):

@@ -36,6 +36,8 @@ __all__ = [
     "principal_axis",
     "iou",
     "three_dot_images",
+    "three_dot_centres",
+    "three_dot_maps",
     "three_dot_pairs",
 ]
 
@@ -134,11 +136,12 @@ def _flat_maps(maps: torch.Tensor) -> tuple[np.ndarray, tuple]:
 
 
 def _warp_all(arr: np.ndarray, mats: list[np.ndarray], threshold: float) -> np.ndarray:
+    """Each map of ``arr`` warped by its matrix, bilinear, and re-binarised at ``threshold`` (bool)."""
     h, w = arr.shape[1:]
     out = np.empty_like(arr)
     for i, m in enumerate(mats):
         out[i] = cv2.warpAffine(arr[i], m, (w, h), flags=cv2.INTER_LINEAR, borderValue=0.0)
-    return (out >= threshold).astype(np.float32)
+    return out >= threshold
 
 
 def rotate(
@@ -157,7 +160,7 @@ def rotate(
     c = ((w - 1) / 2.0, (h - 1) / 2.0)
     mats = [cv2.getRotationMatrix2D(c, float(a), 1.0) for a in angles]
     out = _warp_all(arr, mats, threshold)
-    return torch.from_numpy(out).reshape(shape).to(maps.device, maps.dtype)
+    return torch.from_numpy(out).reshape(shape).to(maps.device, maps.dtype)  # 0/1 in the maps' dtype
 
 
 def mirror(maps: torch.Tensor) -> torch.Tensor:
@@ -208,7 +211,7 @@ def flip_main_axis(maps: torch.Tensor, threshold: float = ROTATE_THRESHOLD) -> t
         c = np.array([cx, cy])
         mats.append(np.hstack([r, (c - r @ c)[:, None]]))
     out = _warp_all(arr, mats, threshold)
-    return torch.from_numpy(out).reshape(shape).to(maps.device, maps.dtype)
+    return torch.from_numpy(out).reshape(shape).to(maps.device, maps.dtype)  # 0/1 in the maps' dtype
 
 
 def iou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
@@ -231,15 +234,27 @@ def three_dot_images(
     most rotations keep the dots on the map); a dot is a 5-pixel plus, large enough to survive a
     bilinear ``rotate`` at any angle.  Dots may coincide.  Draws only from ``generator``.
     """
+    return three_dot_maps(three_dot_centres(n, generator, size, inner), size)
+
+
+def three_dot_centres(n: int, generator: torch.Generator, size: int = 32, inner: int = 23) -> torch.Tensor:
+    """The dot centres ``(n, 3, 2)`` (x, y) of :func:`three_dot_images`, drawn from ``generator``."""
     if not (1 <= inner <= size - 2):
         raise ValueError(f"inner must lie in [1, size - 2], got inner={inner}, size={size}")
     lo = (size - inner) // 2
-    centres = torch.randint(lo, lo + inner, (n, 3, 2), generator=generator)
-    pts = (centres[:, :, None, :] + _PLUS[None, None]).reshape(n, -1, 2).clamp(0, size - 1)
-    out = torch.zeros(n, size, size)
+    return torch.randint(lo, lo + inner, (n, 3, 2), generator=generator)
+
+
+def three_dot_maps(centres: torch.Tensor, size: int = 32, dtype: torch.dtype = torch.float32) -> torch.Tensor:
+    """The three-dot maps ``(..., size, size)`` (0/1 in ``dtype``) of dot centres ``(..., 3, 2)``."""
+    lead = centres.shape[:-2]
+    c = centres.reshape(-1, 3, 2)
+    n = c.shape[0]
+    pts = (c[:, :, None, :] + _PLUS[None, None]).reshape(n, -1, 2).clamp(0, size - 1)
+    out = torch.zeros(n, size, size, dtype=dtype)
     idx = torch.arange(n)[:, None].expand(-1, pts.shape[1])
-    out[idx, pts[..., 1], pts[..., 0]] = 1.0
-    return out
+    out[idx, pts[..., 1], pts[..., 0]] = 1
+    return out.reshape(*lead, size, size)
 
 
 def three_dot_pairs(

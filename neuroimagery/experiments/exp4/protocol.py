@@ -86,7 +86,7 @@ def train_model(cfg, ids, eye=None):
     model = _model(cfg, ids)
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
     n_img = e.quick.fm_images if cfg.preset == "quick" else e.fm.images
-    X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.fm.dot_inner)
+    X, Y, moves = pc.three_dot_training_rows(gens, n_img, model.step_angles, e.map_size, e.fm.dot_inner)
     model.fit_forward_models(X, Y, moves, e.fm.batch, progress=pc.batches_bar("forward model"))
     bank = pc.training_bank(cfg, eye)
     pc.train_posture_maps(cfg, eye, model, e.ppc.angles, gens, bank=bank)
