@@ -73,12 +73,17 @@ IDENTICAL_SHARE = 0.9  # rule R1: the share of identical training pairs that dec
 def identical_share_gain(pmcd, pairs: torch.Tensor, cycles: int, leak: torch.Tensor) -> torch.Tensor:
     """Rule R1 (docs/choices.md): per participant, the smallest gain with which at
     least ``IDENTICAL_SHARE`` of the identical pairs' evidence ``pairs`` ``(P, N, 2)`` decides (either
-    way, for the unit it favours) within ``cycles`` cycles from rest at the leak ``leak`` ``(P,)``."""
+    way, for the unit it favours) within ``cycles`` cycles from rest at the leak ``leak`` ``(P,)``,
+    or at each of several leaks ``(..., P)`` -> gains of ``leak``'s shape (one search for them all:
+    each pair's gain depends on its own evidence and leak alone)."""
     P, N = pairs.shape[:2]
-    flat, lk = pairs.reshape(P * N, 2), leak.repeat_interleave(N)
-    g = torch.minimum(*(smallest_deciding_gain(pmcd, flat, cycles, answer=a, leak=lk) for a in (0, 1)))
+    L = leak.numel() // P
+    lk = leak.reshape(L, P, 1).expand(L, P, N).reshape(-1).repeat(2)  # (answer, leak, participant, pair)
+    flat = pairs.reshape(1, P * N, 2).expand(2 * L, -1, -1).reshape(-1, 2)
+    answer = torch.arange(2).repeat_interleave(L * P * N)
+    g = smallest_deciding_gain(pmcd, flat, cycles, answer=answer, leak=lk).view(2, L, P, N)
     need = max(1, math.ceil(IDENTICAL_SHARE * N - 1e-9))
-    return g.view(P, N).sort(dim=1).values[:, need - 1]
+    return torch.minimum(g[0], g[1]).sort(dim=-1).values[..., need - 1].reshape(leak.shape)
 
 
 def images_of_move(X: ActiveRows, Y: ActiveRows, moves: torch.Tensor, m: int) -> tuple[ActiveRows, ActiveRows]:
@@ -165,15 +170,16 @@ class RotationEmbodied(nn.Module):
         pairs = self.pair_evidence(x, x)
         self.identical_pairs = pairs  # (P, N, 2): each image against itself (rule R1)
         self.identical_evidence.copy_(pairs.mean(1))
-        leak = leak_by_rule(self, x, objects, angles)  # rule R2: object and angle only
+        leak, gain = leak_by_rule(self, x, objects, angles)  # rule R2: object and angle only
         self.leak.copy_(leak)
-        self.input_gain.copy_(self.gain_for(leak))
+        self.input_gain.copy_(gain)
 
     def gain_for(self, leak: torch.Tensor) -> torch.Tensor:
-        """PMCd's input gain per participant (rule R1, or ``lca.input_gain``) for the leaks ``leak`` ``(P,)``."""
+        """PMCd's input gain per participant (rule R1, or ``lca.input_gain``) for the leaks ``leak``
+        ``(P,)``, or for several leaks of each ``(..., P)``."""
         p = self.p
         if p.lca.input_gain is not None:
-            return torch.full((len(leak),), float(p.lca.input_gain))
+            return torch.full(leak.shape, float(p.lca.input_gain))
         return identical_share_gain(self.pmcd, self.identical_pairs, p.lca.cycles, leak)
 
     @torch.no_grad()
@@ -189,15 +195,19 @@ class RotationEmbodied(nn.Module):
              leak: torch.Tensor | None = None) -> Decision:
         """PMCd from rest fed the same evidence ``(P, B, 2)`` for ``steps`` steps (default
         ``selection.max_steps``) of ``lca.cycles`` cycles, with each participant's gain and leak
-        (default: the calibrated ones) -> a :class:`Decision` of shape ``(P, B)``."""
+        (default: the calibrated ones) -> a :class:`Decision` of shape ``(P, B)``; ``gain`` and
+        ``leak`` of shape ``(..., P)`` (several settings of each participant, run as one batch)
+        give one of shape ``(..., P, B)``."""
         p = self.p
         P, B = evidence.shape[:2]
         gain = self.input_gain if gain is None else gain
         leak = self.leak if leak is None else leak
+        lead = torch.broadcast_shapes(gain.shape, leak.shape)[:-1]
         steps = p.selection.max_steps if steps is None else steps
-        d = self.pmcd((gain.view(P, 1, 1) * evidence).reshape(P * B, 2), steps * p.lca.cycles,
-                      leak=leak.repeat_interleave(B))
-        return Decision(*(v.reshape(P, B, *v.shape[1:]) for v in (d.winner, d.cycles, d.decided, d.state)))
+        ev = gain.unsqueeze(-1).unsqueeze(-1) * evidence  # (..., P, B, 2)
+        d = self.pmcd(ev.expand(*lead, P, B, 2).reshape(-1, 2), steps * p.lca.cycles,
+                      leak=leak.unsqueeze(-1).expand(*lead, P, B).reshape(-1))
+        return Decision(*(v.reshape(*lead, P, B, *v.shape[1:]) for v in (d.winner, d.cycles, d.decided, d.state)))
 
     def pmcm_input(self, ppcc: torch.Tensor) -> torch.Tensor:
         """PMCm's input AM (eq. 6.10) from PPCc ``(..., units^2)``, scaled by rule R3 (docs/choices.md):

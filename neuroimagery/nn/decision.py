@@ -205,19 +205,25 @@ def full_match_gain(threshold: float, k: float, dt: float, cycles: int) -> float
 
 
 @torch.no_grad()
-def smallest_deciding_gain(pmcd: "LeakyCompetingAccumulator", evidence: torch.Tensor, cycles: int, answer: int = 0,
-                           iterations: int = 60, leak: torch.Tensor | None = None) -> torch.Tensor:
+def smallest_deciding_gain(pmcd: "LeakyCompetingAccumulator", evidence: torch.Tensor, cycles: int,
+                           answer: int | torch.Tensor = 0, iterations: int = 60,
+                           leak: torch.Tensor | None = None) -> torch.Tensor:
     """The smallest gain ``g`` (per row of ``evidence`` ``(R, 2)``) with which the accumulator ``pmcd``,
     from rest, fed ``g * evidence`` crosses its threshold on unit ``answer`` within ``cycles`` cycles:
-    bisection on ``g`` (the crossing is monotone in the gain). ``leak`` ``(R,)``: each row's leak in
-    place of ``pmcd.k``. Rows whose evidence favours the other unit, or is empty, get ``inf``."""
+    bisection on ``g`` (the crossing is monotone in the gain), every row at once. ``answer``: one
+    unit for every row, or each row's ``(R,)``; ``leak`` ``(R,)``: each row's leak in place of
+    ``pmcd.k``. Rows whose evidence favours the other unit, or is empty, get ``inf``. Each row's
+    gain depends on that row alone (the accumulator integrates every row by itself), so rows
+    searched together get the gains they would get searched one by one."""
     R = evidence.shape[0]
     lo, hi = torch.zeros(R, dtype=torch.float64), torch.ones(R, dtype=torch.float64)
-    ok = (evidence[:, answer] > evidence[:, 1 - answer]) & (evidence[:, answer] > 0)
+    ans = torch.as_tensor(answer, dtype=torch.long).expand(R)
+    own = evidence.gather(1, ans.unsqueeze(1)).squeeze(1)
+    ok = (own > evidence.gather(1, (1 - ans).unsqueeze(1)).squeeze(1)) & (own > 0)
 
     def decides(g):
         d = pmcd((g.unsqueeze(-1) * evidence.double()).float(), cycles, state=pmcd.initial_state((R,)), leak=leak)
-        return d.decided & (d.winner == answer)
+        return d.decided & (d.winner == ans)
 
     for _ in range(40):  # grow the upper bound until it decides
         bad = ok & ~decides(hi)
