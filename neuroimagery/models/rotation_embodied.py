@@ -226,7 +226,7 @@ class RotationEmbodied(nn.Module):
     def overlap(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
         """PFCtm (PFCfm) summed: the target units covered by ``image`` read as a population code of
         reach ``match_tolerance`` ``(..., n)`` -> ``(...)``."""
-        cover = population_cover(image, self.size, self.p.match_tolerance) > 0.5
+        cover = population_cover(image > 0.5, self.size, self.p.match_tolerance)  # bool: any unit above 0.5 within reach
         return ((target > 0.5) & cover).sum(-1).float()
 
     def flip_target(self, target: torch.Tensor) -> torch.Tensor:

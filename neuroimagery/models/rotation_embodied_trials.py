@@ -71,7 +71,7 @@ class FusedTrials:
         for the forward models ``group`` (participant * 3 + move), once per distinct pair."""
         g, words, inv = unique_rows(group, poci_w)
         pocp = binary_rows(self.m.fm, g, unpack_bits(words, self.n)) + 1.0 > 1.5
-        cover = population_cover(pocp.float(), self.m.size, self.reach) > 0.5 if self.reach > 0 else pocp
+        cover = population_cover(pocp, self.m.size, self.reach)  # bool
         return pack_bits(pocp)[inv], pack_bits(cover)[inv], self.m.c16.net_binary(pocp, g // 3)[inv]
 
     def first_step(self):

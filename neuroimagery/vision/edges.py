@@ -81,7 +81,7 @@ def _object_centre(mask: np.ndarray, window: float, gaze: tuple[float, float]):
     d = np.hypot(cents[keep, 0] - gaze[0], cents[keep, 1] - gaze[1])
     seed = keep[np.argmin(d)]
     near = keep[np.max(np.abs(cents[keep] - cents[seed]), axis=1) < window / 2]
-    sel = np.isin(labels, near)
+    sel = labels == near[0] if len(near) == 1 else np.isin(labels, near)
     ys, xs = np.nonzero(sel)
     return (xs.mean(), ys.mean()), sel.astype(np.uint8)
 
@@ -101,31 +101,37 @@ def edge_pipeline(
     batch = _as_batch(images_bgr)
     k = SUPERSAMPLE
     side = k * size
-    crops = np.zeros((len(batch), side, side), np.float32)
+    edges = np.zeros((len(batch), side, side), bool)
     for i, im in enumerate(batch):
-        h, w = im.shape[:2]
-        win = float(window if window is not None else min(h, w))
-        mask = red_mask(cv2.GaussianBlur(im, (5, 5), 0), red_threshold)
-        centre, mask = _object_centre(mask, win, ((w - 1) / 2.0, (h - 1) / 2.0))
-        if centre is None:
-            continue
-        scale = side / win
-        src = mask.astype(np.float32)
-        cx, cy = centre
-        if scale < 0.5:  # pre-shrink by area averaging so bilinear sampling does not alias
-            f = 2.0 * scale
-            src = cv2.resize(src, None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
-            fx, fy = src.shape[1] / w, src.shape[0] / h
-            cx, cy, scale = (cx + 0.5) * fx - 0.5, (cy + 0.5) * fy - 0.5, scale / f
-        c_out = (side - 1) / 2.0
-        m = np.float32([[scale, 0, c_out - scale * cx], [0, scale, c_out - scale * cy]])
-        crops[i] = cv2.warpAffine(src, m, (side, side), flags=cv2.INTER_LINEAR)
-    edges = np.zeros_like(crops)
-    for i in range(len(batch)):
-        binary = np.where(crops[i] >= 0.5, 255, 0).astype(np.uint8)
-        edges[i] = cv2.Canny(binary, _CANNY_LOW, _CANNY_HIGH) > 0
-    pooled = F.max_pool2d(torch.from_numpy(edges)[:, None], k)[:, 0]
-    return (pooled > 0).float()
+        crop = _crop(im, side, window, red_threshold)
+        if crop is not None:
+            binary = np.where(crop >= 0.5, 255, 0).astype(np.uint8)
+            edges[i] = cv2.Canny(binary, _CANNY_LOW, _CANNY_HIGH) > 0
+    # a map unit is on when any edge pixel falls in its K x K block
+    pooled = edges.reshape(len(batch), size, k, size, k).any(axis=(2, 4))
+    return torch.from_numpy(pooled).float()
+
+
+def _crop(im: np.ndarray, side: int, window: float | None, red_threshold: float) -> np.ndarray | None:
+    """The red object nearest the centre of ``im``, its centroid at the centre of a ``side`` x
+    ``side`` float crop of the ``window`` about it (bilinear); None when there is no red object."""
+    h, w = im.shape[:2]
+    win = float(window if window is not None else min(h, w))
+    mask = red_mask(cv2.GaussianBlur(im, (5, 5), 0), red_threshold)
+    centre, mask = _object_centre(mask, win, ((w - 1) / 2.0, (h - 1) / 2.0))
+    if centre is None:
+        return None
+    scale = side / win
+    src = mask.astype(np.float32)
+    cx, cy = centre
+    if scale < 0.5:  # pre-shrink by area averaging so bilinear sampling does not alias
+        f = 2.0 * scale
+        src = cv2.resize(src, None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
+        fx, fy = src.shape[1] / w, src.shape[0] / h
+        cx, cy, scale = (cx + 0.5) * fx - 0.5, (cy + 0.5) * fy - 0.5, scale / f
+    c_out = (side - 1) / 2.0
+    m = np.float32([[scale, 0, c_out - scale * cx], [0, scale, c_out - scale * cy]])
+    return cv2.warpAffine(src, m, (side, side), flags=cv2.INTER_LINEAR)
 
 
 def _flat_maps(maps: torch.Tensor) -> tuple[np.ndarray, tuple]:

@@ -85,11 +85,13 @@ class Eye:
         size = self.cfg.size if size is None else size
         (h, w), xt, _ = stimulus_set.pair_layout()
         x0 = int(round(xt + 0.5 - CANVAS / 2.0))
-        screens = []
+        screens, drawn = [], {}
         for k, (obj, angle, app) in enumerate(items):
             screen = np.empty((h, w, 3), np.uint8)
             screen[:] = BACKGROUND_BGR
-            image = stimulus_set.image(obj, angle, app)
+            if (obj, angle, app) not in drawn:  # an item looked at several times is drawn once
+                drawn[obj, angle, app] = stimulus_set.image(obj, angle, app)
+            image = drawn[obj, angle, app]
             if gaze_errors is not None:  # the eye looks off by (pan, tilt): the object moves the other way
                 dx, dy = np.tan(np.radians(gaze_errors[k])) * self.cfg.screen_distance / self.cfg.object_width * CANVAS
                 image = _shifted(image, -float(dx), -float(dy))
