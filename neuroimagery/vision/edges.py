@@ -23,7 +23,6 @@ from typing import Sequence, Union
 import cv2
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 __all__ = [
     "SUPERSAMPLE",
