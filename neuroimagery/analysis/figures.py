@@ -250,6 +250,9 @@ def save(fig, path: str | Path) -> Path:
     fig.tight_layout()
     _unclutter(fig)
     fig.tight_layout()
+    # the layout is done: without an engine left on the figure, savefig renders it once (a
+    # figure's placeholder engine makes it render a throw-away image first)
+    fig.set_layout_engine(None)
     save_figure(fig, path, dpi=110, metadata={"Software": None})
     plt.close(fig)
     return path
