@@ -3,6 +3,7 @@ units: the cost grows with the number of active units (edge pixels), not with th
 forward models of Experiments 3 and 4 read their 32x32 edge maps this way."""
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 
@@ -146,6 +147,8 @@ def pack_bits(x: torch.Tensor) -> torch.Tensor:
     pad = -n % 64
     if pad:
         on = torch.nn.functional.pad(on, (0, pad))
+    if on.device.type == "cpu":  # numpy's packing: the same bytes (bit k of a byte = its k-th unit)
+        return torch.from_numpy(np.packbits(on.numpy(), axis=-1, bitorder="little")).view(torch.int64)
     lead = on.shape[:-1]
     b = (on.reshape(*lead, -1, 8).to(torch.uint8) * _BIT.to(on.device)).sum(-1, dtype=torch.uint8)
     return b.contiguous().view(torch.int64)
@@ -154,12 +157,18 @@ def pack_bits(x: torch.Tensor) -> torch.Tensor:
 def unpack_bits(words: torch.Tensor, n: int) -> torch.Tensor:
     """The bool rows ``(..., n)`` that :func:`pack_bits` packed into ``words``."""
     b = words.contiguous().view(torch.uint8)
+    if b.device.type == "cpu":
+        on = torch.from_numpy(np.unpackbits(b.numpy(), axis=-1, bitorder="little")).view(torch.bool)
+        return on[..., :n]
     on = (b.unsqueeze(-1) & _BIT.to(b.device)) != 0
     return on.reshape(*words.shape[:-1], -1)[..., :n]
 
 
 def popcount(words: torch.Tensor) -> torch.Tensor:
     """Number of units on in each packed row ``(..., words)`` -> int64 ``(...)``."""
+    if words.device.type == "cpu":
+        w = words.contiguous().numpy().view(np.uint64)
+        return torch.from_numpy(np.bitwise_count(w).sum(-1, dtype=np.int64))
     return _POPCOUNT.to(words.device)[words.contiguous().view(torch.uint8).long()].sum(-1)
 
 

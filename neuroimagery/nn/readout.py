@@ -11,7 +11,8 @@ weights, kept while the weights stay the same (:meth:`Readouts.weights_version`)
 * :meth:`Readouts.net_reverse`: ``W^T y``, the block read from its outputs back to its inputs;
 * :meth:`Readouts.incoming`: the weights into one output unit (a receptive field, for a figure);
 * :func:`binary_rows`: rows of several blocks of one shape at once (row ``r`` by block
-  ``group[r] % len(blocks)`` of participant ``group[r] // len(blocks)``).
+  ``group[r] % len(blocks)`` of participant ``group[r] // len(blocks)``), each block from its own
+  transposed weights.
 """
 from __future__ import annotations
 
@@ -120,14 +121,17 @@ class Readouts:
 def binary_rows(blocks: Sequence[Readouts], group: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     """Rows of several blocks of one shape at once: binary rows ``x`` ``(N, in)``, row ``r`` read
     by block ``group[r] % len(blocks)`` of participant ``group[r] // len(blocks)`` -> ``(N, out)``.
-    The blocks' transposed weights are stacked once per version of their weights (kept by the first)."""
+    Each block reads its own rows from its transposed weights (:meth:`Readouts.transposed`, kept
+    while its weights stay the same), a row's active weight rows summed in the same order as
+    from one table of all the blocks."""
     first = blocks[0]
-    key = tuple((id(b), b.weights_version()) for b in blocks)
-    cache = getattr(first, "_bank_cache", None)
-    if cache is None or cache[0] != key:
-        P, O, I = first.weight.shape
-        if any(b.weight.shape != first.weight.shape for b in blocks):
-            raise ValueError("binary_rows: the blocks must have weights of one shape")
-        table = torch.stack([b.weight.transpose(1, 2) for b in blocks], 1).reshape(P * len(blocks), I, O)
-        first._bank_cache = cache = (key, table)
-    return binary_matmul_rows(cache[1], group, x)
+    if any(b.weight.shape != first.weight.shape for b in blocks):
+        raise ValueError("binary_rows: the blocks must have weights of one shape")
+    nb = len(blocks)
+    which, part = group % nb, group // nb
+    out = torch.empty(x.shape[0], first.weight.shape[1], dtype=first.weight.dtype, device=first.weight.device)
+    for k, b in enumerate(blocks):
+        sel = (which == k).nonzero().squeeze(-1)
+        if sel.numel():
+            out[sel] = binary_matmul_rows(b.transposed(), part[sel], x[sel])
+    return out
