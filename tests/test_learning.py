@@ -97,6 +97,7 @@ def test_binary_delta_on_active_units_equals_the_dense_rows():
         a.learn(X, None, sequence=True, batch=4, target=Y, method=method)
         b.learn(XA, None, sequence=True, batch=4, target=YA, method=method)
         assert torch.equal(a.weight, b.weight), method
+        assert torch.equal(b.transposed(), b.weight.transpose(1, 2).contiguous())  # the trained table kept
     keep = torch.rand(2, 30, generator=g) > 0.5
     sel = XA.select(keep)
     for p in range(2):
@@ -107,6 +108,15 @@ def test_binary_delta_on_active_units_equals_the_dense_rows():
         ActiveRows(torch.tensor([[[3, 1]]]), 4)
     with pytest.raises(ValueError, match="0/1"):
         ActiveRows.of(X * 0.5)
+
+
+def test_tiled_transpose_is_the_transpose():
+    from neuroimagery.nn.functional import transposed_copy
+
+    g = torch.Generator().manual_seed(8)
+    for shape in ((3, 200, 130), (130, 300), (2, 5, 7)):
+        x = torch.rand(shape, generator=g)
+        assert torch.equal(transposed_copy(x), x.transpose(-1, -2).contiguous())
 
 
 def test_kernels_are_chosen_from_the_inputs_and_refused_when_they_do_not_apply():

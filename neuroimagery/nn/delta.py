@@ -25,7 +25,7 @@ from . import local_kernel, monitor
 from .change import Outer
 from .connections import Connection
 from .forms import Form, register
-from .functional import check_rate
+from .functional import check_rate, transpose_into, transposed_copy
 from .binary import ActiveRows
 from .learning import error_curve, length
 from .local import LocalConnection
@@ -75,8 +75,9 @@ class Delta(Rule):
 # ------------------------------------------------------------------ a dense connection, over a sequence
 @torch.no_grad()
 def delta_binary(weight: torch.Tensor, X, Y, eta: float, batch: int, progress=None,
-                 curve: str | None = None) -> None:
-    """Delta rule (``Delta(eta, reduction='sum')``) on binary inputs, in mini-batches, in place.
+                 curve: str | None = None) -> torch.Tensor:
+    """Delta rule (``Delta(eta, reduction='sum')``) on binary inputs, in mini-batches, in place;
+    returns the trained weights transposed ``(P, in, out)`` (what it trained them in).
 
     ``weight`` ``(P, out, in)``, ``X`` ``(P, N, in)`` 0/1 or an :class:`~.binary.ActiveRows` of
     them, ``Y`` ``(P, N, out)`` targets (or an :class:`~.binary.ActiveRows` of 0/1 targets). Each
@@ -94,7 +95,8 @@ def delta_binary(weight: torch.Tensor, X, Y, eta: float, batch: int, progress=No
     P, O, I = weight.shape
     N = length(X)
     watch = monitor.Curve(curve, -(-N // batch)) if curve and monitor.active() else None
-    rows_of = weight.transpose(1, 2).contiguous().view(P * I, O)  # participant p's weight column i is row p I + i
+    table = transposed_copy(weight)  # (P, I, O): participant p's weight column i is row p I + i of rows_of
+    rows_of = table.view(P * I, O)
     idx, sizes = _bags(X, P, I)
     first = sizes.cumsum(0) - sizes  # where each bag starts in idx
     starts = range(0, N, batch)
@@ -114,7 +116,8 @@ def delta_binary(weight: torch.Tensor, X, Y, eta: float, batch: int, progress=No
             watch.add(b, (y - out).pow(2).sum(-1).mean())
         err = (eta * Delta.error(out, y)).transpose(0, 1).reshape(-1, O)  # (bags, O), bag order
         rows_of.index_add_(0, bag_idx, err.repeat_interleave(counts, dim=0))
-    weight.copy_(rows_of.view(P, I, O).transpose(1, 2))
+    transpose_into(weight, table)
+    return table
 
 
 def _bags(X, P: int, I: int) -> tuple[torch.Tensor, torch.Tensor]:
@@ -151,7 +154,7 @@ class BinarySequence(Form):
         P, pre, target = conn.participants, call.pre, call.kw["target"]
         X = pre.expand(P, -1, -1) if isinstance(pre, torch.Tensor) and pre.dim() == 2 else pre
         Y = target.expand(P, -1, -1) if isinstance(target, torch.Tensor) and target.dim() == 2 else target
-        delta_binary(conn.weight, X, Y, rule.eta, call.batch, call.progress, curve=error_curve(conn))
+        conn.keep_transposed(delta_binary(conn.weight, X, Y, rule.eta, call.batch, call.progress, curve=error_curve(conn)))
 
 
 # ------------------------------------------------------------------ a local connection, one step

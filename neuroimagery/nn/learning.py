@@ -127,7 +127,7 @@ def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", p
         raise ValueError("pre, post and target must have the same number of steps")
     conn.learnt_factors = None
     _learn(conn, pre, post, batch, method, progress, kw)
-    if not getattr(conn, "warned_step", True) and checks_enabled(conn.weight) and not torch.isfinite(conn.weight).all():
+    if not getattr(conn, "warned_step", True) and checks_enabled(conn.weight) and not _finite(conn.weight):
         conn.warned_step = True  # one pass over the weights per sequence: the fast forms check no step
         warnings.warn(f"connection {conn.name!r}: its weights are no longer finite after this sequence "
                       "(learning diverged: lower eta or the batch; this warning is given once)", stacklevel=4)
@@ -135,6 +135,15 @@ def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", p
         w = conn.weight.detach()
         monitor.record(f"train/{conn.name or 'connection'}/weight_norm_final", w.flatten(1).norm(dim=1).mean(), T)
         monitor.record(f"train/{conn.name or 'connection'}/weight_max_final", w.amax(), T)
+
+
+def _finite(w: torch.Tensor) -> bool:
+    """Whether every weight is finite: its least and greatest are (a NaN makes both NaN), in one
+    pass without a mask of the weights' size."""
+    if not w.numel():
+        return True
+    lo, hi = torch.aminmax(w)
+    return bool(torch.isfinite(lo) & torch.isfinite(hi))
 
 
 def _learn(conn, pre, post, batch, method, progress, kw) -> None:

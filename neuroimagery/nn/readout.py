@@ -21,7 +21,7 @@ from typing import Sequence
 import torch
 
 from .binary import binary_matmul, binary_matmul_rows, sparse_matmul
-from .functional import as_batched_shape, check_floating, check_participants, check_tensor, checks_enabled
+from .functional import as_batched_shape, check_floating, check_participants, check_tensor, checks_enabled, transposed_copy
 
 
 class Readouts:
@@ -38,8 +38,15 @@ class Readouts:
         """``W^T`` ``(P, in, out)``, contiguous, made once per version of the weights."""
         key = self.weights_version()
         if self._table_cache is None or self._table_cache[0] != key:
-            self._table_cache = (key, self.weight.transpose(1, 2).contiguous())
+            self._table_cache = (key, transposed_copy(self.weight))
         return self._table_cache[1]
+
+    def keep_transposed(self, table: torch.Tensor) -> None:
+        """Keep ``table``, which must equal ``W^T`` ``(P, in, out)`` of the present weights (a form
+        that trained the weights transposed hands them over), as :meth:`transposed`'s copy."""
+        if table.shape != (self.weight.shape[0], self.weight.shape[2], self.weight.shape[1]) or not table.is_contiguous():
+            raise ValueError(f"keep_transposed of {self.block_name()}: a contiguous (P, in, out) table, got {tuple(table.shape)}")
+        self._table_cache = (self.weights_version(), table)
 
     def batched(self, x: torch.Tensor, n: int, checked: bool = False) -> tuple[torch.Tensor, bool]:
         """``x`` as ``(P, B, n)`` and whether to squeeze the participant axis again: shape, dtype
