@@ -137,7 +137,8 @@ def _flat_maps(maps: torch.Tensor) -> tuple[np.ndarray, tuple]:
     if maps.dim() < 2:
         raise ValueError(f"maps must have shape (..., H, W), got {tuple(maps.shape)}")
     shape = tuple(maps.shape)
-    return maps.detach().reshape(-1, shape[-2], shape[-1]).cpu().numpy().astype(np.float32), shape
+    flat = maps.detach().reshape(-1, shape[-2], shape[-1]).cpu().numpy()
+    return np.asarray(flat, dtype=np.float32), shape  # float32 maps are read as they are (never written)
 
 
 def _warp_all(arr: np.ndarray, mats: list[np.ndarray], threshold: float) -> np.ndarray:
@@ -145,7 +146,7 @@ def _warp_all(arr: np.ndarray, mats: list[np.ndarray], threshold: float) -> np.n
     h, w = arr.shape[1:]
     out = np.empty_like(arr)
     for i, m in enumerate(mats):
-        out[i] = cv2.warpAffine(arr[i], m, (w, h), flags=cv2.INTER_LINEAR, borderValue=0.0)
+        cv2.warpAffine(arr[i], m, (w, h), dst=out[i], flags=cv2.INTER_LINEAR, borderValue=0.0)
     return out >= threshold
 
 
@@ -163,8 +164,8 @@ def rotate(
     angles = torch.as_tensor(angle_deg, dtype=torch.float64).expand(shape[:-2]).reshape(-1)
     h, w = shape[-2:]
     c = ((w - 1) / 2.0, (h - 1) / 2.0)
-    mats = [cv2.getRotationMatrix2D(c, float(a), 1.0) for a in angles]
-    out = _warp_all(arr, mats, threshold)
+    turns = {a: cv2.getRotationMatrix2D(c, a, 1.0) for a in set(angles.tolist())}  # one matrix per angle
+    out = _warp_all(arr, [turns[a] for a in angles.tolist()], threshold)
     return torch.from_numpy(out).reshape(shape).to(maps.device, maps.dtype)  # 0/1 in the maps' dtype
 
 

@@ -236,7 +236,7 @@ def three_dot_training_rows(generators, n: int, angles: Sequence[float], size: i
     ang = torch.tensor([float(a) for a in angles])[m.reshape(-1)]
     xs, ys = [], []
     for s in range(0, c.shape[0], ROTATE_CHUNK):  # a few dense blocks at a time, kept by their active units
-        x = v.three_dot_maps(c[s:s + ROTATE_CHUNK], size)
+        x = v.three_dot_maps(c[s:s + ROTATE_CHUNK], size, dtype=torch.bool)
         xs.append(active_units(x.reshape(x.shape[0], -1)))
         ys.append(active_units(_vfun("rotate")(x, ang[s:s + ROTATE_CHUNK]).reshape(x.shape[0], -1)))
     P, ss = len(generators), size * size
