@@ -202,7 +202,7 @@ class RotationEmbodied(nn.Module):
         P, B = evidence.shape[:2]
         gain = self.input_gain if gain is None else gain
         leak = self.leak if leak is None else leak
-        lead = torch.broadcast_shapes(gain.shape, leak.shape)[:-1]
+        lead = max(gain.shape[:-1], leak.shape[:-1], key=len)  # (torch.broadcast_shapes imports sympy)
         steps = p.selection.max_steps if steps is None else steps
         ev = gain.unsqueeze(-1).unsqueeze(-1) * evidence  # (..., P, B, 2)
         d = self.pmcd(ev.expand(*lead, P, B, 2).reshape(-1, 2), steps * p.lca.cycles,
