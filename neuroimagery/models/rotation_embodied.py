@@ -35,6 +35,7 @@ from ..vision.reflection import reflection_index
 from .rotation_embodied_trials import FusedTrials
 from ..nn.decision import Decision, full_match_gain, smallest_deciding_gain
 from .pmcd_leak import leak_by_rule
+from .recording import first_rows
 from .posture_ch6 import fit_posture_soms, posture_maps, posture_order  # noqa: F401  (re-exported)
 from .rotation_embodied_params import EmbodiedLcaParams, EmbodiedParams, EmbodiedPostureParams, EmbodiedPpcParams
 
@@ -327,9 +328,8 @@ class RotationEmbodied(nn.Module):
 
     @staticmethod
     def _note_ppc(history, rec, qc, ppcp, ppcc) -> None:
-        """Add the wrist maps that chose the next move to the last recorded step of each sample trial."""
-        for qq, k in rec:
-            hit = (qc == qq).nonzero()
-            if hit.numel() and history[k]:
-                i = int(hit[0])
+        """Add the wrist maps that chose the next move to the last recorded step of each sample trial
+        (``rec``: its (trial, history slot) pairs; the first row of ``qc`` that is the trial)."""
+        for i, k in first_rows(qc, rec):
+            if history[k]:
                 history[k][-1]["PPCp"], history[k][-1]["PPCc"] = ppcp[i].clone(), ppcc[i].clone()
