@@ -80,9 +80,11 @@ def _object_centre(mask: np.ndarray, window: float, gaze: tuple[float, float]):
     d = np.hypot(cents[keep, 0] - gaze[0], cents[keep, 1] - gaze[1])
     seed = keep[np.argmin(d)]
     near = keep[np.max(np.abs(cents[keep] - cents[seed]), axis=1) < window / 2]
-    sel = labels == near[0] if len(near) == 1 else np.isin(labels, near)
+    if len(near) == 1:  # one object: OpenCV's centroid of it is the mean of its pixels' coordinates
+        return (cents[near[0], 0], cents[near[0], 1]), (labels == near[0]).view(np.uint8)
+    sel = np.isin(labels, near)
     ys, xs = np.nonzero(sel)
-    return (xs.mean(), ys.mean()), sel.astype(np.uint8)
+    return (xs.mean(), ys.mean()), sel.view(np.uint8)
 
 
 def edge_pipeline(

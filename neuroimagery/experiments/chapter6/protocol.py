@@ -180,23 +180,22 @@ def trial_rows(table: pd.DataFrame, out: dict, participants: Sequence[int]) -> p
 
     ``rotated_ok``: the seen object's orientation plus the model's total rotation equals the
     target's orientation modulo 360 deg."""
-    frames = []
-    for k, p in enumerate(participants):
-        df = table.drop(columns=["target_row", "rotated_row"]).copy()
-        df.insert(0, "participant", int(p))
-        final = df["rotated_angle"].to_numpy() + out["rotation_deg"][k].numpy()
-        df["answer"] = np.where(out["answer"][k].numpy() == 0, "yes", "no")
-        df["correct"] = (df["answer"] == "yes") == df["same"].astype(bool)
-        df["rotation_steps"] = out["rotation_steps"][k].numpy().astype(int)
-        df["rotated_ok"] = angle_aligned(final, df["target_angle"].to_numpy())
-        df["rt"] = out["rt"][k].numpy()
-        for extra in ("decided", "rotations"):
-            if extra in out:
-                df[extra] = out[extra][k].numpy()
-        frames.append(df)
+    P, B = len(participants), len(table)
+    flat = lambda v: v.reshape(-1).numpy()  # noqa: E731  (P, B) -> participant after participant
+    df = table.drop(columns=["target_row", "rotated_row"]).iloc[np.tile(np.arange(B), P)].reset_index(drop=True)
+    df.insert(0, "participant", np.repeat(np.array([int(p) for p in participants], dtype=np.int64), B))
+    final = df["rotated_angle"].to_numpy() + flat(out["rotation_deg"])
+    df["answer"] = np.where(flat(out["answer"]) == 0, "yes", "no")
+    df["correct"] = (df["answer"] == "yes") == df["same"].astype(bool)
+    df["rotation_steps"] = flat(out["rotation_steps"]).astype(int)
+    df["rotated_ok"] = angle_aligned(final, df["target_angle"].to_numpy())
+    df["rt"] = flat(out["rt"])
+    for extra in ("decided", "rotations"):
+        if extra in out:
+            df[extra] = flat(out[extra])
     if len(table):
-        progress.advance(len(table) * len(frames), note=f"{table['test'].iloc[0]}/{table['condition'].iloc[0]}")
-    return pd.concat(frames, ignore_index=True)[TRIAL_COLUMNS + [c for c in ("decided", "rotations") if c in out]]
+        progress.advance(B * P, note=f"{table['test'].iloc[0]}/{table['condition'].iloc[0]}")
+    return df[TRIAL_COLUMNS + [c for c in ("decided", "rotations") if c in out]]
 
 
 def batches_bar(what: str):
