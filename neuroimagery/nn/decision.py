@@ -167,15 +167,16 @@ class LeakyCompetingAccumulator(nn.Module):
         used = torch.full(batch, cycles, dtype=torch.long, device=dev)
         decided = torch.zeros(batch, dtype=torch.bool, device=dev)
         early = dev.type != "meta"  # stop once all decided (reads `live` on the host)
+        neg_k = -k
         for t in range(1, cycles + 1):
-            total = y.sum(-1, keepdim=True)
-            dy = -k * y - self.w * (total - y) + inputs
+            total = _total(y)
+            dy = neg_k * y - self.w * (total - y) + inputs
             if self.noise > 0:  # drawn where the generator lives (default: y's device), in y's dtype
                 g_dev = dev if generator is None else generator.device
                 z = torch.randn(y.shape, generator=generator, device=g_dev, dtype=y.dtype).to(dev)
                 dy = dy + self.noise * z / self.dt ** 0.5
             y = torch.where(live.unsqueeze(-1), (y + self.dt * dy).clamp_min(0.0), y)
-            m, idx = y.max(-1)
+            m, idx = _largest(y)
             new = live & (m >= self.threshold)
             if not early:
                 winner = torch.where(new, idx, winner)
@@ -193,6 +194,21 @@ class LeakyCompetingAccumulator(nn.Module):
 
     def reset_state(self) -> None:
         pass
+
+
+def _total(y: torch.Tensor) -> torch.Tensor:
+    """``y.sum(-1, keepdim=True)``; of two units their one addition (the same number: a sum of two
+    floats rounds once however it is accumulated), without a reduction kernel."""
+    return y[..., :1] + y[..., 1:] if y.shape[-1] == 2 else y.sum(-1, keepdim=True)
+
+
+def _largest(y: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """``y.max(-1)``: the largest unit and its index (the first of equal ones); of two units by one
+    comparison, without a reduction kernel."""
+    if y.shape[-1] != 2:
+        return y.max(-1)
+    a, b = y[..., 0], y[..., 1]
+    return torch.maximum(a, b), (b > a).long()
 
 
 def full_match_gain(threshold: float, k: float, dt: float, cycles: int) -> float:
