@@ -69,3 +69,16 @@ def test_sparse_matmul_equals_the_dense_product_on_graded_input():
     torch.testing.assert_close(sparse_matmul(w, x), torch.bmm(x, w), rtol=1e-5, atol=1e-5)
     b = (x != 0).float()
     torch.testing.assert_close(sparse_matmul(w, b), binary_matmul(w, b))
+
+
+def test_cover_of_a_bool_map_is_the_max_pooled_cover_of_its_0_1_values():
+    """population_cover of bool maps (shifted ORs) equals the max-pooled cover of the same maps as
+    0/1 floats, at every reach and at the border."""
+    from neuroimagery.nn import population_cover
+
+    g = torch.Generator().manual_seed(3)
+    for size, reach in ((5, 1), (5, 3), (32, 1), (32, 2), (7, 9)):
+        b = torch.rand(2, 20, size * size, generator=g) > 0.85
+        cover = population_cover(b, size, reach)
+        assert cover.dtype == torch.bool and cover.shape == b.shape
+        assert torch.equal(cover, population_cover(b.float(), size, reach) > 0.5), (size, reach)

@@ -69,6 +69,25 @@ def test_lca_leak_per_element_equals_accumulators_of_that_leak():
     assert int(d.cycles[0]) < int(d.cycles[1])  # a larger leak decides later (or not at all)
 
 
+def test_gain_search_of_many_rows_equals_each_row_searched_alone():
+    """smallest_deciding_gain: rows searched together (several leaks, both answers, one call) get
+    the gains each row gets alone, bit for bit; rows favouring the other unit or empty get inf."""
+    from neuroimagery.nn.decision import smallest_deciding_gain
+
+    g = torch.Generator().manual_seed(7)
+    ev = torch.rand(12, 2, generator=g)
+    ev[3] = 0.0
+    leak = 0.5 + torch.rand(12, generator=g)
+    answer = torch.arange(12) % 2
+    lca = LeakyCompetingAccumulator(2, k=0.5, w=0.5, threshold=1.2, dt=0.1)
+    together = smallest_deciding_gain(lca, ev, 10, answer=answer, leak=leak)
+    for i in range(12):
+        alone = smallest_deciding_gain(lca, ev[i:i + 1], 10, answer=int(answer[i]), leak=leak[i:i + 1])
+        assert torch.equal(alone, together[i:i + 1]), i
+    favoured = ev.gather(1, answer.unsqueeze(1)).squeeze(1) > ev.gather(1, (1 - answer).unsqueeze(1)).squeeze(1)
+    assert torch.isinf(together[~favoured]).all() and torch.isfinite(together[favoured]).all()
+
+
 def test_softmax_selection_frequencies():
     x = torch.tensor([[1.0, 0.0, 0.5]]).expand(20000, -1)
     idx = softmax_select(x, 0.5, generators=[torch.Generator().manual_seed(0)])

@@ -6,6 +6,7 @@ import torch
 
 from neuroimagery.nn import AllToAll, Delta, Hebbian
 from neuroimagery.nn import forms
+from neuroimagery.nn.binary import ActiveRows
 from neuroimagery.nn.learning import IndexedRows
 
 # float32 weights formed by another summation order (closed form in float64 or float32, sparse
@@ -80,6 +81,42 @@ def test_binary_delta_minibatches_equal_the_plain_rule():
     assert torch.equal(a.weight, c.weight)  # auto chose the binary kernel
     assert torch.allclose(a.weight, b.weight, atol=ATOL)
     _same_outcomes(a, b, X)
+
+
+def test_binary_delta_on_active_units_equals_the_dense_rows():
+    """Inputs and targets given by their active units (ActiveRows) train the weights bit for bit
+    as their dense 0/1 rows do, with the binary kernel and with the plain rule."""
+    g = torch.Generator().manual_seed(6)
+    X = (torch.rand(2, 30, 16, generator=g) > 0.7).float()
+    Y = (torch.rand(2, 30, 9, generator=g) > 0.6).float()
+    X[1, 3] = 0  # an empty pattern
+    XA, YA = ActiveRows.of(X), ActiveRows.of(Y)
+    assert torch.equal(XA.rows(0, 30), X) and XA.length == 30 and XA.participants == 2
+    for method in ("delta_binary", "plain"):
+        a, b = _pair(16, 9, Delta(0.05), P=2)
+        a.learn(X, None, sequence=True, batch=4, target=Y, method=method)
+        b.learn(XA, None, sequence=True, batch=4, target=YA, method=method)
+        assert torch.equal(a.weight, b.weight), method
+        assert torch.equal(b.transposed(), b.weight.transpose(1, 2).contiguous())  # the trained table kept
+    keep = torch.rand(2, 30, generator=g) > 0.5
+    sel = XA.select(keep)
+    for p in range(2):
+        rows = X[p][keep[p]]
+        assert torch.equal(sel.rows(0, sel.length)[p, :len(rows)], rows)
+        assert not sel.rows(0, sel.length)[p, len(rows):].any()
+    with pytest.raises(ValueError, match="ascend"):
+        ActiveRows(torch.tensor([[[3, 1]]]), 4)
+    with pytest.raises(ValueError, match="0/1"):
+        ActiveRows.of(X * 0.5)
+
+
+def test_tiled_transpose_is_the_transpose():
+    from neuroimagery.nn.functional import transposed_copy
+
+    g = torch.Generator().manual_seed(8)
+    for shape in ((3, 200, 130), (130, 300), (2, 5, 7)):
+        x = torch.rand(shape, generator=g)
+        assert torch.equal(transposed_copy(x), x.transpose(-1, -2).contiguous())
 
 
 def test_kernels_are_chosen_from_the_inputs_and_refused_when_they_do_not_apply():

@@ -64,6 +64,19 @@ def test_holm_correction_over_a_family():
     assert [r["holds"] for r in out] == [True, False, False]
 
 
+def test_holm_adjusted_p_values_are_statsmodels_bit_for_bit():
+    from statsmodels.stats.multitest import multipletests
+
+    from neuroimagery.analysis.summary import holm_adjusted
+
+    r = np.random.default_rng(0)
+    for n in (1, 2, 7, 60):
+        p = r.random(n) ** 3
+        p[r.integers(0, n, n // 3)] = p[0]  # ties
+        p[-1] = 1.0
+        assert np.array_equal(holm_adjusted(p), multipletests(p, method="holm")[1])
+
+
 def test_repeated_measures_anova_finds_a_within_participant_effect():
     rng = np.random.default_rng(1)
     rows = [{"participant": p, "kind": k, "rt": 10 + 3 * (k == "b") + rng.normal(0, 0.5) + p}

@@ -312,3 +312,20 @@ def test_pybullet_link_pose_matches_pytorch_kinematics(camera_eye):
     assert np.allclose(pos, pose[:3, 3], atol=1e-6)
     assert np.allclose(rot, pose[:3, :3], atol=1e-6)
     scene.set_joints(torch.zeros_like(q))
+
+
+@pytest.mark.parametrize("photometry", [{}, {"luminance_jitter": 0.2, "noise_std": 3.0}])
+def test_direct_eye_sees_the_one_object_screen_without_drawing_it(photometry):
+    """DirectEye.edge_maps (the object's image is the view of its place) equals the screen path of
+    Eye.edge_maps, with gaze errors and with the photometric model on."""
+    from neuroimagery.vision.config import VisionConfig
+    from neuroimagery.vision.eye import DirectEye, Eye
+    from neuroimagery.vision.stimulus_sets import get_stimulus_set
+
+    s = get_stimulus_set("exp4-A")
+    items = [tuple(i) for i in s.items()][:12] * 2
+    errors = np.random.default_rng(0).normal(0, 0.1, (len(items), 2))
+    for ge in (None, errors):
+        fast = DirectEye(VisionConfig(**photometry)).edge_maps(s, items, 32, ge)
+        screens = Eye.edge_maps(DirectEye(VisionConfig(**photometry)), s, items, 32, ge)
+        assert torch.equal(fast, screens) and fast.sum() > 0

@@ -193,6 +193,9 @@ def map_panels(steps: Sequence[Mapping[str, np.ndarray]], path: str | Path, titl
             mosaic[r * pitch:r * pitch + CELL, c * pitch:c * pitch + CELL] = _cell(st[n])
     rgba = plt.get_cmap(COLOUR_MAP)(np.nan_to_num(mosaic))
     rgba[np.isnan(mosaic)] = 1.0
+    # float32 colours: matplotlib resamples the mosaic at its own size in the array's precision, and
+    # every colour of the map (and the blank) turns into the same bytes from float32 as from float64
+    rgba = rgba.astype(np.float32)
     dpi, left, right = 100, 170, 120
     H, W = mosaic.shape
     bar_h = max(min(H, 240), BAR_MIN)  # the colour bar, tall enough for its label
@@ -264,6 +267,9 @@ def save(fig, path: str | Path) -> Path:
     fig.tight_layout()
     _unclutter(fig)
     fig.tight_layout()
+    # the layout is done: without an engine left on the figure, savefig renders it once (a
+    # figure's placeholder engine makes it render a throw-away image first)
+    fig.set_layout_engine(None)
     save_figure(fig, path, dpi=110, metadata={"Software": None})
     plt.close(fig)
     return path

@@ -9,6 +9,7 @@ import torch
 LEAK_STEP = 0.05  # grid of the leak rule
 LEAK_STEPS = 50  # its candidates: w, w + 0.05, ..., w + 2.5
 QUIET_SHARE = 0.10  # largest share of held misaligned pairs that may decide
+LEAK_CHUNK = 8  # values of k held at a time
 
 
 def misaligned_pairs(objects: torch.Tensor, angles: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -21,20 +22,30 @@ def misaligned_pairs(objects: torch.Tensor, angles: torch.Tensor) -> tuple[torch
 
 
 @torch.no_grad()
-def leak_by_rule(model, x: torch.Tensor, objects: torch.Tensor, angles: torch.Tensor) -> torch.Tensor:
-    """Each participant's leak ``(P,)``: on a grid of ``LEAK_STEP`` from w, the smallest k with which at
-    most ``QUIET_SHARE`` of the misaligned same-object pairs of the maps ``x`` ``(P, N, n)`` decide
-    (either way), their still-step evidence held from rest for ``selection.max_steps`` steps, the gain
-    at each k ``model.gain_for(k)``; where no k does, the k with the fewest deciding."""
+def leak_by_rule(model, x: torch.Tensor, objects: torch.Tensor, angles: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Each participant's leak ``(P,)`` and the gain at it: on a grid of ``LEAK_STEP`` from w, the
+    smallest k with which at most ``QUIET_SHARE`` of the misaligned same-object pairs of the maps ``x``
+    ``(P, N, n)`` decide (either way), their still-step evidence held from rest for
+    ``selection.max_steps`` steps, the gain at each k ``model.gain_for(k)``; where no k does, the k
+    with the fewest deciding. The grid is held ``LEAK_CHUNK`` values of k at a time, as one batch
+    (each pair's race depends on its own evidence, gain and leak alone), until every participant
+    has its k: a larger k changes nothing once one is found."""
     P = x.shape[0]
     t, c = misaligned_pairs(objects, angles)
     ev = model.pair_evidence(x[:, t], x[:, c])
+    grid = torch.tensor([float(model.p.lca.w) + LEAK_STEP * i for i in range(LEAK_STEPS + 1)])
     leak, best = torch.full((P,), float(model.p.lca.k)), torch.full((P,), float("inf"))
+    gain = torch.full((P,), float("nan"))
     done = torch.zeros(P, dtype=torch.bool)
-    for i in range(LEAK_STEPS + 1):
-        k = torch.full((P,), float(model.p.lca.w) + LEAK_STEP * i)
-        share = model.hold(ev, gain=model.gain_for(k), leak=k).decided.float().mean(1)
-        better = ~done & (share < best - 1e-9)
-        leak, best = torch.where(better, k, leak), torch.where(better, share, best)
-        done = done | (share <= QUIET_SHARE)
-    return leak
+    for lo in range(0, len(grid), LEAK_CHUNK):
+        ks = grid[lo:lo + LEAK_CHUNK].unsqueeze(1).expand(-1, P)  # (K, P)
+        gains = model.gain_for(ks)
+        shares = model.hold(ev, gain=gains, leak=ks).decided.float().mean(-1)  # (K, P)
+        for k, g, share in zip(ks, gains, shares):
+            better = ~done & (share < best - 1e-9)
+            leak, best, gain = torch.where(better, k, leak), torch.where(better, share, best), torch.where(better, g, gain)
+            done = done | (share <= QUIET_SHARE)
+        if bool(done.all()):
+            break
+    unset = gain.isnan()  # no k was better than none (no misaligned pair to hold): the gain at the default leak
+    return leak, torch.where(unset, model.gain_for(leak), gain) if bool(unset.any()) else gain

@@ -29,11 +29,13 @@ import torch
 from torch import nn
 
 from ..nn import AllToAll, Delta, HardWired, LeakyCompetingAccumulator, PopulationMap, SOM, population_cover
+from ..nn.binary import ActiveRows
 from ..nn.functional import softmax_select
 from ..vision.reflection import reflection_index
 from .rotation_embodied_trials import FusedTrials
 from ..nn.decision import Decision, full_match_gain, smallest_deciding_gain
 from .pmcd_leak import leak_by_rule
+from .recording import first_rows
 from .posture_ch6 import fit_posture_soms, posture_maps, posture_order  # noqa: F401  (re-exported)
 from .rotation_embodied_params import PROPRIOCEPTION, EmbodiedLcaParams, EmbodiedParams, EmbodiedPostureParams, EmbodiedPpcParams
 
@@ -69,25 +71,25 @@ IDENTICAL_SHARE = 0.9  # rule R1: the share of identical training pairs that dec
 def identical_share_gain(pmcd, pairs: torch.Tensor, cycles: int, leak: torch.Tensor) -> torch.Tensor:
     """Rule R1 (docs/choices.md): per participant, the smallest gain with which at
     least ``IDENTICAL_SHARE`` of the identical pairs' evidence ``pairs`` ``(P, N, 2)`` decides (either
-    way, for the unit it favours) within ``cycles`` cycles from rest at the leak ``leak`` ``(P,)``."""
+    way, for the unit it favours) within ``cycles`` cycles from rest at the leak ``leak`` ``(P,)``,
+    or at each of several leaks ``(..., P)`` -> gains of ``leak``'s shape (one search for them all:
+    each pair's gain depends on its own evidence and leak alone)."""
     P, N = pairs.shape[:2]
-    flat, lk = pairs.reshape(P * N, 2), leak.repeat_interleave(N)
-    g = torch.minimum(*(smallest_deciding_gain(pmcd, flat, cycles, answer=a, leak=lk) for a in (0, 1)))
+    L = leak.numel() // P
+    lk = leak.reshape(L, P, 1).expand(L, P, N).reshape(-1).repeat(2)  # (answer, leak, participant, pair)
+    flat = pairs.reshape(1, P * N, 2).expand(2 * L, -1, -1).reshape(-1, 2)
+    answer = torch.arange(2).repeat_interleave(L * P * N)
+    g = smallest_deciding_gain(pmcd, flat, cycles, answer=answer, leak=lk).view(2, L, P, N)
     need = max(1, math.ceil(IDENTICAL_SHARE * N - 1e-9))
-    return g.view(P, N).sort(dim=1).values[:, need - 1]
+    return torch.minimum(g[0], g[1]).sort(dim=-1).values[..., need - 1].reshape(leak.shape)
 
 
-def images_of_move(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, m: int) -> tuple[torch.Tensor, torch.Tensor]:
+def images_of_move(X: ActiveRows, Y: ActiveRows, moves: torch.Tensor, m: int) -> tuple[ActiveRows, ActiveRows]:
     """The training pairs whose randomly drawn movement is ``m``, in their order, per participant
     (padded at the end with empty images, which the delta rule leaves without effect), so each
     forward model sees mini-batches of its own images."""
-    P = X.shape[0]
-    rows = [(moves[k] == m).nonzero().squeeze(-1) for k in range(P)]
-    L = max(int(r.numel()) for r in rows)
-    Xm, Ym = torch.zeros(P, L, X.shape[-1]), torch.zeros(P, L, Y.shape[-1])
-    for k, r in enumerate(rows):
-        Xm[k, :r.numel()], Ym[k, :r.numel()] = X[k, r], Y[k, r]
-    return Xm, Ym
+    keep = moves == m
+    return X.select(keep), Y.select(keep)
 
 
 class RotationEmbodied(nn.Module):
@@ -125,14 +127,16 @@ class RotationEmbodied(nn.Module):
         return self.c16.participants
 
     # ------------------------------------------------------------------ learning
-    def fit_forward_models(self, X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, batch: int,
-                           progress=None) -> None:
+    def fit_forward_models(self, X, Y, moves: torch.Tensor, batch: int, progress=None) -> None:
         """C1-C3 by the delta rule (eq. 6.4) in mini-batches of ``batch``: forward model ``m`` on the
-        pairs ``X`` ``(P, N, n)`` -> ``Y`` ``(P, N, n)`` whose drawn movement ``moves`` ``(P, N)`` is
-        ``m`` (:func:`images_of_move`); ``progress`` optionally wraps each one's mini-batches. The
-        sequence is kept, compactly, in ``fm_sequence`` (what a compact checkpoint stores)."""
-        from .sequence_checkpoint import record
+        0/1 pairs ``X`` ``(P, N, n)`` -> ``Y`` ``(P, N, n)`` (tensors, or :class:`ActiveRows` of them)
+        whose drawn movement ``moves`` ``(P, N)`` is ``m`` (:func:`images_of_move`); ``progress``
+        optionally wraps each one's mini-batches. The sequence is kept, compactly, in
+        ``fm_sequence`` (what a compact checkpoint stores)."""
+        from .sequence_checkpoint import active_units, record
 
+        rows = lambda x: x if isinstance(x, ActiveRows) else ActiveRows(active_units(x), x.shape[-1])  # noqa: E731
+        X, Y = rows(X), rows(Y)
         self.train()
         self.fm_sequence = record(X, Y, moves, batch)
         for m, conn in enumerate(self.fm):
@@ -164,15 +168,16 @@ class RotationEmbodied(nn.Module):
         pairs = self.pair_evidence(x, x)
         self.identical_pairs = pairs  # (P, N, 2): each image against itself (rule R1)
         self.identical_evidence.copy_(pairs.mean(1))
-        leak = leak_by_rule(self, x, objects, angles)  # rule R2: object and angle only
+        leak, gain = leak_by_rule(self, x, objects, angles)  # rule R2: object and angle only
         self.leak.copy_(leak)
-        self.input_gain.copy_(self.gain_for(leak))
+        self.input_gain.copy_(gain)
 
     def gain_for(self, leak: torch.Tensor) -> torch.Tensor:
-        """PMCd's input gain per participant (rule R1, or ``lca.input_gain``) for the leaks ``leak`` ``(P,)``."""
+        """PMCd's input gain per participant (rule R1, or ``lca.input_gain``) for the leaks ``leak``
+        ``(P,)``, or for several leaks of each ``(..., P)``."""
         p = self.p
         if p.lca.input_gain is not None:
-            return torch.full((len(leak),), float(p.lca.input_gain))
+            return torch.full(leak.shape, float(p.lca.input_gain))
         return identical_share_gain(self.pmcd, self.identical_pairs, p.lca.cycles, leak)
 
     @torch.no_grad()
@@ -188,15 +193,19 @@ class RotationEmbodied(nn.Module):
              leak: torch.Tensor | None = None) -> Decision:
         """PMCd from rest fed the same evidence ``(P, B, 2)`` for ``steps`` steps (default
         ``selection.max_steps``) of ``lca.cycles`` cycles, with each participant's gain and leak
-        (default: the calibrated ones) -> a :class:`Decision` of shape ``(P, B)``."""
+        (default: the calibrated ones) -> a :class:`Decision` of shape ``(P, B)``; ``gain`` and
+        ``leak`` of shape ``(..., P)`` (several settings of each participant, run as one batch)
+        give one of shape ``(..., P, B)``."""
         p = self.p
         P, B = evidence.shape[:2]
         gain = self.input_gain if gain is None else gain
         leak = self.leak if leak is None else leak
+        lead = max(gain.shape[:-1], leak.shape[:-1], key=len)  # (torch.broadcast_shapes imports sympy)
         steps = p.selection.max_steps if steps is None else steps
-        d = self.pmcd((gain.view(P, 1, 1) * evidence).reshape(P * B, 2), steps * p.lca.cycles,
-                      leak=leak.repeat_interleave(B))
-        return Decision(*(v.reshape(P, B, *v.shape[1:]) for v in (d.winner, d.cycles, d.decided, d.state)))
+        ev = gain.unsqueeze(-1).unsqueeze(-1) * evidence  # (..., P, B, 2)
+        d = self.pmcd(ev.expand(*lead, P, B, 2).reshape(-1, 2), steps * p.lca.cycles,
+                      leak=leak.unsqueeze(-1).expand(*lead, P, B).reshape(-1))
+        return Decision(*(v.reshape(*lead, P, B, *v.shape[1:]) for v in (d.winner, d.cycles, d.decided, d.state)))
 
     def pmcm_input(self, ppcc: torch.Tensor) -> torch.Tensor:
         """PMCm's input AM (eq. 6.10) from PPCc ``(..., units^2)``, scaled by rule R3 (docs/choices.md):
@@ -215,7 +224,7 @@ class RotationEmbodied(nn.Module):
     def overlap(self, target: torch.Tensor, image: torch.Tensor) -> torch.Tensor:
         """PFCtm (PFCfm) summed: the target units covered by ``image`` read as a population code of
         reach ``match_tolerance`` ``(..., n)`` -> ``(...)``."""
-        cover = population_cover(image, self.size, self.p.match_tolerance) > 0.5
+        cover = population_cover(image > 0.5, self.size, self.p.match_tolerance)  # bool: any unit above 0.5 within reach
         return ((target > 0.5) & cover).sum(-1).float()
 
     def flip_target(self, target: torch.Tensor) -> torch.Tensor:
@@ -316,9 +325,8 @@ class RotationEmbodied(nn.Module):
 
     @staticmethod
     def _note_ppc(history, rec, qc, ppcp, ppcc) -> None:
-        """Add the wrist maps that chose the next move to the last recorded step of each sample trial."""
-        for qq, k in rec:
-            hit = (qc == qq).nonzero()
-            if hit.numel() and history[k]:
-                i = int(hit[0])
+        """Add the wrist maps that chose the next move to the last recorded step of each sample trial
+        (``rec``: its (trial, history slot) pairs; the first row of ``qc`` that is the trial)."""
+        for i, k in first_rows(qc, rec):
+            if history[k]:
                 history[k][-1]["PPCp"], history[k][-1]["PPCc"] = ppcp[i].clone(), ppcc[i].clone()

@@ -17,7 +17,7 @@ from ..nn import population_cover
 from ..nn.binary import pack_bits, popcount, unique_rows, unpack_bits
 from ..nn.functional import gain_field, softmax_select
 from ..nn.readout import binary_rows
-from .recording import sample_indices
+from .recording import first_rows, sample_indices
 
 STILL = 1  # the index of Ms, the "still" move, in (Ml, Ms, Mr)
 
@@ -71,7 +71,7 @@ class FusedTrials:
         for the forward models ``group`` (participant * 3 + move), once per distinct pair."""
         g, words, inv = unique_rows(group, poci_w)
         pocp = binary_rows(self.m.fm, g, unpack_bits(words, self.n)) + 1.0 > 1.5
-        cover = population_cover(pocp.float(), self.m.size, self.reach) > 0.5 if self.reach > 0 else pocp
+        cover = population_cover(pocp, self.m.size, self.reach)  # bool
         return pack_bits(pocp)[inv], pack_bits(cover)[inv], self.m.c16.net_binary(pocp, g // 3)[inv]
 
     def first_step(self):
@@ -129,13 +129,12 @@ class FusedTrials:
         self.rt[cond, q] += dec.cycles
         self.winner[cond, q] = torch.where(dec.decided, dec.winner, self.winner[cond, q])
         for c in range(len(self.conditions)):
-            for qq, k in self.rec:
-                hit = ((cond == c) & (q == qq)).nonzero()
-                if hit.numel():
-                    i = int(hit[0])
-                    self.histories[c][k].append(self.m._snapshot(
-                        self.pfct[qq], self.pfcft[qq], self.unpack(poci[i]), self.unpack(pocp[i]), self.ppct[qq], None,
-                        move[i], self.unpack(tm[i]), self.unpack(fm[i]), dec.state[i]))
+            rows = (cond == c).nonzero().squeeze(-1) if self.rec else None
+            for j, k in first_rows(q[rows], self.rec) if self.rec else ():
+                i, qq = int(rows[j]), int(q[rows[j]])
+                self.histories[c][k].append(self.m._snapshot(
+                    self.pfct[qq], self.pfcft[qq], self.unpack(poci[i]), self.unpack(pocp[i]), self.ppct[qq], None,
+                    move[i], self.unpack(tm[i]), self.unpack(fm[i]), dec.state[i]))
         keep = ~dec.decided
         return q[keep], cond[keep], pocp[keep], score[keep], dec.state[keep]
 

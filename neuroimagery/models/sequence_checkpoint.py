@@ -16,6 +16,9 @@ from __future__ import annotations
 
 import torch
 
+from ..nn import binary
+from ..nn.binary import ActiveRows
+
 FORMAT = "exp4-compact-1"
 PROBE_ROWS = [0, -1]  # the rows of each rebuilt weight compared on load
 KEYS = tuple(f"fm.{m}.weight" for m in range(3))
@@ -23,34 +26,24 @@ KEYS = tuple(f"fm.{m}.weight" for m in range(3))
 
 def active_units(X: torch.Tensor) -> torch.Tensor:
     """0/1 images ``(P, N, n)`` -> the indices of their active units ``(P, N, D)`` (int16, -1
-    pads an image with fewer than ``D`` active units); a ValueError unless ``X`` is 0/1."""
-    if not bool(((X == 0) | (X == 1)).all()):
-        raise ValueError("the compact checkpoint stores 0/1 images only")
-    if X.shape[-1] > torch.iinfo(torch.int16).max:
-        raise ValueError(f"maps of {X.shape[-1]} units do not fit int16 indices")
-    n = X.shape[-1]
-    on = (X > 0).reshape(-1, n)
-    counts = on.sum(-1)  # active units per image
-    D = int(counts.max()) if counts.numel() else 0
-    rows, units = on.nonzero(as_tuple=True)  # by image, then unit: each image's units in increasing order
-    slot = torch.arange(rows.numel()) - (torch.cumsum(counts, 0) - counts)[rows]
-    idx = torch.full((on.shape[0], D), -1, dtype=torch.int16)
-    idx[rows, slot] = units.to(torch.int16)
-    return idx.reshape(*X.shape[:-1], D)
+    pads an image with fewer than ``D`` active units; :func:`neuroimagery.nn.binary.active_units`);
+    a ValueError unless ``X`` is 0/1."""
+    try:
+        return binary.active_units(X)
+    except ValueError as err:
+        raise ValueError(f"the compact checkpoint stores 0/1 images only ({err})") from err
 
 
 def from_active(idx: torch.Tensor, n: int, dtype: torch.dtype = torch.float32) -> torch.Tensor:
     """The 0/1 images ``(P, N, n)`` of :func:`active_units`' indices."""
-    idx = idx.long()
-    X = torch.zeros(*idx.shape[:-1], n + 1, dtype=dtype)  # column n takes the -1 pads
-    X.scatter_(-1, torch.where(idx < 0, n, idx), 1.0)
-    return X[..., :n]
+    return ActiveRows(idx, n, dtype).rows(0, idx.shape[1]).contiguous()
 
 
-def record(X: torch.Tensor, Y: torch.Tensor, moves: torch.Tensor, batch: int) -> dict:
-    """The forward models' training sequence in the checkpoint's form."""
-    return {"pre": active_units(X), "target": active_units(Y), "moves": moves.to(torch.int8),
-            "batch": int(batch), "units": int(X.shape[-1])}
+def record(X: ActiveRows, Y: ActiveRows, moves: torch.Tensor, batch: int) -> dict:
+    """The forward models' training sequence (inputs and targets by their active units) in the
+    checkpoint's form."""
+    return {"pre": X.index.to(torch.int16), "target": Y.index.to(torch.int16), "moves": moves.to(torch.int8),
+            "batch": int(batch), "units": int(X.width)}
 
 
 def compact_state(model) -> dict:
@@ -77,7 +70,7 @@ def load_compact_state(model, ck: dict) -> None:
     if seq["pre"].shape[0] != model.participants or n != model.n:
         raise ValueError(f"its training sequence is of {seq['pre'].shape[0]} participants and maps of {n} units, "
                          f"the model of {model.participants} participants and maps of {model.n} units")
-    model.fit_forward_models(from_active(seq["pre"], n), from_active(seq["target"], n), seq["moves"].long(),
+    model.fit_forward_models(ActiveRows(seq["pre"], n), ActiveRows(seq["target"], n), seq["moves"].long(),
                              int(seq["batch"]))
     res = model.load_state_dict(ck["state"], strict=False)
     if set(res.missing_keys) != set(KEYS) or res.unexpected_keys:

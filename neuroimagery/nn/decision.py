@@ -166,15 +166,16 @@ class LeakyCompetingAccumulator(nn.Module):
         used = torch.full(batch, cycles, dtype=torch.long, device=dev)
         decided = torch.zeros(batch, dtype=torch.bool, device=dev)
         early = dev.type != "meta"  # stop once all decided (reads `live` on the host)
+        neg_k = -k
         for t in range(1, cycles + 1):
-            total = y.sum(-1, keepdim=True)
-            dy = -k * y - self.w * (total - y) + inputs
+            total = _total(y)
+            dy = neg_k * y - self.w * (total - y) + inputs
             if self.noise > 0:  # drawn where the generator lives (default: y's device), in y's dtype
                 g_dev = dev if generator is None else generator.device
                 z = torch.randn(y.shape, generator=generator, device=g_dev, dtype=y.dtype).to(dev)
                 dy = dy + self.noise * z / self.dt ** 0.5
             y = torch.where(live.unsqueeze(-1), (y + self.dt * dy).clamp_min(0.0), y)
-            m, idx = y.max(-1)
+            m, idx = _largest(y)
             new = live & (m >= self.threshold)
             if not early:
                 winner = torch.where(new, idx, winner)
@@ -194,6 +195,21 @@ class LeakyCompetingAccumulator(nn.Module):
         pass
 
 
+def _total(y: torch.Tensor) -> torch.Tensor:
+    """``y.sum(-1, keepdim=True)``; of two units their one addition (the same number: a sum of two
+    floats rounds once however it is accumulated), without a reduction kernel."""
+    return y[..., :1] + y[..., 1:] if y.shape[-1] == 2 else y.sum(-1, keepdim=True)
+
+
+def _largest(y: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """``y.max(-1)``: the largest unit and its index (the first of equal ones); of two units by one
+    comparison, without a reduction kernel."""
+    if y.shape[-1] != 2:
+        return y.max(-1)
+    a, b = y[..., 0], y[..., 1]
+    return torch.maximum(a, b), (b > a).long()
+
+
 def full_match_gain(threshold: float, k: float, dt: float, cycles: int) -> float:
     """The smallest input gain with which evidence 1, alone from rest, carries a leaky accumulator
     (leak ``k``, Euler step ``dt``) across ``threshold`` within ``cycles`` cycles:
@@ -204,19 +220,25 @@ def full_match_gain(threshold: float, k: float, dt: float, cycles: int) -> float
 
 
 @torch.no_grad()
-def smallest_deciding_gain(pmcd: "LeakyCompetingAccumulator", evidence: torch.Tensor, cycles: int, answer: int = 0,
-                           iterations: int = 60, leak: torch.Tensor | None = None) -> torch.Tensor:
+def smallest_deciding_gain(pmcd: "LeakyCompetingAccumulator", evidence: torch.Tensor, cycles: int,
+                           answer: int | torch.Tensor = 0, iterations: int = 60,
+                           leak: torch.Tensor | None = None) -> torch.Tensor:
     """The smallest gain ``g`` (per row of ``evidence`` ``(R, 2)``) with which the accumulator ``pmcd``,
     from rest, fed ``g * evidence`` crosses its threshold on unit ``answer`` within ``cycles`` cycles:
-    bisection on ``g`` (the crossing is monotone in the gain). ``leak`` ``(R,)``: each row's leak in
-    place of ``pmcd.k``. Rows whose evidence favours the other unit, or is empty, get ``inf``."""
+    bisection on ``g`` (the crossing is monotone in the gain), every row at once. ``answer``: one
+    unit for every row, or each row's ``(R,)``; ``leak`` ``(R,)``: each row's leak in place of
+    ``pmcd.k``. Rows whose evidence favours the other unit, or is empty, get ``inf``. Each row's
+    gain depends on that row alone (the accumulator integrates every row by itself), so rows
+    searched together get the gains they would get searched one by one."""
     R = evidence.shape[0]
     lo, hi = torch.zeros(R, dtype=torch.float64), torch.ones(R, dtype=torch.float64)
-    ok = (evidence[:, answer] > evidence[:, 1 - answer]) & (evidence[:, answer] > 0)
+    ans = torch.as_tensor(answer, dtype=torch.long).expand(R)
+    own = evidence.gather(1, ans.unsqueeze(1)).squeeze(1)
+    ok = (own > evidence.gather(1, (1 - ans).unsqueeze(1)).squeeze(1)) & (own > 0)
 
     def decides(g):
         d = pmcd((g.unsqueeze(-1) * evidence.double()).float(), cycles, state=pmcd.initial_state((R,)), leak=leak)
-        return d.decided & (d.winner == answer)
+        return d.decided & (d.winner == ans)
 
     for _ in range(40):  # grow the upper bound until it decides
         bad = ok & ~decides(hi)

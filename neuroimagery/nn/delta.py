@@ -9,7 +9,8 @@ same change on other weight layouts and inputs, each registered for the rule and
 * :class:`Delta` itself on a dense :class:`~.connections.Connection` (``(P, out, in)`` weights):
   one product per step (an :class:`~.change.Outer` change);
 * ``delta_binary`` (a connection over a sequence): 0/1 inputs in mini-batches on the CPU, only the
-  weight columns of the active inputs read and written (:func:`delta_binary`);
+  weight columns of the active inputs read and written (:func:`delta_binary`); inputs and 0/1
+  targets may come as :class:`~.binary.ActiveRows`;
 * ``index``, ``sparse``, ``dense`` (a :class:`~.local.LocalConnection`, ``(P, n, K)`` weights):
   patterns given by their active units, sparse (binary or few active units) and dense activity.
 
@@ -24,8 +25,9 @@ from . import local_kernel, monitor
 from .change import Outer
 from .connections import Connection
 from .forms import Form, register
-from .functional import check_rate
-from .learning import IndexedRows, error_curve
+from .functional import check_rate, transpose_into, transposed_copy
+from .binary import ActiveRows
+from .learning import error_curve, length
 from .local import LocalConnection
 from .rules import Rule, check_reduction
 
@@ -72,11 +74,13 @@ class Delta(Rule):
 
 # ------------------------------------------------------------------ a dense connection, over a sequence
 @torch.no_grad()
-def delta_binary(weight: torch.Tensor, X: torch.Tensor, Y: torch.Tensor, eta: float, batch: int, progress=None,
-                 curve: str | None = None) -> None:
-    """Delta rule (``Delta(eta, reduction='sum')``) on binary inputs, in mini-batches, in place.
+def delta_binary(weight: torch.Tensor, X, Y, eta: float, batch: int, progress=None,
+                 curve: str | None = None) -> torch.Tensor:
+    """Delta rule (``Delta(eta, reduction='sum')``) on binary inputs, in mini-batches, in place;
+    returns the trained weights transposed ``(P, in, out)`` (what it trained them in).
 
-    ``weight`` ``(P, out, in)``, ``X`` ``(P, N, in)`` 0/1, ``Y`` ``(P, N, out)`` targets. Each
+    ``weight`` ``(P, out, in)``, ``X`` ``(P, N, in)`` 0/1 or an :class:`~.binary.ActiveRows` of
+    them, ``Y`` ``(P, N, out)`` targets (or an :class:`~.binary.ActiveRows` of 0/1 targets). Each
     mini-batch of ``batch`` patterns is evaluated at the same weights and the summed change is
     applied, exactly as ``conn.learn(pre=x, post=conn(x), target=y)`` with a ``Delta`` rule would do
     (identity transfer), but only the weight columns of active inputs are read and written.
@@ -88,15 +92,12 @@ def delta_binary(weight: torch.Tensor, X: torch.Tensor, Y: torch.Tensor, eta: fl
     any thread count and on any CPU. ``curve`` names the training curve (:mod:`.monitor`) of the
     mini-batches' squared error before their change, reported when a reader listens.
     """
-    watch = monitor.Curve(curve, -(-X.shape[1] // batch)) if curve and monitor.active() else None
     P, O, I = weight.shape
-    N = X.shape[1]
-    rows_of = weight.transpose(1, 2).contiguous().view(P * I, O)  # participant p's weight column i is row p I + i
-    # the active inputs of every pattern, once: bags in (pattern, participant) order, so that a
-    # mini-batch is one contiguous run of bags; within a bag the inputs ascend
-    nz = (X > 0.5).transpose(0, 1).nonzero(as_tuple=False)  # (n, p, i), sorted
-    idx = nz[:, 1] * I + nz[:, 2]
-    sizes = torch.bincount(nz[:, 0] * P + nz[:, 1], minlength=N * P)  # active inputs per bag
+    N = length(X)
+    watch = monitor.Curve(curve, -(-N // batch)) if curve and monitor.active() else None
+    table = transposed_copy(weight)  # (P, I, O): participant p's weight column i is row p I + i of rows_of
+    rows_of = table.view(P * I, O)
+    idx, sizes = _bags(X, P, I)
     first = sizes.cumsum(0) - sizes  # where each bag starts in idx
     starts = range(0, N, batch)
     for b, s in enumerate(progress(starts) if progress is not None else starts):
@@ -110,12 +111,26 @@ def delta_binary(weight: torch.Tensor, X: torch.Tensor, Y: torch.Tensor, eta: fl
         bag_idx = idx[lo:hi]
         # each prediction adds its active weight columns one after the other, in ascending order
         out = torch.nn.functional.embedding_bag(bag_idx, rows_of, offsets, mode="sum").view(e - s, P, O).transpose(0, 1)
-        y = Y[:, s:e]
+        y = Y.rows(s, e) if isinstance(Y, ActiveRows) else Y[:, s:e]
         if watch is not None:
             watch.add(b, (y - out).pow(2).sum(-1).mean())
         err = (eta * Delta.error(out, y)).transpose(0, 1).reshape(-1, O)  # (bags, O), bag order
         rows_of.index_add_(0, bag_idx, err.repeat_interleave(counts, dim=0))
-    weight.copy_(rows_of.view(P, I, O).transpose(1, 2))
+    transpose_into(weight, table)
+    return table
+
+
+def _bags(X, P: int, I: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The active inputs of every pattern, once: flat weight rows ``p I + i`` in bags of
+    (pattern, participant) order, so that a mini-batch is one contiguous run of bags; within a bag
+    the inputs ascend. Returns the rows and each bag's size."""
+    if isinstance(X, ActiveRows):
+        ind = X.index.transpose(0, 1)  # (n, p, d): ascending units, the pads last
+        valid = ind >= 0
+        idx = (torch.arange(P).view(1, P, 1) * I + ind.long())[valid]
+        return idx, valid.sum(-1).reshape(-1)
+    nz = (X > 0.5).transpose(0, 1).nonzero(as_tuple=False)  # (n, p, i), sorted
+    return nz[:, 1] * I + nz[:, 2], torch.bincount(nz[:, 0] * P + nz[:, 1], minlength=X.shape[1] * P)
 
 
 @register(Delta, Connection)
@@ -130,16 +145,16 @@ class BinarySequence(Form):
         if (type(rule) is not Delta or rule.reduction != "sum" or post is not None or set(kw) != {"target"}
                 or conn.transfer_name != "identity" or conn.weight.device.type != "cpu"):
             return why
-        if any(not isinstance(x, torch.Tensor) or isinstance(x, IndexedRows) for x in (pre, kw["target"])):
+        if any(not isinstance(x, (torch.Tensor, ActiveRows)) for x in (pre, kw["target"])):
             return why
-        return None if bool(((pre == 0) | (pre == 1)).all()) else why
+        return None if isinstance(pre, ActiveRows) or bool(((pre == 0) | (pre == 1)).all()) else why
 
     @torch.no_grad()
     def run(self, conn, rule, call) -> None:
         P, pre, target = conn.participants, call.pre, call.kw["target"]
-        X = pre.expand(P, -1, -1) if pre.dim() == 2 else pre
-        Y = target.expand(P, -1, -1) if target.dim() == 2 else target
-        delta_binary(conn.weight, X, Y, rule.eta, call.batch, call.progress, curve=error_curve(conn))
+        X = pre.expand(P, -1, -1) if isinstance(pre, torch.Tensor) and pre.dim() == 2 else pre
+        Y = target.expand(P, -1, -1) if isinstance(target, torch.Tensor) and target.dim() == 2 else target
+        conn.keep_transposed(delta_binary(conn.weight, X, Y, rule.eta, call.batch, call.progress, curve=error_curve(conn)))
 
 
 # ------------------------------------------------------------------ a local connection, one step

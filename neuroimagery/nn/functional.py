@@ -160,6 +160,29 @@ def squared_norms(w: torch.Tensor, rows: int = 256) -> torch.Tensor:
     return torch.cat([(b * b).sum(-1) for b in flat.split(rows)]).reshape(w.shape[:-1])
 
 
+TILE = 64  # side of the square tiles a large transpose is copied in (a 64 x 64 float tile: 16 KiB)
+
+
+def transpose_into(out: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """``out[..., i, j] = x[..., j, i]``, copied in ``TILE`` x ``TILE`` tiles (each read and written
+    while it is in the cache; one strided copy of a large matrix misses the cache on nearly every
+    element): the values of ``x.transpose(-1, -2)``, a copy, nothing computed. Returns ``out``."""
+    a, b = x.shape[-2:]
+    if out.shape != (*x.shape[:-2], b, a):
+        raise ValueError(f"transpose_into: out {tuple(out.shape)} does not fit x {tuple(x.shape)}")
+    if a * b < 4 * TILE * TILE:
+        return out.copy_(x.transpose(-1, -2))
+    for i in range(0, b, TILE):
+        for j in range(0, a, TILE):
+            out[..., i:i + TILE, j:j + TILE] = x[..., j:j + TILE, i:i + TILE].transpose(-1, -2)
+    return out
+
+
+def transposed_copy(x: torch.Tensor) -> torch.Tensor:
+    """``x.transpose(-1, -2).contiguous()`` as a new tensor, copied in tiles (:func:`transpose_into`)."""
+    return transpose_into(x.new_empty(*x.shape[:-2], x.shape[-1], x.shape[-2]), x)
+
+
 def gain_field(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """Gain field (eq. 6.1, 6.9): outer product of two 1-D population codes.
 

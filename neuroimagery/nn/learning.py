@@ -13,7 +13,8 @@ step-by-step form. Each fast one is tested against the plain one (``tests/test_l
   pattern per step, over one sequence shared by every participant or with outputs drawn from a
   small set (``post`` an :class:`IndexedRows`): closed forms of the whole sequence;
 * ``delta_binary`` (:mod:`.delta`): the delta rule on 0/1 inputs in mini-batches on the CPU,
-  touching only the weight columns of the active inputs.
+  touching only the weight columns of the active inputs; the inputs and targets may be given by
+  their active units (:class:`~.binary.ActiveRows`), never formed as dense rows.
 
 A form may leave what it formed the weights from in ``conn.learnt_factors`` (a dict with its
 ``kind``), which compact checkpoints store instead of the weights; the plain form leaves ``None``.
@@ -26,6 +27,7 @@ from types import SimpleNamespace
 import torch
 
 from . import forms, monitor
+from .binary import ActiveRows
 from .functional import check_floating, checks_enabled
 
 
@@ -60,14 +62,18 @@ class IndexedRows:
         return self.table[torch.arange(self.participants).unsqueeze(1), idx]
 
 
+ROWS = (IndexedRows, ActiveRows)  # sequences given otherwise than as a tensor
+
+
 def length(x) -> int:
-    """Number of steps of a sequence: ``(T, n)``, ``(P, T, n)`` or :class:`IndexedRows`."""
-    return x.length if isinstance(x, IndexedRows) else x.shape[-2]
+    """Number of steps of a sequence: ``(T, n)``, ``(P, T, n)``, :class:`IndexedRows` or
+    :class:`~.binary.ActiveRows`."""
+    return x.length if isinstance(x, ROWS) else x.shape[-2]
 
 
 def rows(x, lo: int, hi: int, P: int) -> torch.Tensor:
     """Steps ``lo..hi`` of a sequence for ``P`` participants ``(P, hi - lo, n)``."""
-    if isinstance(x, IndexedRows):
+    if isinstance(x, ROWS):
         return x.rows(lo, hi)
     return x[lo:hi].expand(P, -1, -1) if x.dim() == 2 else x[:, lo:hi]
 
@@ -103,7 +109,7 @@ def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", p
     for name, x in (("pre", pre), ("post", post), ("target", kw.get("target"))):
         if x is None:
             continue
-        if isinstance(x, IndexedRows):
+        if isinstance(x, ROWS):
             if x.participants != P:
                 raise ValueError(f"{name}: {x.participants} participants for a connection of {P}")
         elif x.dim() not in (2, 3) or (x.dim() == 3 and x.shape[0] != P):
@@ -112,7 +118,7 @@ def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", p
             check_floating(f"{name} of connection {conn.name!r}", x)
     # the sequence in the weights' dtype, so they keep it
     cast = (lambda x: x if x is None or isinstance(x, IndexedRows) or x.dtype == conn.weight.dtype
-            else x.to(conn.weight.dtype))
+            else x.to(conn.weight.dtype))  # ActiveRows: read densely in the weights' dtype
     pre, post = cast(pre), cast(post)
     if kw.get("target") is not None:
         kw = {**kw, "target": cast(kw["target"])}
@@ -121,7 +127,7 @@ def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", p
         raise ValueError("pre, post and target must have the same number of steps")
     conn.learnt_factors = None
     _learn(conn, pre, post, batch, method, progress, kw)
-    if not getattr(conn, "warned_step", True) and checks_enabled(conn.weight) and not torch.isfinite(conn.weight).all():
+    if not getattr(conn, "warned_step", True) and checks_enabled(conn.weight) and not _finite(conn.weight):
         conn.warned_step = True  # one pass over the weights per sequence: the fast forms check no step
         warnings.warn(f"connection {conn.name!r}: its weights are no longer finite after this sequence "
                       "(learning diverged: lower eta or the batch; this warning is given once)", stacklevel=4)
@@ -129,6 +135,15 @@ def learn_sequence(conn, pre, post=None, batch: int = 1, method: str = "auto", p
         w = conn.weight.detach()
         monitor.record(f"train/{conn.name or 'connection'}/weight_norm_final", w.flatten(1).norm(dim=1).mean(), T)
         monitor.record(f"train/{conn.name or 'connection'}/weight_max_final", w.amax(), T)
+
+
+def _finite(w: torch.Tensor) -> bool:
+    """Whether every weight is finite: its least and greatest are (a NaN makes both NaN), in one
+    pass without a mask of the weights' size."""
+    if not w.numel():
+        return True
+    lo, hi = torch.aminmax(w)
+    return bool(torch.isfinite(lo) & torch.isfinite(hi))
 
 
 def _learn(conn, pre, post, batch, method, progress, kw) -> None:

@@ -115,12 +115,28 @@ def population_cover(x: torch.Tensor, size: int, reach: int = 1) -> torch.Tensor
     """What a square image map ``x`` ``(..., size*size)`` covers when read as a population code whose
     units respond over their ``(2 reach + 1)^2`` neighbourhood (Chebyshev distance ``reach``): the
     maximum of the map over each unit's neighbourhood, same shape as ``x``. ``reach=0`` is the map
-    itself (one-to-one)."""
+    itself (one-to-one). A bool map gives a bool map: whether any unit of the neighbourhood is on
+    (the maximum of its 0/1 values), computed by shifted ORs along each axis."""
     r = int(reach)
     if r < 0:
         raise ValueError(f"reach must be >= 0, got {reach}")
     if r == 0:
         return x
     shape = x.shape
+    if x.dtype == torch.bool:
+        return _dilate(x.reshape(-1, size, size), r).reshape(shape)
     flat = x.reshape(-1, 1, size, size).float()
     return torch.nn.functional.max_pool2d(flat, 2 * r + 1, 1, r).reshape(shape).to(x.dtype)
+
+
+def _dilate(b: torch.Tensor, r: int) -> torch.Tensor:
+    """Bool maps ``(M, H, W)``: each unit OR-ed with those within Chebyshev distance ``r`` (the
+    square neighbourhood, cut at the border), one axis after the other."""
+    for axis in (2, 1):
+        out = b.clone()
+        n = b.shape[axis]
+        for d in range(1, min(r, n - 1) + 1):
+            out.narrow(axis, d, n - d).logical_or_(b.narrow(axis, 0, n - d))
+            out.narrow(axis, 0, n - d).logical_or_(b.narrow(axis, d, n - d))
+        b = out
+    return b

@@ -11,7 +11,8 @@ weights, kept while the weights stay the same (:meth:`Readouts.weights_version`)
 * :meth:`Readouts.net_reverse`: ``W^T y``, the block read from its outputs back to its inputs;
 * :meth:`Readouts.incoming`: the weights into one output unit (a receptive field, for a figure);
 * :func:`binary_rows`: rows of several blocks of one shape at once (row ``r`` by block
-  ``group[r] % len(blocks)`` of participant ``group[r] // len(blocks)``).
+  ``group[r] % len(blocks)`` of participant ``group[r] // len(blocks)``), each block from its own
+  transposed weights.
 """
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ from typing import Sequence
 import torch
 
 from .binary import binary_matmul, binary_matmul_rows, sparse_matmul
-from .functional import as_batched_shape, check_floating, check_participants, check_tensor, checks_enabled
+from .functional import as_batched_shape, check_floating, check_participants, check_tensor, checks_enabled, transposed_copy
 
 
 class Readouts:
@@ -37,8 +38,15 @@ class Readouts:
         """``W^T`` ``(P, in, out)``, contiguous, made once per version of the weights."""
         key = self.weights_version()
         if self._table_cache is None or self._table_cache[0] != key:
-            self._table_cache = (key, self.weight.transpose(1, 2).contiguous())
+            self._table_cache = (key, transposed_copy(self.weight))
         return self._table_cache[1]
+
+    def keep_transposed(self, table: torch.Tensor) -> None:
+        """Keep ``table``, which must equal ``W^T`` ``(P, in, out)`` of the present weights (a form
+        that trained the weights transposed hands them over), as :meth:`transposed`'s copy."""
+        if table.shape != (self.weight.shape[0], self.weight.shape[2], self.weight.shape[1]) or not table.is_contiguous():
+            raise ValueError(f"keep_transposed of {self.block_name()}: a contiguous (P, in, out) table, got {tuple(table.shape)}")
+        self._table_cache = (self.weights_version(), table)
 
     def batched(self, x: torch.Tensor, n: int, checked: bool = False) -> tuple[torch.Tensor, bool]:
         """``x`` as ``(P, B, n)`` and whether to squeeze the participant axis again: shape, dtype
@@ -120,14 +128,17 @@ class Readouts:
 def binary_rows(blocks: Sequence[Readouts], group: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     """Rows of several blocks of one shape at once: binary rows ``x`` ``(N, in)``, row ``r`` read
     by block ``group[r] % len(blocks)`` of participant ``group[r] // len(blocks)`` -> ``(N, out)``.
-    The blocks' transposed weights are stacked once per version of their weights (kept by the first)."""
+    Each block reads its own rows from its transposed weights (:meth:`Readouts.transposed`, kept
+    while its weights stay the same), a row's active weight rows summed in the same order as
+    from one table of all the blocks."""
     first = blocks[0]
-    key = tuple((id(b), b.weights_version()) for b in blocks)
-    cache = getattr(first, "_bank_cache", None)
-    if cache is None or cache[0] != key:
-        P, O, I = first.weight.shape
-        if any(b.weight.shape != first.weight.shape for b in blocks):
-            raise ValueError("binary_rows: the blocks must have weights of one shape")
-        table = torch.stack([b.weight.transpose(1, 2) for b in blocks], 1).reshape(P * len(blocks), I, O)
-        first._bank_cache = cache = (key, table)
-    return binary_matmul_rows(cache[1], group, x)
+    if any(b.weight.shape != first.weight.shape for b in blocks):
+        raise ValueError("binary_rows: the blocks must have weights of one shape")
+    nb = len(blocks)
+    which, part = group % nb, group // nb
+    out = torch.empty(x.shape[0], first.weight.shape[1], dtype=first.weight.dtype, device=first.weight.device)
+    for k, b in enumerate(blocks):
+        sel = (which == k).nonzero().squeeze(-1)
+        if sel.numel():
+            out[sel] = binary_matmul_rows(b.transposed(), part[sel], x[sel])
+    return out

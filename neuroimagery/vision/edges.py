@@ -23,7 +23,6 @@ from typing import Sequence, Union
 import cv2
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 __all__ = [
     "SUPERSAMPLE",
@@ -36,6 +35,8 @@ __all__ = [
     "principal_axis",
     "iou",
     "three_dot_images",
+    "three_dot_centres",
+    "three_dot_maps",
     "three_dot_pairs",
 ]
 
@@ -79,9 +80,11 @@ def _object_centre(mask: np.ndarray, window: float, gaze: tuple[float, float]):
     d = np.hypot(cents[keep, 0] - gaze[0], cents[keep, 1] - gaze[1])
     seed = keep[np.argmin(d)]
     near = keep[np.max(np.abs(cents[keep] - cents[seed]), axis=1) < window / 2]
+    if len(near) == 1:  # one object: OpenCV's centroid of it is the mean of its pixels' coordinates
+        return (cents[near[0], 0], cents[near[0], 1]), (labels == near[0]).view(np.uint8)
     sel = np.isin(labels, near)
     ys, xs = np.nonzero(sel)
-    return (xs.mean(), ys.mean()), sel.astype(np.uint8)
+    return (xs.mean(), ys.mean()), sel.view(np.uint8)
 
 
 def edge_pipeline(
@@ -99,46 +102,54 @@ def edge_pipeline(
     batch = _as_batch(images_bgr)
     k = SUPERSAMPLE
     side = k * size
-    crops = np.zeros((len(batch), side, side), np.float32)
+    edges = np.zeros((len(batch), side, side), bool)
     for i, im in enumerate(batch):
-        h, w = im.shape[:2]
-        win = float(window if window is not None else min(h, w))
-        mask = red_mask(cv2.GaussianBlur(im, (5, 5), 0), red_threshold)
-        centre, mask = _object_centre(mask, win, ((w - 1) / 2.0, (h - 1) / 2.0))
-        if centre is None:
-            continue
-        scale = side / win
-        src = mask.astype(np.float32)
-        cx, cy = centre
-        if scale < 0.5:  # pre-shrink by area averaging so bilinear sampling does not alias
-            f = 2.0 * scale
-            src = cv2.resize(src, None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
-            fx, fy = src.shape[1] / w, src.shape[0] / h
-            cx, cy, scale = (cx + 0.5) * fx - 0.5, (cy + 0.5) * fy - 0.5, scale / f
-        c_out = (side - 1) / 2.0
-        m = np.float32([[scale, 0, c_out - scale * cx], [0, scale, c_out - scale * cy]])
-        crops[i] = cv2.warpAffine(src, m, (side, side), flags=cv2.INTER_LINEAR)
-    edges = np.zeros_like(crops)
-    for i in range(len(batch)):
-        binary = np.where(crops[i] >= 0.5, 255, 0).astype(np.uint8)
-        edges[i] = cv2.Canny(binary, _CANNY_LOW, _CANNY_HIGH) > 0
-    pooled = F.max_pool2d(torch.from_numpy(edges)[:, None], k)[:, 0]
-    return (pooled > 0).float()
+        crop = _crop(im, side, window, red_threshold)
+        if crop is not None:
+            binary = np.where(crop >= 0.5, 255, 0).astype(np.uint8)
+            edges[i] = cv2.Canny(binary, _CANNY_LOW, _CANNY_HIGH) > 0
+    # a map unit is on when any edge pixel falls in its K x K block
+    pooled = edges.reshape(len(batch), size, k, size, k).any(axis=(2, 4))
+    return torch.from_numpy(pooled).float()
+
+
+def _crop(im: np.ndarray, side: int, window: float | None, red_threshold: float) -> np.ndarray | None:
+    """The red object nearest the centre of ``im``, its centroid at the centre of a ``side`` x
+    ``side`` float crop of the ``window`` about it (bilinear); None when there is no red object."""
+    h, w = im.shape[:2]
+    win = float(window if window is not None else min(h, w))
+    mask = red_mask(cv2.GaussianBlur(im, (5, 5), 0), red_threshold)
+    centre, mask = _object_centre(mask, win, ((w - 1) / 2.0, (h - 1) / 2.0))
+    if centre is None:
+        return None
+    scale = side / win
+    src = mask.astype(np.float32)
+    cx, cy = centre
+    if scale < 0.5:  # pre-shrink by area averaging so bilinear sampling does not alias
+        f = 2.0 * scale
+        src = cv2.resize(src, None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
+        fx, fy = src.shape[1] / w, src.shape[0] / h
+        cx, cy, scale = (cx + 0.5) * fx - 0.5, (cy + 0.5) * fy - 0.5, scale / f
+    c_out = (side - 1) / 2.0
+    m = np.float32([[scale, 0, c_out - scale * cx], [0, scale, c_out - scale * cy]])
+    return cv2.warpAffine(src, m, (side, side), flags=cv2.INTER_LINEAR)
 
 
 def _flat_maps(maps: torch.Tensor) -> tuple[np.ndarray, tuple]:
     if maps.dim() < 2:
         raise ValueError(f"maps must have shape (..., H, W), got {tuple(maps.shape)}")
     shape = tuple(maps.shape)
-    return maps.detach().reshape(-1, shape[-2], shape[-1]).cpu().numpy().astype(np.float32), shape
+    flat = maps.detach().reshape(-1, shape[-2], shape[-1]).cpu().numpy()
+    return np.asarray(flat, dtype=np.float32), shape  # float32 maps are read as they are (never written)
 
 
 def _warp_all(arr: np.ndarray, mats: list[np.ndarray], threshold: float) -> np.ndarray:
+    """Each map of ``arr`` warped by its matrix, bilinear, and re-binarised at ``threshold`` (bool)."""
     h, w = arr.shape[1:]
     out = np.empty_like(arr)
     for i, m in enumerate(mats):
-        out[i] = cv2.warpAffine(arr[i], m, (w, h), flags=cv2.INTER_LINEAR, borderValue=0.0)
-    return (out >= threshold).astype(np.float32)
+        cv2.warpAffine(arr[i], m, (w, h), dst=out[i], flags=cv2.INTER_LINEAR, borderValue=0.0)
+    return out >= threshold
 
 
 def rotate(
@@ -155,9 +166,9 @@ def rotate(
     angles = torch.as_tensor(angle_deg, dtype=torch.float64).expand(shape[:-2]).reshape(-1)
     h, w = shape[-2:]
     c = ((w - 1) / 2.0, (h - 1) / 2.0)
-    mats = [cv2.getRotationMatrix2D(c, float(a), 1.0) for a in angles]
-    out = _warp_all(arr, mats, threshold)
-    return torch.from_numpy(out).reshape(shape).to(maps.device, maps.dtype)
+    turns = {a: cv2.getRotationMatrix2D(c, a, 1.0) for a in set(angles.tolist())}  # one matrix per angle
+    out = _warp_all(arr, [turns[a] for a in angles.tolist()], threshold)
+    return torch.from_numpy(out).reshape(shape).to(maps.device, maps.dtype)  # 0/1 in the maps' dtype
 
 
 def mirror(maps: torch.Tensor) -> torch.Tensor:
@@ -208,7 +219,7 @@ def flip_main_axis(maps: torch.Tensor, threshold: float = ROTATE_THRESHOLD) -> t
         c = np.array([cx, cy])
         mats.append(np.hstack([r, (c - r @ c)[:, None]]))
     out = _warp_all(arr, mats, threshold)
-    return torch.from_numpy(out).reshape(shape).to(maps.device, maps.dtype)
+    return torch.from_numpy(out).reshape(shape).to(maps.device, maps.dtype)  # 0/1 in the maps' dtype
 
 
 def iou(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
@@ -231,15 +242,27 @@ def three_dot_images(
     most rotations keep the dots on the map); a dot is a 5-pixel plus, large enough to survive a
     bilinear ``rotate`` at any angle.  Dots may coincide.  Draws only from ``generator``.
     """
+    return three_dot_maps(three_dot_centres(n, generator, size, inner), size)
+
+
+def three_dot_centres(n: int, generator: torch.Generator, size: int = 32, inner: int = 23) -> torch.Tensor:
+    """The dot centres ``(n, 3, 2)`` (x, y) of :func:`three_dot_images`, drawn from ``generator``."""
     if not (1 <= inner <= size - 2):
         raise ValueError(f"inner must lie in [1, size - 2], got inner={inner}, size={size}")
     lo = (size - inner) // 2
-    centres = torch.randint(lo, lo + inner, (n, 3, 2), generator=generator)
-    pts = (centres[:, :, None, :] + _PLUS[None, None]).reshape(n, -1, 2).clamp(0, size - 1)
-    out = torch.zeros(n, size, size)
+    return torch.randint(lo, lo + inner, (n, 3, 2), generator=generator)
+
+
+def three_dot_maps(centres: torch.Tensor, size: int = 32, dtype: torch.dtype = torch.float32) -> torch.Tensor:
+    """The three-dot maps ``(..., size, size)`` (0/1 in ``dtype``) of dot centres ``(..., 3, 2)``."""
+    lead = centres.shape[:-2]
+    c = centres.reshape(-1, 3, 2)
+    n = c.shape[0]
+    pts = (c[:, :, None, :] + _PLUS[None, None]).reshape(n, -1, 2).clamp(0, size - 1)
+    out = torch.zeros(n, size, size, dtype=dtype)
     idx = torch.arange(n)[:, None].expand(-1, pts.shape[1])
-    out[idx, pts[..., 1], pts[..., 0]] = 1.0
-    return out
+    out[idx, pts[..., 1], pts[..., 0]] = 1
+    return out.reshape(*lead, size, size)
 
 
 def three_dot_pairs(

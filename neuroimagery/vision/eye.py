@@ -50,8 +50,7 @@ class Eye:
     def photometric(self, images: np.ndarray) -> np.ndarray:
         """Apply luminance gain, camera response and sensor noise to BGR images (N, H, W, 3)."""
         cfg = self.cfg
-        if (cfg.luminance == 1.0 and cfg.luminance_jitter == 0.0 and cfg.gamma == 1.0
-                and cfg.noise_std == 0.0):
+        if self._photometry_off():
             return images
         x = images.astype(np.float32) / 255.0
         gain = cfg.luminance * np.exp(cfg.luminance_jitter * self.rng.standard_normal(len(x)))
@@ -86,17 +85,38 @@ class Eye:
         (h, w), xt, _ = stimulus_set.pair_layout()
         x0 = int(round(xt + 0.5 - CANVAS / 2.0))
         screens = []
-        for k, (obj, angle, app) in enumerate(items):
+        for image in self._item_images(stimulus_set, items, gaze_errors):
             screen = np.empty((h, w, 3), np.uint8)
             screen[:] = BACKGROUND_BGR
-            image = stimulus_set.image(obj, angle, app)
-            if gaze_errors is not None:  # the eye looks off by (pan, tilt): the object moves the other way
-                dx, dy = np.tan(np.radians(gaze_errors[k])) * self.cfg.screen_distance / self.cfg.object_width * CANVAS
-                image = _shifted(image, -float(dx), -float(dy))
             screen[:, x0:x0 + CANVAS] = image
             screens.append(screen)
         views, window = self._views(stimulus_set, screens, [xt] * len(screens))
         return edge_pipeline(views, size, window, self.cfg.red_threshold)
+
+    def _item_images(self, stimulus_set: StimulusSet, items: Sequence[Item],
+                     gaze_errors: Optional[np.ndarray] = None) -> list[np.ndarray]:
+        """The ``CANVAS``-wide image of each item as the eye sees it on the screen: moved against
+        its gaze error (``(N, 2)`` deg, pan and tilt) where given; an item looked at several times
+        is drawn once."""
+        drawn, out = {}, []
+        for k, item in enumerate(items):
+            if item not in drawn:
+                drawn[item] = stimulus_set.image(*item)
+            image = drawn[item]
+            if gaze_errors is not None:  # the eye looks off by (pan, tilt): the object moves the other way
+                dx, dy = np.tan(np.radians(gaze_errors[k])) * self.cfg.screen_distance / self.cfg.object_width * CANVAS
+                image = _shifted(image, -float(dx), -float(dy))
+            out.append(image)
+        return out
+
+    def _photometric_list(self, images: list[np.ndarray]) -> list[np.ndarray]:
+        """:meth:`photometric` of a list of images, the list itself where it changes nothing."""
+        return images if self._photometry_off() else list(self.photometric(np.stack(images)))
+
+    def _photometry_off(self) -> bool:
+        """Whether the photometric model leaves every image as it is (the default)."""
+        cfg = self.cfg
+        return cfg.luminance == 1.0 and cfg.luminance_jitter == 0.0 and cfg.gamma == 1.0 and cfg.noise_std == 0.0
 
     def pair_edge_maps(self, stimulus_set: StimulusSet, pairs: Sequence[dict],
                        size: Optional[int] = None) -> tuple[torch.Tensor, torch.Tensor]:
@@ -139,7 +159,16 @@ class DirectEye(Eye):
             h = screen.shape[0]
             x0 = int(round(x + 0.5 - h / 2.0))
             views.append(screen[:, x0:x0 + h])
-        return list(self.photometric(np.stack(views))), float(CANVAS)
+        return self._photometric_list(views), float(CANVAS)
+
+    def edge_maps(self, stimulus_set, items, size=None, gaze_errors=None):
+        (h, _), xt, _ = stimulus_set.pair_layout()
+        x0 = int(round(xt + 0.5 - CANVAS / 2.0))
+        if h != CANVAS or x0 != int(round(xt + 0.5 - h / 2.0)):  # a view wider than the object's place
+            return super().edge_maps(stimulus_set, items, size, gaze_errors)
+        # the view of the target's place on a screen that shows one object there is that object's image
+        views = self._photometric_list(self._item_images(stimulus_set, items, gaze_errors))
+        return edge_pipeline(views, self.cfg.size if size is None else size, float(CANVAS), self.cfg.red_threshold)
 
 
 class CameraEye(Eye):

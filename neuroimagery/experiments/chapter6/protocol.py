@@ -23,6 +23,7 @@ import torch
 from ...core import progress
 from ...core.errors import UserInputError
 from ...nn import seeding
+from ...nn.binary import ActiveRows, active_units
 from ...analysis import figures
 from ...analysis.summary import TRIAL_COLUMNS
 
@@ -151,23 +152,22 @@ def trial_rows(table: pd.DataFrame, out: dict, participants: Sequence[int]) -> p
 
     ``rotated_ok``: the seen object's orientation plus the model's total rotation equals the
     target's orientation modulo 360 deg."""
-    frames = []
-    for k, p in enumerate(participants):
-        df = table.drop(columns=["target_row", "rotated_row"]).copy()
-        df.insert(0, "participant", int(p))
-        final = df["rotated_angle"].to_numpy() + out["rotation_deg"][k].numpy()
-        df["answer"] = np.where(out["answer"][k].numpy() == 0, "yes", "no")
-        df["correct"] = (df["answer"] == "yes") == df["same"].astype(bool)
-        df["rotation_steps"] = out["rotation_steps"][k].numpy().astype(int)
-        df["rotated_ok"] = angle_aligned(final, df["target_angle"].to_numpy())
-        df["rt"] = out["rt"][k].numpy()
-        for extra in ("decided", "rotations"):
-            if extra in out:
-                df[extra] = out[extra][k].numpy()
-        frames.append(df)
+    P, B = len(participants), len(table)
+    flat = lambda v: v.reshape(-1).numpy()  # noqa: E731  (P, B) -> participant after participant
+    df = table.drop(columns=["target_row", "rotated_row"]).iloc[np.tile(np.arange(B), P)].reset_index(drop=True)
+    df.insert(0, "participant", np.repeat(np.array([int(p) for p in participants], dtype=np.int64), B))
+    final = df["rotated_angle"].to_numpy() + flat(out["rotation_deg"])
+    df["answer"] = np.where(flat(out["answer"]) == 0, "yes", "no")
+    df["correct"] = (df["answer"] == "yes") == df["same"].astype(bool)
+    df["rotation_steps"] = flat(out["rotation_steps"]).astype(int)
+    df["rotated_ok"] = angle_aligned(final, df["target_angle"].to_numpy())
+    df["rt"] = flat(out["rt"])
+    for extra in ("decided", "rotations"):
+        if extra in out:
+            df[extra] = flat(out[extra])
     if len(table):
-        progress.advance(len(table) * len(frames), note=f"{table['test'].iloc[0]}/{table['condition'].iloc[0]}")
-    return pd.concat(frames, ignore_index=True)[TRIAL_COLUMNS + [c for c in ("decided", "rotations") if c in out]]
+        progress.advance(B * P, note=f"{table['test'].iloc[0]}/{table['condition'].iloc[0]}")
+    return df[TRIAL_COLUMNS + [c for c in ("decided", "rotations") if c in out]]
 
 
 def batches_bar(what: str):
@@ -178,31 +178,51 @@ def batches_bar(what: str):
 
 def three_dot_training_set(generators, n: int, angles: Sequence[float], size: int, inner: int,
                            offsets: Sequence[int] | None = None):
-    """Forward-model training pairs for each participant (Fig. 6.3, 6.8).
+    """Forward-model training pairs for each participant (Fig. 6.3, 6.8), as dense 0/1 rows: the
+    pairs of :func:`three_dot_training_rows`. Returns ``X (P, n, in)``, ``Y (P, n, size*size)``,
+    ``moves (P, n)``."""
+    X, Y, moves = three_dot_training_rows(generators, n, angles, size, inner, offsets)
+    return X.rows(0, n), Y.rows(0, n), moves
+
+
+ROTATE_CHUNK = 4096  # three-dot maps rotated at a time (a dense float block of 16 MiB at 32x32)
+
+
+def three_dot_training_rows(generators, n: int, angles: Sequence[float], size: int, inner: int,
+                            offsets: Sequence[int] | None = None):
+    """Forward-model training pairs for each participant (Fig. 6.3, 6.8), by their active units.
 
     Per image a rotation is drawn at random (the randomly selected movement of the thesis); the
     input is the three-dot image (placed in input block ``offsets[m]`` if given) and the target
-    the same image rotated by ``angles[m]``. Returns ``X (P, n, in)``, ``Y (P, n, size*size)``,
-    ``moves (P, n)``.
+    the same image rotated by ``angles[m]``. Each participant's generator draws the dot centres
+    of its ``n`` images, then their movements. Returns ``X`` and ``Y``, :class:`ActiveRows`
+    ``(P, n, in)`` and ``(P, n, size*size)``, and ``moves (P, n)``.
     """
-    three_dot_images, rotate = _vfun("three_dot_images"), _vfun("rotate")
-    Xs, Ys, Ms = [], [], []
-    ang = torch.tensor([float(a) for a in angles])
+    v = _vision()
+    centres, moves = [], []
     for g in generators:
-        x = three_dot_images(n, g, size=size, inner=inner)
-        m = torch.randint(len(angles), (n,), generator=g)
-        y = rotate(x, ang[m])
-        x = x.reshape(n, -1)
-        if offsets is not None:
-            full = torch.zeros(n, len(angles) * size * size)
-            for k in range(len(angles)):
-                sel = m == k
-                full[sel, k * size * size:(k + 1) * size * size] = x[sel]
-            x = full
-        Xs.append(x)
-        Ys.append(y.reshape(n, -1))
-        Ms.append(m)
-    return torch.stack(Xs), torch.stack(Ys), torch.stack(Ms)
+        centres.append(v.three_dot_centres(n, g, size, inner))
+        moves.append(torch.randint(len(angles), (n,), generator=g))
+    c, m = torch.stack(centres).reshape(-1, 3, 2), torch.stack(moves)
+    ang = torch.tensor([float(a) for a in angles])[m.reshape(-1)]
+    xs, ys = [], []
+    for s in range(0, c.shape[0], ROTATE_CHUNK):  # a few dense blocks at a time, kept by their active units
+        x = v.three_dot_maps(c[s:s + ROTATE_CHUNK], size, dtype=torch.bool)
+        xs.append(active_units(x.reshape(x.shape[0], -1)))
+        ys.append(active_units(_vfun("rotate")(x, ang[s:s + ROTATE_CHUNK]).reshape(x.shape[0], -1)))
+    P, ss = len(generators), size * size
+    X, Y = _padded(xs).reshape(P, n, -1), _padded(ys).reshape(P, n, -1)
+    if offsets is None:
+        return ActiveRows(X, ss), ActiveRows(Y, ss), m
+    block = torch.tensor([int(o) for o in offsets])[m].unsqueeze(-1) * ss
+    X = torch.where(X >= 0, X + block, X).to(torch.int16 if len(angles) * ss <= torch.iinfo(torch.int16).max else torch.int32)
+    return ActiveRows(X, len(angles) * ss), ActiveRows(Y, ss), m
+
+
+def _padded(parts: list[torch.Tensor]) -> torch.Tensor:
+    """Active-unit indices ``(N_k, D_k)`` joined into ``(sum N_k, max D_k)``, -1 padding the narrower."""
+    D = max(p.shape[1] for p in parts)
+    return torch.cat([torch.nn.functional.pad(p, (0, D - p.shape[1]), value=-1) for p in parts])
 
 
 def generalisation_iou(step_fn, bank: StimulusBank, angle: float, steps: int = 3, size: int = 32) -> dict:

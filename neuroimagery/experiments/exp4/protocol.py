@@ -9,6 +9,7 @@ in each condition on the tests listed in ``noise_tests``. RT = accumulator cycle
 """
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 import torch
 
@@ -16,7 +17,8 @@ from ...core import progress
 from ...analysis import figures
 from ...models.rotation_embodied_params import PROPRIOCEPTION as CONDITIONS
 from ...analysis.report import Report, fmt_p, reproducibility_note
-from ...analysis.summary import compare_rates, compare_rt, effect, holm, paired_by_participant, slope_by_participant, summarise_trials
+from ...analysis.summary import (compare_rates, compare_rt, effect, holm, paired_by_participant, paired_means,
+                                 slope_by_participant, summarise_trials)
 from ...nn import seeding
 from ..chapter6 import protocol as pc
 from .config import TESTS
@@ -44,7 +46,7 @@ def train_model(cfg, ids, eye=None):
     model = _model(cfg, ids)
     gens = seeding.participant_generators(cfg.seed, ids, stream=1)
     n_img = e.quick.fm_images if cfg.preset == "quick" else e.fm.images
-    X, Y, moves = pc.three_dot_training_set(gens, n_img, model.step_angles, e.map_size, e.fm.dot_inner)
+    X, Y, moves = pc.three_dot_training_rows(gens, n_img, model.step_angles, e.map_size, e.fm.dot_inner)
     model.fit_forward_models(X, Y, moves, e.fm.batch, progress=pc.batches_bar("forward model"))
     bank = pc.training_bank(cfg, eye)
     pc.train_posture_maps(cfg, eye, model, e.ppc.angles, gens, bank=bank)
@@ -153,12 +155,14 @@ def effects(df: pd.DataFrame) -> list[dict]:
     paired t-tests over participants on their mean RT or correct rate, one-sample t-tests of their
     RT-disparity slopes; Holm's correction over the family."""
     rows = []
-    cond = lambda t, c: df[(df["test"] == t) & (df["condition"] == c)]  # noqa: E731
-    tests = [t for t in TESTS + ("custom",) if t in set(df["test"])]  # custom: a user's folder
+    cells = dict(tuple(df.groupby(["test", "condition"], sort=False)))  # each (test, condition)'s rows, in order
+    cond = lambda t, c: cells.get((t, c), df.iloc[:0])  # noqa: E731
+    conds = {t: {c for tt, c in cells if tt == t} for t, _ in cells}
+    tests = [t for t in TESTS + ("custom",) if t in conds]  # custom: a user's folder
     for t in tests:
         rows.append(effect(f"{t}: RT rises with disparity", ">0", slope_by_participant(cond(t, "none")), "mean_slope"))
     for t in tests:
-        if {"none", "mismatch"} <= set(df[df["test"] == t]["condition"]):
+        if {"none", "mismatch"} <= conds[t]:
             a, b = cond(t, "mismatch"), cond(t, "none")
             rows.append(effect(f"{t}: incongruent movement lengthens RT", ">0", paired_by_participant(a, b, "rt")))
             rows.append(effect(f"{t}: incongruent movement lowers the correct rate", "<0",
@@ -167,7 +171,7 @@ def effects(df: pd.DataFrame) -> list[dict]:
             m = cond(t, "match")
             rows.append(effect(f"{t}: congruent movement, no gain in RT (ceiling)", "~0", paired_by_participant(m, b, "rt"),
                                bound=RT_BOUND))
-        if {"noise-none", "noise-match"} <= set(df[df["test"] == t]["condition"]):
+        if {"noise-none", "noise-match"} <= conds[t]:
             far = lambda d: d[d["disparity"] >= 120]  # noqa: E731
             a, b = far(cond(t, "noise-match")), far(cond(t, "noise-none"))
             rows.append(effect(f"{t}, noise, 120-150 deg: congruent movement shortens RT", "<0",
@@ -184,6 +188,11 @@ def _stats_by_disparity(df: pd.DataFrame) -> dict:
     Holm's correction over every p of the table (``{"<test>:<a>-vs-<b>": {"<disparity>": {...}}}``;
     ``rt_a``/``rt_b`` and ``correct_a``/``correct_b`` the means over the participants)."""
     out, ps = {}, []
+    # every participant's mean RT and correct rate in every (test, condition, disparity), at once
+    means = df.assign(correct=df["correct"].astype(float)).groupby(
+        ["test", "condition", "disparity", "participant"], sort=True)[["rt", "correct"]].mean()
+    cells = {key: g.droplevel([0, 1, 2]) for key, g in means.groupby(level=[0, 1, 2], sort=False)}
+    empty = means.iloc[:0].droplevel([0, 1, 2])
     for test in df["test"].unique():
         d = df[df["test"] == test]
         conds = set(d["condition"].unique())
@@ -191,11 +200,9 @@ def _stats_by_disparity(df: pd.DataFrame) -> dict:
             if a not in conds or b not in conds:
                 continue
             rows = {}
-            for disp, g in d.groupby("disparity"):
-                ga, gb = g[g["condition"] == a], g[g["condition"] == b]
-                rt = paired_by_participant(ga, gb, "rt")
-                cr = paired_by_participant(ga.assign(correct=ga["correct"].astype(float)),
-                                           gb.assign(correct=gb["correct"].astype(float)), "correct")
+            for disp in np.sort(d["disparity"].unique()):
+                ga, gb = cells.get((test, a, disp), empty), cells.get((test, b, disp), empty)
+                rt, cr = paired_means(ga["rt"], gb["rt"]), paired_means(ga["correct"], gb["correct"])
                 row = {"rt_a": rt["mean_a"], "rt_b": rt["mean_b"], "rt_p": rt["p"],
                        "correct_a": cr["mean_a"], "correct_b": cr["mean_b"], "correct_p": cr["p"], "n": rt["n"]}
                 rows[str(int(disp))] = row
