@@ -351,14 +351,9 @@ def test_summary_counts_the_participants_of_a_loaded_checkpoint(tmp_path):
     assert s["participants"] == 1 and s["tests"]["all/none"]["n_trials"] == 196
 
 
-@pytest.mark.parametrize("condition", ["none", "match"])
-def test_answers_do_not_read_labels(monkeypatch, condition):
-    """The items' labels (objects, angles) shuffled after the protocol has chosen them, each trial's
-    images kept: the model's answers, RTs and steps are unchanged (the rotation is scored against the
-    labels outside the model)."""
-    import pandas as pd
-    from support_labels import answers
-
+@pytest.fixture(scope="module")
+def fitted_on_l():
+    """(config, set L, two participants trained on it briefly), for both conditions below."""
     from neuroimagery.config import validate
     from neuroimagery.experiments.exp2 import protocol as exp2
     from neuroimagery.experiments.chapter5.protocol import image_table
@@ -367,10 +362,22 @@ def test_answers_do_not_read_labels(monkeypatch, condition):
     cfg = validate(_cfg("participants=2", "logger=none", "experiment.som.iterations=30", "experiment.hebb_steps=60",
                         "experiment.c5_epochs=1"))
     sset = get_stimulus_set("L")
-    e = exp2._e(cfg)
-    model = MotorRotationModel(e, 2, 0)
+    model = MotorRotationModel(exp2._e(cfg), 2, 0)
     model.fit(image_table(cfg, sset, exp2.ANGLES))
-    model.eval()
+    return cfg, sset, model.eval()
+
+
+@pytest.mark.parametrize("condition", ["none", "match"])
+def test_answers_do_not_read_labels(monkeypatch, condition, fitted_on_l):
+    """The items' labels (objects, angles) shuffled after the protocol has chosen them, each trial's
+    images kept: the model's answers, RTs and steps are unchanged (the rotation is scored against the
+    labels outside the model)."""
+    import pandas as pd
+    from support_labels import answers
+
+    from neuroimagery.experiments.exp2 import protocol as exp2
+
+    cfg, sset, model = fitted_on_l
     base = pd.DataFrame(exp2.run_test(cfg, model, sset, "all", condition)[0])
     objs, angles = exp2.objects_of(sset), list(exp2.ANGLES)
     images = exp2.edge_maps
