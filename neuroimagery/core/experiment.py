@@ -50,6 +50,13 @@ class lazy:
         return lazy, (self.module, self.name)
 
 
+def phases(package: str, *names: str) -> dict[str, lazy]:
+    """The fields ``names`` of an :class:`Experiment` as :class:`lazy` references to the functions
+    of the same names in ``package``'s ``protocol`` module: ``Experiment(name=..., **phases(__name__,
+    "train", "load", "evaluate", "report"), ...)``."""
+    return {n: lazy(f"{package}.protocol", n) for n in names}
+
+
 @dataclass(frozen=True)
 class Experiment:
     """The protocol of one experiment.

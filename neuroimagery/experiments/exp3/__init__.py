@@ -2,26 +2,18 @@
 
 The schema and what the checks before any work read: :mod:`.config` (nothing heavy imported); the
 phases: :mod:`.protocol`, imported when one first runs."""
-import functools
-
-from ...core.experiment import Experiment, lazy
+from ...core.experiment import Experiment, phases
 from . import config
 from ..chapter6.checks import check_inputs, memory_estimate
-
-_phase = functools.partial(lazy, f"{__name__}.protocol")  # a function of the protocol, imported on first call
 
 EXPERIMENT = Experiment(
     name="exp3",
     config=config.CONFIG,
-    train=_phase("train"),
-    load=_phase("load"),
-    evaluate=_phase("evaluate"),
-    report=_phase("report"),
+    **phases(__name__, "train", "load", "evaluate", "report", "effects"),
     checkpoints=config.CHECKPOINTS,
     inputs=config.INPUTS,
     test_keys=config.TEST_KEYS,
     memory_estimate=memory_estimate,
     check_inputs=check_inputs,
     ineffective_keys=config.ineffective_keys,
-    effects=_phase("effects"),
 )

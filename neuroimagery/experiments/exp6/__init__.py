@@ -2,21 +2,14 @@
 
 The schema and what the checks before any work read: :mod:`.config` (nothing heavy imported); the
 phases: :mod:`.protocol`, imported when one first runs."""
-import functools
-
-from ...core.experiment import Experiment, lazy
+from ...core.experiment import Experiment, phases
 from . import config
 from .checks import check_inputs, memory_estimate
-
-_phase = functools.partial(lazy, f"{__name__}.protocol")  # a function of the protocol, imported on first call
 
 EXPERIMENT = Experiment(
     name="exp6",
     config=config.CONFIG,
-    train=_phase("train"),
-    load=_phase("load"),
-    evaluate=_phase("evaluate"),
-    report=_phase("report"),
+    **phases(__name__, "train", "load", "evaluate", "report", "effects"),
     checkpoints=config.CHECKPOINTS,
     inputs=config.INPUTS,
     runtime_keys=config.RUNTIME_KEYS,
@@ -24,5 +17,4 @@ EXPERIMENT = Experiment(
     memory_estimate=memory_estimate,
     check_inputs=check_inputs,
     ineffective_keys=config.ineffective_keys,
-    effects=_phase("effects"),
 )
