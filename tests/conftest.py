@@ -3,14 +3,21 @@ cores (pytest-xdist): see :func:`pytest_cmdline_main`."""
 from __future__ import annotations
 
 import os
-import re
-from pathlib import Path
 
-import pytest
-import torch
-from hydra import compose, initialize_config_dir
+# OpenMP's waiting threads spin on their core by default (GNU OpenMP): in a test at two threads
+# while another worker or job keeps a core busy, every parallel region then waits for a thread that
+# is not running (an Exp 4 training at two threads: 60-80 s instead of 10 s on a busy machine). They
+# sleep instead; set before torch loads OpenMP, and inherited by the workers and the runs tests start.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-from neuroimagery.config import register_configs
+import re  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import pytest  # noqa: E402
+import torch  # noqa: E402
+from hydra import compose, initialize_config_dir  # noqa: E402
+
+from neuroimagery.config import register_configs  # noqa: E402
 
 CONF = str(Path(__file__).resolve().parents[1] / "conf")
 register_configs()
