@@ -12,6 +12,7 @@ machine was idle: on shared cores the times depend on the other jobs.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -28,9 +29,9 @@ def run_once(exp: str, overrides: list[str]) -> dict:
     with tempfile.TemporaryDirectory(prefix="bench-command-") as tmp:
         cmd = [sys.executable, str(ROOT / "evaluate.py"), f"experiment={exp}", "logger=none", "progress=false",
                f"hydra.run.dir={tmp}", *overrides]
-        t0 = time.perf_counter()
+        before, t0 = os.times(), time.perf_counter()
         done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
-        wall = time.perf_counter() - t0
+        wall, after = time.perf_counter() - t0, os.times()
         if done.returncode != 0:
             sys.exit(f"error: {' '.join(cmd[1:])} failed with status {done.returncode}:\n{done.stderr[-2000:]}")
         summary = json.loads((Path(tmp) / "summary.json").read_text())
@@ -38,7 +39,8 @@ def run_once(exp: str, overrides: list[str]) -> dict:
     split = {"startup": rt.get("startup", 0.0), "train": rt.get("train", 0.0),
              "tests": rt.get("evaluate", 0.0) - rt.get("figures", 0.0), "figures": rt.get("figures", 0.0)}
     split["rest"] = wall - sum(split.values())
-    return {"wall": wall, "split": split, "peak_rss_mb": summary.get("peak_rss_mb", {})}
+    cpu = (after.children_user - before.children_user) + (after.children_system - before.children_system)
+    return {"wall": wall, "cpu": cpu, "split": split, "runtime_s": rt, "peak_rss_mb": summary.get("peak_rss_mb", {})}
 
 
 def main(argv=None) -> int:

@@ -17,17 +17,17 @@ the steadier number on shared cores.
 """
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 from neuroimagery.core.arguments import ToolParser, check, count, run_tool
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from bench_command import run_once  # noqa: E402  (the whole command, timed from outside)
 RUN = [sys.executable, str(ROOT / "evaluate.py"), "logger=none", "progress=false"]
 GOALS = {"refusal": 1.0, "startup": 2.0, "exp4": 10.0, "exp12": 30.0, "exp6": 90.0, "exp5": 300.0, "suite": 360.0}
 UNIT = {"exp5": "CPU-s"}
@@ -48,16 +48,10 @@ def timed(cmd: list[str], ok=(0,)) -> tuple[float, float, subprocess.CompletedPr
 
 
 def experiment(names: list[str]) -> tuple[float, float, dict]:
-    """The experiments ``names`` at the full protocol, one after the other, each in its own run
-    directory (removed afterwards): wall, CPU and the last run's ``runtime_s``."""
-    wall = cpu = 0.0
-    runtime: dict = {}
-    for name in names:
-        with tempfile.TemporaryDirectory(prefix="bench-goals-") as tmp:
-            w, c, _ = timed([*RUN, f"experiment={name}", f"hydra.run.dir={tmp}"])
-            runtime = json.loads((Path(tmp) / "summary.json").read_text()).get("runtime_s", {})
-        wall, cpu = wall + w, cpu + c
-    return wall, cpu, runtime
+    """The experiments ``names`` at the full protocol, one after the other (``bench_command.run_once``:
+    each in its own run directory, removed afterwards): wall, CPU and the last run's ``runtime_s``."""
+    runs = [run_once(name, []) for name in names]
+    return sum(r["wall"] for r in runs), sum(r["cpu"] for r in runs), runs[-1]["runtime_s"]
 
 
 def measure(goal: str) -> tuple[float, str]:
